@@ -1,0 +1,3 @@
+fn main() {
+    fluidtex_cli::run()
+}

@@ -1,0 +1,31 @@
+//! fluidtex: textures that ride animated fluid surfaces.
+//!
+//! The pipeline, per frame of a fluid simulation:
+//!
+//! ```text
+//!  mesh sequence ──► io (read, validate) ──► TriMesh + velocity
+//!                                               │
+//!        ┌──────────────────────────────────────┤
+//!        ▼                                      ▼
+//!  surface (BVH, closest point,          atlas (charts, LSCM, packing,
+//!   velocity, Poisson disk)               per-texel surface points)
+//!        │                                      │
+//!        └──────────► methods (erosion = Gagnon et al. 2021, ...) ◄── exemplar
+//!                          │  fills atlas channels + per-texel provenance
+//!                          ▼
+//!                    io (PNG/EXR atlas, OBJ+MTL, glb, stats JSON; atomic)
+//! ```
+//!
+//! Modules, one per concept: [`mesh`], [`surface`], [`param`], [`atlas`],
+//! [`exemplar`], [`methods`], [`metrics`], [`render`], [`scenes`], [`io`].
+
+pub mod atlas;
+pub mod exemplar;
+pub mod io;
+pub mod mesh;
+pub mod methods;
+pub mod metrics;
+pub mod param;
+pub mod render;
+pub mod scenes;
+pub mod surface;

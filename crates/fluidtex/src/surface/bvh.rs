@@ -1,0 +1,192 @@
+//! Closest-point queries on a triangle mesh.
+//!
+//! Built on parry3d's `TriMesh` and its BVH (the probed timings in
+//! DESIGN §7: 28 ms to build on 58k triangles, 100k bounded queries in
+//! 19 ms on 2 cores). This wrapper turns parry's projection into a
+//! [`SurfacePoint`] so callers never see parry types.
+
+use glam::Vec3;
+use parry3d::query::PointQueryWithLocation;
+use parry3d::shape::TriMesh as ParryMesh;
+
+use super::SurfacePoint;
+use crate::mesh::TriMesh;
+
+/// Result of a closest-point query.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfaceHit {
+    /// Where on the mesh the closest point lies.
+    pub location: SurfacePoint,
+    /// The closest point itself.
+    pub point: Vec3,
+    /// Euclidean distance from the query point.
+    pub distance: f32,
+}
+
+/// A BVH over one mesh's triangles. Empty meshes are allowed (the fluid can
+/// vanish); every query on them returns `None`.
+pub struct SurfaceIndex {
+    inner: Option<ParryMesh>,
+}
+
+impl SurfaceIndex {
+    /// Builds the BVH. The mesh must be valid (see [`crate::mesh::validate`]).
+    pub fn new(mesh: &TriMesh) -> SurfaceIndex {
+        let inner = if mesh.triangles.is_empty() {
+            None
+        } else {
+            // Only fails for an empty index buffer, excluded above.
+            ParryMesh::new(mesh.positions.clone(), mesh.triangles.clone()).ok()
+        };
+        SurfaceIndex { inner }
+    }
+
+    /// Closest point of the mesh to `p`, or `None` if the mesh is empty, `p`
+    /// is not finite, or nothing lies within `max_distance`.
+    pub fn closest(&self, p: Vec3, max_distance: f32) -> Option<SurfaceHit> {
+        let mesh = self.inner.as_ref()?;
+        if !p.is_finite() {
+            return None;
+        }
+        let (proj, (tri, loc)) =
+            mesh.project_local_point_and_get_location_with_max_dist(p, false, max_distance)?;
+        let mut bary = loc.barycentric_coordinates()?;
+        // parry reports edge locations with weights that can drift a hair
+        // outside [0, 1]; clamp and renormalise so interpolation stays convex.
+        for b in &mut bary {
+            *b = b.clamp(0.0, 1.0);
+        }
+        let sum = bary[0] + bary[1] + bary[2];
+        if sum > 0.0 {
+            for b in &mut bary {
+                *b /= sum;
+            }
+        }
+        Some(SurfaceHit {
+            location: SurfacePoint::new(tri, bary),
+            point: proj.point,
+            distance: (proj.point - p).length(),
+        })
+    }
+
+    /// Closest point with no distance bound.
+    pub fn closest_unbounded(&self, p: Vec3) -> Option<SurfaceHit> {
+        self.closest(p, f32::MAX)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use rand::{Rng, SeedableRng};
+    use rand_pcg::Pcg64;
+
+    use super::*;
+
+    /// Closest point on triangle (a, b, c) by brute force over a fine
+    /// barycentric grid refined by the exact edge/vertex checks below.
+    fn closest_on_triangle(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
+        // Ericson, Real-Time Collision Detection 5.1.5, written independently
+        // of parry so the test is a real cross-check.
+        let ab = b - a;
+        let ac = c - a;
+        let ap = p - a;
+        let d1 = ab.dot(ap);
+        let d2 = ac.dot(ap);
+        if d1 <= 0.0 && d2 <= 0.0 {
+            return a;
+        }
+        let bp = p - b;
+        let d3 = ab.dot(bp);
+        let d4 = ac.dot(bp);
+        if d3 >= 0.0 && d4 <= d3 {
+            return b;
+        }
+        let vc = d1 * d4 - d3 * d2;
+        if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+            return a + ab * (d1 / (d1 - d3));
+        }
+        let cp = p - c;
+        let d5 = ab.dot(cp);
+        let d6 = ac.dot(cp);
+        if d6 >= 0.0 && d5 <= d6 {
+            return c;
+        }
+        let vb = d5 * d2 - d1 * d6;
+        if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+            return a + ac * (d2 / (d2 - d6));
+        }
+        let va = d3 * d6 - d5 * d4;
+        if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+            return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+        }
+        let denom = 1.0 / (va + vb + vc);
+        a + ab * (vb * denom) + ac * (vc * denom)
+    }
+
+    fn random_mesh(rng: &mut Pcg64, n: usize) -> TriMesh {
+        let mut positions = Vec::new();
+        let mut triangles = Vec::new();
+        for t in 0..n {
+            let centre = Vec3::new(rng.random(), rng.random(), rng.random()) * 4.0;
+            for _ in 0..3 {
+                let d = Vec3::new(rng.random(), rng.random(), rng.random()) - 0.5;
+                positions.push(centre + d);
+            }
+            let b = (3 * t) as u32;
+            triangles.push([b, b + 1, b + 2]);
+        }
+        TriMesh::new(positions, triangles)
+    }
+
+    #[test]
+    fn closest_point_matches_brute_force_on_random_meshes() {
+        for seed in 0..8u64 {
+            let mut rng = Pcg64::seed_from_u64(seed);
+            let mesh = random_mesh(&mut rng, 60);
+            let index = SurfaceIndex::new(&mesh);
+            for _ in 0..200 {
+                let p = Vec3::new(rng.random(), rng.random(), rng.random()) * 6.0 - 1.0;
+                let hit = index.closest_unbounded(p).expect("non-empty mesh");
+                let best = (0..mesh.triangles.len())
+                    .map(|t| {
+                        let [a, b, c] = mesh.corners(t);
+                        closest_on_triangle(p, a, b, c).distance(p)
+                    })
+                    .fold(f32::MAX, f32::min);
+                assert!(
+                    (hit.distance - best).abs() < 1e-4,
+                    "seed {seed}: bvh {} vs brute force {best}",
+                    hit.distance
+                );
+                // The reported location reproduces the reported point.
+                let q = hit.location.position(&mesh);
+                assert!(q.distance(hit.point) < 1e-4);
+                assert!(hit.location.bary.iter().all(|&b| (0.0..=1.0).contains(&b)));
+            }
+        }
+    }
+
+    #[test]
+    fn point_on_the_surface_projects_to_itself() {
+        let mut rng = Pcg64::seed_from_u64(42);
+        let mesh = random_mesh(&mut rng, 30);
+        let index = SurfaceIndex::new(&mesh);
+        for t in 0..mesh.triangles.len() {
+            let w: [f32; 3] = [0.2, 0.3, 0.5];
+            let p = SurfacePoint::new(t as u32, w).position(&mesh);
+            let hit = index.closest_unbounded(p).expect("non-empty");
+            assert!(hit.distance < 1e-5);
+        }
+    }
+
+    #[test]
+    fn empty_mesh_bounded_query_and_nan() {
+        let empty = SurfaceIndex::new(&TriMesh::default());
+        assert_eq!(empty.closest_unbounded(Vec3::ZERO), None);
+        let mesh = TriMesh::new(vec![Vec3::ZERO, Vec3::X, Vec3::Y], vec![[0, 1, 2]]);
+        let index = SurfaceIndex::new(&mesh);
+        assert_eq!(index.closest(Vec3::new(0.2, 0.2, 5.0), 1.0), None);
+        assert!(index.closest(Vec3::new(0.2, 0.2, 0.5), 1.0).is_some());
+        assert_eq!(index.closest(Vec3::splat(f32::NAN), 1.0), None);
+    }
+}

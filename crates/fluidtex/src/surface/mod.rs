@@ -1,0 +1,102 @@
+//! Locations on a triangle mesh and the queries that produce them.
+//!
+//! Patch vertices, atlas texels and Poisson-disk samples all live "on the
+//! surface": a [`SurfacePoint`] names the triangle and barycentric
+//! coordinates, and every per-vertex attribute (position, velocity, normal)
+//! is interpolated *at* it. [`SurfaceIndex`] answers closest-point queries
+//! through a BVH; [`velocity`] samples the flow at arbitrary points.
+
+pub mod bvh;
+pub mod poisson;
+pub mod velocity;
+
+use glam::{Vec2, Vec3};
+
+pub use bvh::{SurfaceHit, SurfaceIndex};
+
+use crate::mesh::TriMesh;
+
+/// A point on a triangle mesh: triangle index and barycentric coordinates
+/// (non-negative, summing to 1, weight `bary[k]` on corner k).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfacePoint {
+    pub triangle: u32,
+    pub bary: [f32; 3],
+}
+
+impl SurfacePoint {
+    pub fn new(triangle: u32, bary: [f32; 3]) -> Self {
+        SurfacePoint { triangle, bary }
+    }
+
+    /// Interpolates any per-vertex quantity at this location.
+    #[inline]
+    pub fn interpolate<T>(&self, triangles: &[[u32; 3]], values: &[T]) -> T
+    where
+        T: Copy + std::ops::Mul<f32, Output = T> + std::ops::Add<Output = T>,
+    {
+        let [a, b, c] = triangles[self.triangle as usize];
+        values[a as usize] * self.bary[0]
+            + values[b as usize] * self.bary[1]
+            + values[c as usize] * self.bary[2]
+    }
+
+    /// The 3-D position of this location on `mesh`.
+    #[inline]
+    pub fn position(&self, mesh: &TriMesh) -> Vec3 {
+        self.interpolate(&mesh.triangles, &mesh.positions)
+    }
+}
+
+/// Barycentric coordinates of `p` with respect to the 2-D triangle `(a, b, c)`.
+/// Returns `None` when the triangle is degenerate.
+#[inline]
+pub fn barycentric_2d(p: Vec2, a: Vec2, b: Vec2, c: Vec2) -> Option<[f32; 3]> {
+    let (e0, e1, e2) = (b - a, c - a, p - a);
+    let det = e0.perp_dot(e1);
+    if det == 0.0 || !det.is_finite() {
+        return None;
+    }
+    let l1 = e2.perp_dot(e1) / det;
+    let l2 = e0.perp_dot(e2) / det;
+    Some([1.0 - l1 - l2, l1, l2])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn interpolation_at_corners_and_centroid() {
+        let mesh = TriMesh::new(
+            vec![
+                Vec3::ZERO,
+                Vec3::new(3.0, 0.0, 0.0),
+                Vec3::new(0.0, 3.0, 0.0),
+            ],
+            vec![[0, 1, 2]],
+        );
+        let c = SurfacePoint::new(0, [1.0 / 3.0; 3]);
+        assert!((c.position(&mesh) - Vec3::new(1.0, 1.0, 0.0)).length() < 1e-6);
+        assert_eq!(
+            SurfacePoint::new(0, [0.0, 1.0, 0.0]).position(&mesh),
+            Vec3::new(3.0, 0.0, 0.0)
+        );
+    }
+
+    #[test]
+    fn barycentric_2d_round_trips() {
+        let (a, b, c) = (
+            Vec2::new(0.1, 0.2),
+            Vec2::new(2.0, 0.5),
+            Vec2::new(0.7, 1.9),
+        );
+        let w = [0.2f32, 0.5, 0.3];
+        let p = a * w[0] + b * w[1] + c * w[2];
+        let got = barycentric_2d(p, a, b, c).expect("non-degenerate");
+        for k in 0..3 {
+            assert!((got[k] - w[k]).abs() < 1e-5, "{got:?}");
+        }
+        assert_eq!(barycentric_2d(p, a, a, c), None);
+    }
+}

@@ -1,0 +1,1 @@
+//! Poisson-disk sampling on surfaces (filled in below).

@@ -1,0 +1,1 @@
+//! Velocity at arbitrary points (filled in below).
