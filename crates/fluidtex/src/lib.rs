@@ -17,7 +17,7 @@
 //! ```
 //!
 //! Modules, one per concept: [`mesh`], [`surface`], [`param`], [`atlas`],
-//! [`exemplar`], [`methods`], [`metrics`], [`render`], [`scenes`], [`io`].
+//! [`exemplar`], [`methods`], [`metrics`], [`render`], [`scenes`], [`io`], and [`texture`] (the float image type and texel convention).
 
 pub mod atlas;
 pub mod exemplar;
@@ -29,3 +29,4 @@ pub mod param;
 pub mod render;
 pub mod scenes;
 pub mod surface;
+pub mod texture;
