@@ -125,10 +125,10 @@ impl Texture {
         let row = self.width as usize;
         let at = |x: usize, y: usize| (y * row + x) * c;
         let (i00, i10, i01, i11) = (at(xa, ya), at(xb, ya), at(xa, yb), at(xb, yb));
-        for k in 0..c {
+        for (k, o) in out.iter_mut().enumerate().take(c) {
             let top = self.data[i00 + k] * (1.0 - fx) + self.data[i10 + k] * fx;
             let bottom = self.data[i01 + k] * (1.0 - fx) + self.data[i11 + k] * fx;
-            out[k] = top * (1.0 - fy) + bottom * fy;
+            *o = top * (1.0 - fy) + bottom * fy;
         }
     }
 
