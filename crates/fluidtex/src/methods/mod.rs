@@ -1,1 +1,3 @@
-//! (module under construction)
+//! Texturing methods, one module each, behind one interface.
+
+pub mod erosion;
