@@ -26,6 +26,7 @@ pub mod mesh;
 pub mod methods;
 pub mod metrics;
 pub mod param;
+pub mod pipeline;
 pub mod render;
 pub mod scenes;
 pub mod surface;

@@ -6,6 +6,7 @@
 //! [`SurfacePoint`] so callers never see parry types.
 
 use glam::Vec3;
+use parry3d::bounding_volume::Aabb;
 use parry3d::query::PointQueryWithLocation;
 use parry3d::shape::TriMesh as ParryMesh;
 
@@ -67,6 +68,17 @@ impl SurfaceIndex {
             point: proj.point,
             distance: (proj.point - p).length(),
         })
+    }
+
+    /// Calls `f` with every triangle whose bounding box meets the box
+    /// `[min, max]` (a superset of the triangles that meet the box).
+    pub fn triangles_in_box(&self, min: Vec3, max: Vec3, mut f: impl FnMut(u32)) {
+        if let Some(mesh) = &self.inner {
+            let aabb = Aabb::new(min, max);
+            for t in mesh.bvh().intersect_aabb(&aabb) {
+                f(t);
+            }
+        }
     }
 
     /// Closest point with no distance bound.
@@ -136,6 +148,28 @@ mod tests {
             let p = SurfacePoint::new(t as u32, w).position(&mesh);
             let hit = index.closest_unbounded(p).expect("non-empty");
             assert!(hit.distance < 1e-5);
+        }
+    }
+
+    #[test]
+    fn box_query_finds_exactly_the_overlapping_triangles() {
+        let mut rng = Pcg64::seed_from_u64(9);
+        let mesh = random_mesh(&mut rng, 80);
+        let index = SurfaceIndex::new(&mesh);
+        for _ in 0..50 {
+            let lo = Vec3::new(rng.random(), rng.random(), rng.random()) * 4.0;
+            let hi = lo + Vec3::splat(rng.random::<f32>() + 0.2);
+            let mut got = Vec::new();
+            index.triangles_in_box(lo, hi, |t| got.push(t));
+            got.sort();
+            let want: Vec<u32> = (0..mesh.triangles.len() as u32)
+                .filter(|&t| {
+                    let [a, b, c] = mesh.corners(t as usize);
+                    let (tlo, thi) = (a.min(b).min(c), a.max(b).max(c));
+                    tlo.cmple(hi).all() && thi.cmpge(lo).all()
+                })
+                .collect();
+            assert_eq!(got, want);
         }
     }
 

@@ -1,4 +1,404 @@
-//! Eroded deformable lapped textures (Gagnon et al. 2021).
+//! Eroded deformable lapped textures (Gagnon, Guzmán, Mould, Paquette 2021),
+//! the primary method. Per frame:
+//!
+//! 1. [`patch`]: advect every patch vertex (RK4) to the new frame, project
+//!    it onto the new surface, drop vertices farther than r/4 (Sec. 4); on
+//!    the first frame, place patches on a Poisson-disk set instead.
+//! 2. [`distortion`], [`patch::Patch::update_weights`]: δ_t, Q_T, Q_V, B_V,
+//!    w_V (Eqs. 1–3).
+//! 3. [`fill`]: the lapped fill, oldest patch on top, one source per texel,
+//!    with the erosion test of [`erode`] (Sec. 5.1–5.2).
+//! 4. [`update`]: new patches below the others until no chart texel is
+//!    uncovered; patches no texel used are deleted.
+//!
+//! Every exemplar channel is driven by the same per-texel selection.
 
 pub mod distortion;
 pub mod erode;
+pub mod fill;
+pub mod patch;
+pub mod update;
+
+use std::sync::Arc;
+
+use rand::SeedableRng;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use self::erode::ErosionTest;
+use self::fill::{Candidates, FillBuffers, FillContext, LocateTolerance};
+use self::patch::{FrameSurface, Patch, PatchShape};
+pub use self::update::Placement;
+use super::{ChannelSpec, FrameContext, FrameResult, Method, MethodError, StageClock, check_range};
+use crate::exemplar::Exemplar;
+use crate::mesh::Topology;
+use crate::surface::poisson::sample_mesh;
+use crate::surface::velocity::{FlowFrame, FlowInterval};
+use crate::texture::Texture;
+
+/// Parameters of the erosion method. Defaults follow DESIGN §1 and the
+/// 2021 paper; every field is also a config key and a CLI flag.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ErosionParams {
+    /// Patch radius r in world units (Sec. 4). `None`: `radius_fraction` ×
+    /// the bounding-box diagonal of the first non-empty frame.
+    pub radius: Option<f32>,
+    /// Default r as a fraction of the first frame's bounding-box diagonal [1/25].
+    pub radius_fraction: f32,
+    /// World size S covered by the exemplar's [0,1]². `None`:
+    /// `exemplar_scale` × r.
+    pub exemplar_size: Option<f32>,
+    /// Default S as a multiple of r [2.6]: the authors' code used (2 + β) r, β = 0.6.
+    pub exemplar_scale: f32,
+    /// δ_max of Eq. 1 [3]: triangles at or beyond this distortion have Q_T = 0.
+    pub delta_max: f32,
+    /// ε of the erosion test, Sec. 5.2 [0.1], in (0, 1).
+    pub epsilon: f32,
+    /// Vertices farther than this fraction of r from the next surface are removed [1/4] (Sec. 4).
+    pub far_fraction: f32,
+    /// B_V = 1 within this fraction of r of the patch centre [1/4] (Eq. 2).
+    pub centre_fraction: f32,
+    /// Poisson disks whose normals have a smaller dot product do not block each other [0.9].
+    pub normal_dot: f32,
+    /// RK4 steps per frame [1].
+    pub substeps: u32,
+    /// Random rotation of each patch at creation [true] (seeded per patch id).
+    pub random_rotation: bool,
+    /// New-patch placement [local]: `local` (the paper) or `global`.
+    pub placement: Placement,
+}
+
+impl Default for ErosionParams {
+    fn default() -> Self {
+        ErosionParams {
+            radius: None,
+            radius_fraction: 1.0 / 25.0,
+            exemplar_size: None,
+            exemplar_scale: 2.6,
+            delta_max: 3.0,
+            epsilon: 0.1,
+            far_fraction: 0.25,
+            centre_fraction: 0.25,
+            normal_dot: 0.9,
+            substeps: 1,
+            random_rotation: true,
+            placement: Placement::Local,
+        }
+    }
+}
+
+impl ErosionParams {
+    /// Checks every field's range.
+    pub fn validate(&self) -> Result<(), MethodError> {
+        if let Some(r) = self.radius {
+            check_range("radius", r, f32::MIN_POSITIVE, f32::MAX, "> 0")?;
+        }
+        check_range("radius_fraction", self.radius_fraction, 1e-4, 1.0, "[0.0001, 1]")?;
+        if let Some(s) = self.exemplar_size {
+            check_range("exemplar_size", s, f32::MIN_POSITIVE, f32::MAX, "> 0")?;
+        }
+        check_range("exemplar_scale", self.exemplar_scale, 0.1, 100.0, "[0.1, 100]")?;
+        check_range("delta_max", self.delta_max, 1.0001, 1000.0, "(1, 1000]")?;
+        check_range("epsilon", self.epsilon, 0.0, 0.9999, "[0, 1)")?;
+        check_range("far_fraction", self.far_fraction, 1e-3, 10.0, "[0.001, 10]")?;
+        check_range("centre_fraction", self.centre_fraction, 0.0, 1.0, "[0, 1]")?;
+        check_range("normal_dot", self.normal_dot, -1.0, 1.0, "[-1, 1]")?;
+        check_range("substeps", self.substeps as f32, 1.0, 64.0, "1..=64")?;
+        Ok(())
+    }
+}
+
+/// Patch state carried from frame to frame (saved for `--resume`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ErosionState {
+    /// Patches ordered by id: oldest first (top of the lapped stack).
+    pub patches: Vec<Patch>,
+    pub next_id: u32,
+    /// r and S once resolved from the first non-empty frame.
+    pub radius: Option<f32>,
+    pub exemplar_size: Option<f32>,
+}
+
+/// The erosion method.
+pub struct Erosion {
+    params: ErosionParams,
+    exemplar: Arc<Exemplar>,
+    test: ErosionTest,
+    seed: u64,
+    state: ErosionState,
+}
+
+/// A well-mixed 64-bit value from (seed, stream, index) (SplitMix64
+/// finaliser), so every patch and frame has its own reproducible RNG stream
+/// independent of processing order.
+pub(crate) fn mix(seed: u64, stream: u64, index: u64) -> u64 {
+    let mut z = seed ^ stream.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ index.wrapping_mul(0xD1B5_4A32_D192_ED03);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// The seeded random rotation of patch `id` (radians), or 0 when disabled.
+fn rotation_for(seed: u64, random: bool, id: u32) -> f32 {
+    if random {
+        let bits = mix(seed, 1, id as u64);
+        (bits >> 40) as f32 / (1u64 << 24) as f32 * std::f32::consts::TAU
+    } else {
+        0.0
+    }
+}
+
+impl Erosion {
+    pub fn new(params: ErosionParams, exemplar: Arc<Exemplar>, seed: u64) -> Result<Erosion, MethodError> {
+        params.validate()?;
+        let test = ErosionTest::new(erode::max_norm(&exemplar.feature.map), params.epsilon);
+        Ok(Erosion {
+            params,
+            exemplar,
+            test,
+            seed,
+            state: ErosionState::default(),
+        })
+    }
+
+    /// The patch state (for tests and statistics).
+    pub fn state(&self) -> &ErosionState {
+        &self.state
+    }
+
+    fn shape(&self, radius: f32, exemplar_size: f32) -> PatchShape {
+        PatchShape {
+            radius,
+            exemplar_size,
+            delta_max: self.params.delta_max,
+            far_distance: self.params.far_fraction * radius,
+            centre_radius: self.params.centre_fraction * radius,
+        }
+    }
+}
+
+impl Method for Erosion {
+    fn name(&self) -> &'static str {
+        "erosion"
+    }
+
+    fn channel_specs(&self) -> Vec<ChannelSpec> {
+        self.exemplar.channel_specs()
+    }
+
+    fn step(&mut self, ctx: &FrameContext<'_>) -> Result<FrameResult, MethodError> {
+        let mut clock = StageClock::default();
+        let mesh = ctx.mesh;
+        let atlas = ctx.atlas;
+        let channels = self.exemplar.total_channels();
+        let mut out = FillBuffers::new(atlas.width, atlas.height, channels);
+        let deleted_before;
+        let mut created = 0usize;
+        let mut forced = 0usize;
+
+        if mesh.is_empty() {
+            // The fluid vanished: nothing to project onto, every patch goes.
+            deleted_before = self.state.patches.len();
+            self.state.patches.clear();
+            clock.lap("advection");
+        } else {
+            if mesh.velocity().is_none() {
+                return Err(MethodError::MissingVelocity { frame: ctx.number, method: "erosion" });
+            }
+            let radius = *self.state.radius.get_or_insert_with(|| {
+                let (lo, hi) = mesh.bounding_box().unwrap_or_default();
+                self.params.radius.unwrap_or(self.params.radius_fraction * lo.distance(hi))
+            });
+            let exemplar_size = *self
+                .state
+                .exemplar_size
+                .get_or_insert(self.params.exemplar_size.unwrap_or(self.params.exemplar_scale * radius));
+            let shape = self.shape(radius, exemplar_size);
+
+            // 1. Advection and projection (Sec. 4).
+            let before = self.state.patches.len();
+            if let Some(prev) = ctx.previous
+                && !self.state.patches.is_empty()
+                && !prev.mesh.is_empty()
+            {
+                let pv = prev.mesh.velocity().ok_or(MethodError::MissingVelocity {
+                    frame: ctx.number - 1,
+                    method: "erosion",
+                })?;
+                let cv = mesh.velocity().unwrap_or(&[]);
+                let flow = FlowInterval {
+                    from: FlowFrame { mesh: prev.mesh, index: prev.index, velocity: pv },
+                    to: Some(FlowFrame { mesh, index: ctx.index, velocity: cv }),
+                    dt: ctx.dt,
+                    substeps: self.params.substeps,
+                    search_hint: radius,
+                };
+                self.state.patches.par_iter_mut().for_each(|p| {
+                    if !p.advect(&flow, ctx.index, &shape) {
+                        p.triangles.clear();
+                    }
+                });
+                self.state.patches.retain(|p| !p.triangles.is_empty());
+            } else if ctx.previous.is_none() || ctx.previous.is_some_and(|p| p.mesh.is_empty()) {
+                // A fresh start of the surface: patches of an older surface cannot be carried.
+                self.state.patches.clear();
+            }
+            deleted_before = before - self.state.patches.len();
+            clock.lap("advection");
+
+            let topology = Topology::new(mesh.vertex_count(), &mesh.triangles);
+            let normals = mesh.vertex_normals();
+            let surface = FrameSurface { mesh, topology: &topology, vertex_normals: &normals };
+
+            // Initial distribution (frame 0, or a surface that reappears).
+            if self.state.patches.is_empty() {
+                let mut rng = rand_pcg::Pcg64::seed_from_u64(mix(self.seed, 2, ctx.number as u64));
+                let samples = sample_mesh(mesh, radius, self.params.normal_dot, 30.0, &mut rng);
+                let first = self.state.next_id;
+                let (seed, random) = (self.seed, self.params.random_rotation);
+                let new: Vec<Patch> = samples
+                    .par_iter()
+                    .enumerate()
+                    .filter_map(|(k, s)| {
+                        let id = first + k as u32;
+                        Patch::create(id, &surface, s.location, &shape, rotation_for(seed, random, id))
+                    })
+                    .collect();
+                self.state.next_id += samples.len() as u32;
+                created += new.len();
+                self.state.patches.extend(new);
+            }
+            clock.lap("creation");
+
+            // 2. Weights (Eqs. 1-3).
+            self.state.patches.par_iter_mut().for_each(|p| p.update_weights(&shape));
+            clock.lap("weights");
+
+            // 3. Lapped fill.
+            let tolerance = LocateTolerance { min_bary: -0.05, max_plane_distance: 0.125 * radius };
+            let frames = fill::patch_frames(&self.state.patches);
+            let candidates = Candidates::build(
+                mesh.triangle_count(),
+                ctx.index,
+                &self.state.patches,
+                0,
+                tolerance.max_plane_distance,
+            );
+            let fill_ctx = FillContext {
+                mesh,
+                patches: &self.state.patches,
+                frames: &frames,
+                exemplar: &self.exemplar,
+                test: self.test,
+                tolerance,
+            };
+            let uncovered = fill::fill(&fill_ctx, atlas, &candidates, &mut out);
+            drop(fill_ctx);
+            drop(candidates);
+            drop(frames);
+            clock.lap("fill");
+
+            // 4. Distribution update.
+            let exemplar = Arc::clone(&self.exemplar);
+            let template = FillContext {
+                mesh,
+                patches: &[],
+                frames: &[],
+                exemplar: &exemplar,
+                test: self.test,
+                tolerance,
+            };
+            let (seed, random) = (self.seed, self.params.random_rotation);
+            let rotation = move |id: u32| rotation_for(seed, random, id);
+            let inputs = update::UpdateInputs {
+                surface: &surface,
+                index: ctx.index,
+                shape,
+                placement: self.params.placement,
+                normal_dot: self.params.normal_dot,
+                rotation: &rotation,
+                margin: tolerance.max_plane_distance,
+            };
+            let stats = update::cover(
+                &template,
+                &inputs,
+                &mut self.state.patches,
+                &mut self.state.next_id,
+                &uncovered,
+                &mut out,
+            );
+            created += stats.created;
+            forced = stats.forced;
+            clock.lap("update");
+        }
+
+        // Delete patches no texel used (Sec. 3).
+        let alive_before = self.state.patches.len();
+        let max_id = self.state.next_id as usize;
+        let mut used = vec![false; max_id + 1];
+        for &s in &out.source {
+            if s != fill::OUTSIDE && s != fill::UNCOVERED && (s as usize) <= max_id {
+                used[s as usize - 1] = true;
+            }
+        }
+        self.state.patches.retain(|p| used[p.id as usize]);
+        let unused = alive_before - self.state.patches.len();
+        clock.lap("delete");
+
+        let texels_in_charts = out.source.iter().filter(|&&s| s != fill::OUTSIDE).count();
+        let uncovered_after = out.source.iter().filter(|&&s| s == fill::UNCOVERED).count();
+        let mut result = FrameResult {
+            channels: split_channels(&out, &self.exemplar),
+            ..Default::default()
+        };
+        let stats = &mut result.stats;
+        stats.insert("patches_alive".into(), self.state.patches.len().into());
+        stats.insert("patches_created".into(), created.into());
+        stats.insert("patches_deleted".into(), (deleted_before + unused).into());
+        stats.insert("patches_deleted_unused".into(), unused.into());
+        stats.insert("patches_deleted_advection".into(), deleted_before.into());
+        stats.insert("texels_in_charts".into(), texels_in_charts.into());
+        stats.insert("uncovered_texels".into(), uncovered_after.into());
+        stats.insert("forced_texels".into(), forced.into());
+        if let Some(r) = self.state.radius {
+            stats.insert("radius".into(), serde_json::json!(r));
+        }
+        if let Some(s) = self.state.exemplar_size {
+            stats.insert("exemplar_size".into(), serde_json::json!(s));
+        }
+        result.source = Some(out.source);
+        result.uv = Some(out.uv);
+        result.timings = clock.stages;
+        Ok(result)
+    }
+
+    fn save_state(&self) -> Result<Vec<u8>, MethodError> {
+        postcard::to_allocvec(&self.state).map_err(|e| MethodError::State(e.to_string()))
+    }
+
+    fn load_state(&mut self, bytes: &[u8]) -> Result<(), MethodError> {
+        self.state = postcard::from_bytes(bytes).map_err(|e| MethodError::State(e.to_string()))?;
+        Ok(())
+    }
+}
+
+/// De-interleaves the fill's values into one texture per exemplar channel.
+fn split_channels(out: &FillBuffers, exemplar: &Exemplar) -> Vec<Texture> {
+    let mut layout = vec![exemplar.colour.channels];
+    layout.extend(exemplar.channels.iter().map(|c| c.texture.channels));
+    let total = out.channels;
+    let mut offset = 0;
+    layout
+        .into_iter()
+        .map(|k| {
+            let data: Vec<f32> = out
+                .values
+                .par_chunks(total)
+                .flat_map_iter(|texel| texel[offset..offset + k].iter().copied())
+                .collect();
+            offset += k;
+            Texture { width: out.width, height: out.height, channels: k, data }
+        })
+        .collect()
+}

@@ -1,0 +1,122 @@
+//! `atlas-check`: fills the atlas with a procedural world-space 3-D checker.
+//!
+//! No texture synthesis at all: this method exists so that the chain read →
+//! atlas → write → view can be looked at on its own. A correct atlas shows
+//! square, unstretched checker cells continuing across chart seams; a wrong
+//! one shows it at once (sheared cells, seams, holes).
+
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::{ChannelFormat, ChannelSpec, FrameContext, FrameResult, Method, MethodError, SOURCE_OUTSIDE, StageClock, check_range};
+use crate::texture::Texture;
+
+/// Parameters of the checker.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct AtlasCheckParams {
+    /// Checker cell size in world units. `None`: the first non-empty frame's
+    /// bounding-box diagonal / `cells_per_diagonal`.
+    pub cell: Option<f32>,
+    /// Default number of cells along the bounding-box diagonal [24].
+    pub cells_per_diagonal: f32,
+}
+
+impl Default for AtlasCheckParams {
+    fn default() -> Self {
+        AtlasCheckParams { cell: None, cells_per_diagonal: 24.0 }
+    }
+}
+
+/// The checker method.
+pub struct AtlasCheck {
+    params: AtlasCheckParams,
+    cell: Option<f32>,
+}
+
+impl AtlasCheck {
+    pub fn new(params: AtlasCheckParams) -> Result<AtlasCheck, MethodError> {
+        if let Some(c) = params.cell {
+            check_range("cell", c, f32::MIN_POSITIVE, f32::MAX, "> 0")?;
+        }
+        check_range("cells_per_diagonal", params.cells_per_diagonal, 1.0, 1e6, "[1, 1e6]")?;
+        Ok(AtlasCheck { cell: params.cell, params })
+    }
+}
+
+/// The checker colour at world point `p` for cell size `cell`: two tones per
+/// parity, tinted by the cell's position so neighbouring cells are told apart.
+pub fn checker(p: glam::Vec3, cell: f32) -> [f32; 3] {
+    let c = (p / cell).floor();
+    let parity = (c.x as i64 + c.y as i64 + c.z as i64).rem_euclid(2);
+    let base = if parity == 0 { 0.9 } else { 0.25 };
+    let tint = |k: f32| 0.08 * ((k * 0.37).sin());
+    [base + tint(c.x), base + tint(c.y + 1.0), base + tint(c.z + 2.0)].map(|v| v.clamp(0.0, 1.0))
+}
+
+impl Method for AtlasCheck {
+    fn name(&self) -> &'static str {
+        "atlas-check"
+    }
+
+    fn needs_velocity(&self) -> bool {
+        false
+    }
+
+    fn channel_specs(&self) -> Vec<ChannelSpec> {
+        vec![ChannelSpec { name: "color".into(), format: ChannelFormat::Png8 }]
+    }
+
+    fn step(&mut self, ctx: &FrameContext<'_>) -> Result<FrameResult, MethodError> {
+        let mut clock = StageClock::default();
+        let mesh = ctx.mesh;
+        let atlas = ctx.atlas;
+        if self.cell.is_none() && !mesh.is_empty() {
+            let (lo, hi) = mesh.bounding_box().unwrap_or_default();
+            self.cell = Some((lo.distance(hi) / self.params.cells_per_diagonal).max(f32::MIN_POSITIVE));
+        }
+        let cell = self.cell.unwrap_or(1.0);
+        let w = atlas.width as usize;
+        let mut colour = Texture::filled(atlas.width, atlas.height, 3, 0.0);
+        let mut source = vec![SOURCE_OUTSIDE; w * atlas.height as usize];
+        if let Some(first) = atlas.bands().first() {
+            let rows = (first.y1 - first.y0) as usize;
+            colour
+                .data
+                .par_chunks_mut(rows * w * 3)
+                .zip(source.par_chunks_mut(rows * w))
+                .zip(atlas.bands().par_iter())
+                .for_each(|((data, src), band)| {
+                    for span in &band.spans {
+                        let [a, b, c] = mesh.corners(span.triangle as usize);
+                        let row = (span.y - band.y0) as usize * w;
+                        for (x, bary) in atlas.span_barycentrics(span) {
+                            let t = row + x as usize;
+                            let p = a * bary[0] + b * bary[1] + c * bary[2];
+                            data[t * 3..t * 3 + 3].copy_from_slice(&checker(p, cell));
+                            // One "source" for the whole surface: it is never uncovered.
+                            src[t] = 1;
+                        }
+                    }
+                });
+        }
+        clock.lap("fill");
+        let mut result = FrameResult {
+            channels: vec![colour],
+            source: Some(source),
+            ..Default::default()
+        };
+        result.stats.insert("cell".into(), serde_json::json!(cell));
+        result.timings = clock.stages;
+        Ok(result)
+    }
+
+    fn save_state(&self) -> Result<Vec<u8>, MethodError> {
+        serde_json::to_vec(&self.cell).map_err(|e| MethodError::State(e.to_string()))
+    }
+
+    fn load_state(&mut self, bytes: &[u8]) -> Result<(), MethodError> {
+        self.cell = serde_json::from_slice(bytes).map_err(|e| MethodError::State(e.to_string()))?;
+        Ok(())
+    }
+}

@@ -1,0 +1,340 @@
+//! The lapped fill (Gagnon et al. 2021, Sec. 5.1): every atlas texel takes
+//! its value from exactly one patch texel — the topmost (oldest) patch whose
+//! texel there survives erosion — and never from a blend.
+//!
+//! This is the hot loop of the method, organised for the speed target of
+//! DESIGN §6:
+//! - Locating a surface point in a patch needs the patch triangle whose
+//!   footprint contains it. Per frame, every patch triangle is matched with
+//!   the fluid triangles its (slightly enlarged) bounding box meets, through
+//!   the fluid mesh's BVH; the pairs are sorted into per-fluid-triangle
+//!   candidate lists ordered by patch age. A texel then only tests the few
+//!   patch triangles listed for its own fluid triangle.
+//! - A patch triangle is a chord of the curved surface, so a surface point
+//!   is located by orthogonal projection onto the triangle's plane; the
+//!   triangle of the patch with the largest smallest barycentric wins, and a
+//!   small negative tolerance closes the slivers that curvature opens
+//!   between neighbouring chords.
+//! - Texels are processed band by band (rows), bands in parallel, each band
+//!   writing only its own rows: deterministic whatever the thread count.
+
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+
+use super::erode::ErosionTest;
+use super::patch::Patch;
+use crate::atlas::Atlas;
+use crate::exemplar::Exemplar;
+use crate::mesh::TriMesh;
+use crate::surface::SurfaceIndex;
+
+/// Source value of a texel outside every chart.
+pub const OUTSIDE: u32 = u32::MAX;
+/// Source value of a chart texel no patch covers.
+pub const UNCOVERED: u32 = 0;
+
+/// How a surface point is located in a patch.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LocateTolerance {
+    /// Smallest barycentric accepted (a small negative number).
+    pub min_bary: f32,
+    /// Largest distance of the point from the patch triangle's plane.
+    pub max_plane_distance: f32,
+}
+
+/// Precomputed projection onto one patch triangle's plane: barycentrics
+/// of the projection of x are (1 − l1 − l2, l1, l2) with l1 = d1·(x − o),
+/// l2 = d2·(x − o) (dual basis of the edge vectors).
+#[derive(Clone, Copy, Debug)]
+pub struct TriFrame {
+    origin: Vec3,
+    d1: Vec3,
+    d2: Vec3,
+    normal: Vec3,
+}
+
+impl TriFrame {
+    /// `None` for a degenerate (collapsed) triangle, which then covers nothing.
+    pub fn new(a: Vec3, b: Vec3, c: Vec3) -> Option<TriFrame> {
+        let (e1, e2) = (b - a, c - a);
+        let (g11, g12, g22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+        let det = g11 * g22 - g12 * g12;
+        let normal = e1.cross(e2).normalize_or_zero();
+        if det <= f32::EPSILON * g11 * g22 || normal == Vec3::ZERO {
+            return None;
+        }
+        let inv = 1.0 / det;
+        Some(TriFrame {
+            origin: a,
+            d1: (e1 * g22 - e2 * g12) * inv,
+            d2: (e2 * g11 - e1 * g12) * inv,
+            normal,
+        })
+    }
+
+    /// Barycentrics of the projection of `x` and its signed plane distance.
+    #[inline]
+    pub fn locate(&self, x: Vec3) -> ([f32; 3], f32) {
+        let d = x - self.origin;
+        let (l1, l2) = (self.d1.dot(d), self.d2.dot(d));
+        ([1.0 - l1 - l2, l1, l2], self.normal.dot(d))
+    }
+}
+
+/// Locating frames of every triangle of every patch, in patch order.
+pub fn patch_frames(patches: &[Patch]) -> Vec<Vec<Option<TriFrame>>> {
+    patches
+        .par_iter()
+        .map(|p| {
+            p.triangles
+                .iter()
+                .map(|t| {
+                    let [a, b, c] = t.map(|v| p.positions[v as usize]);
+                    TriFrame::new(a, b, c)
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// Per fluid triangle, the (patch index, patch triangle) pairs that may
+/// cover its texels, sorted by patch index (= age) then triangle.
+pub struct Candidates {
+    offsets: Vec<u32>,
+    entries: Vec<(u32, u32)>,
+}
+
+impl Candidates {
+    /// Matches the triangles of `patches[first..]` with the fluid triangles
+    /// of `index` whose boxes meet theirs enlarged by `margin`. Patch indices
+    /// in the result are absolute (offset by `first`).
+    pub fn build(
+        fluid_triangles: usize,
+        index: &SurfaceIndex,
+        patches: &[Patch],
+        first: usize,
+        margin: f32,
+    ) -> Candidates {
+        let per_patch: Vec<Vec<(u32, u32, u32)>> = patches[first..]
+            .par_iter()
+            .enumerate()
+            .map(|(k, p)| {
+                let i = (first + k) as u32;
+                let mut out = Vec::new();
+                for (j, t) in p.triangles.iter().enumerate() {
+                    let [a, b, c] = t.map(|v| p.positions[v as usize]);
+                    let lo = a.min(b).min(c) - Vec3::splat(margin);
+                    let hi = a.max(b).max(c) + Vec3::splat(margin);
+                    index.triangles_in_box(lo, hi, |f| out.push((f, i, j as u32)));
+                }
+                out
+            })
+            .collect();
+        let mut all: Vec<(u32, u32, u32)> = per_patch.into_iter().flatten().collect();
+        all.par_sort_unstable();
+        let mut offsets = vec![0u32; fluid_triangles + 1];
+        for &(f, _, _) in &all {
+            offsets[f as usize + 1] += 1;
+        }
+        for k in 0..fluid_triangles {
+            offsets[k + 1] += offsets[k];
+        }
+        Candidates {
+            offsets,
+            entries: all.into_iter().map(|(_, i, j)| (i, j)).collect(),
+        }
+    }
+
+    /// Candidate (patch index, patch triangle) pairs of fluid triangle `f`.
+    #[inline]
+    pub fn of(&self, f: u32) -> &[(u32, u32)] {
+        let f = f as usize;
+        if f + 1 >= self.offsets.len() {
+            return &[];
+        }
+        &self.entries[self.offsets[f] as usize..self.offsets[f + 1] as usize]
+    }
+
+    /// Total number of pairs (a cost indicator for the stats).
+    pub fn len(&self) -> usize {
+        self.entries.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.entries.is_empty()
+    }
+}
+
+/// Everything the fill reads.
+pub struct FillContext<'a> {
+    pub mesh: &'a TriMesh,
+    pub patches: &'a [Patch],
+    pub frames: &'a [Vec<Option<TriFrame>>],
+    pub exemplar: &'a Exemplar,
+    pub test: ErosionTest,
+    pub tolerance: LocateTolerance,
+}
+
+/// What a texel resolved to.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// Index of the patch in the patch list.
+    pub patch: u32,
+    /// Patch (exemplar) uv at the texel.
+    pub uv: Vec2,
+}
+
+impl FillContext<'_> {
+    /// Locates `x` (on fluid triangle with unit normal `n`) in patch `i`
+    /// among the listed patch triangles; returns the patch uv and weight.
+    #[inline]
+    pub fn locate(&self, i: u32, tris: impl Iterator<Item = u32>, x: Vec3, n: Vec3) -> Option<(Vec2, f32)> {
+        let frames = &self.frames[i as usize];
+        let mut best: Option<(u32, [f32; 3], f32)> = None;
+        for j in tris {
+            let Some(frame) = frames[j as usize] else { continue };
+            if frame.normal.dot(n) <= 0.0 {
+                continue;
+            }
+            let (bary, plane) = frame.locate(x);
+            if plane.abs() > self.tolerance.max_plane_distance {
+                continue;
+            }
+            let m = bary[0].min(bary[1]).min(bary[2]);
+            if m >= self.tolerance.min_bary && best.is_none_or(|b| m > b.2) {
+                best = Some((j, bary, m));
+            }
+        }
+        let (j, bary, _) = best?;
+        let b = bary.map(|v| v.max(0.0));
+        let s = b[0] + b[1] + b[2];
+        let b = b.map(|v| v / s);
+        let patch = &self.patches[i as usize];
+        let t = patch.triangles[j as usize];
+        let uv = patch.rest[t[0] as usize] * b[0] + patch.rest[t[1] as usize] * b[1] + patch.rest[t[2] as usize] * b[2];
+        let w = patch.weight[t[0] as usize] * b[0] + patch.weight[t[1] as usize] * b[1] + patch.weight[t[2] as usize] * b[2];
+        Some((uv, w))
+    }
+
+    /// True when patch uv `uv` with weight `w` survives erosion.
+    #[inline]
+    pub fn kept(&self, uv: Vec2, w: f32) -> bool {
+        let f = self.exemplar.feature.sample(uv.x, uv.y);
+        !self.test.eroded(f, uv.x, uv.y, w)
+    }
+
+    /// The lapped decision for one surface point: the first patch, in the
+    /// candidate order (oldest first), that contains the point and whose
+    /// texel there is not eroded.
+    #[inline]
+    pub fn resolve(&self, candidates: &[(u32, u32)], x: Vec3, n: Vec3) -> Option<Hit> {
+        let mut k = 0;
+        while k < candidates.len() {
+            let i = candidates[k].0;
+            let mut end = k + 1;
+            while end < candidates.len() && candidates[end].0 == i {
+                end += 1;
+            }
+            let tris = candidates[k..end].iter().map(|c| c.1);
+            if let Some((uv, w)) = self.locate(i, tris, x, n)
+                && self.kept(uv, w)
+            {
+                return Some(Hit { patch: i, uv });
+            }
+            k = end;
+        }
+        None
+    }
+}
+
+/// A chart texel left uncovered by the fill.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Uncovered {
+    /// Row-major texel index.
+    pub texel: u32,
+    pub triangle: u32,
+    pub bary: [f32; 3],
+}
+
+/// The fill's per-texel results.
+pub struct FillBuffers {
+    pub width: u32,
+    pub height: u32,
+    /// Exemplar channels, interleaved (`channels` per texel).
+    pub channels: usize,
+    pub values: Vec<f32>,
+    /// [`OUTSIDE`], [`UNCOVERED`] or patch id + 1.
+    pub source: Vec<u32>,
+    /// Patch uv per texel (exemplar coordinates), NaN where no patch.
+    pub uv: Vec<Vec2>,
+}
+
+impl FillBuffers {
+    pub fn new(width: u32, height: u32, channels: usize) -> FillBuffers {
+        let n = width as usize * height as usize;
+        FillBuffers {
+            width,
+            height,
+            channels,
+            values: vec![0.0; n * channels],
+            source: vec![OUTSIDE; n],
+            uv: vec![Vec2::NAN; n],
+        }
+    }
+
+    /// Writes the result of a hit at texel `t`.
+    #[inline]
+    pub fn write(&mut self, t: usize, hit: Hit, id: u32, exemplar: &Exemplar) {
+        let c = self.channels;
+        exemplar.sample_all(hit.uv.x, hit.uv.y, &mut self.values[t * c..(t + 1) * c]);
+        self.source[t] = id + 1;
+        self.uv[t] = hit.uv;
+    }
+}
+
+/// Fills every chart texel of `atlas` (parallel by bands) and returns the
+/// texels no patch covered, in texel order.
+pub fn fill(ctx: &FillContext<'_>, atlas: &Atlas, candidates: &Candidates, out: &mut FillBuffers) -> Vec<Uncovered> {
+    let bands = atlas.bands();
+    let Some(first) = bands.first() else { return Vec::new() };
+    let band_rows = (first.y1 - first.y0) as usize;
+    let w = atlas.width as usize;
+    let c = out.channels;
+    let mesh = ctx.mesh;
+    let mut uncovered: Vec<Uncovered> = out
+        .values
+        .par_chunks_mut(band_rows * w * c)
+        .zip(out.source.par_chunks_mut(band_rows * w))
+        .zip(out.uv.par_chunks_mut(band_rows * w))
+        .zip(bands.par_iter())
+        .flat_map_iter(|(((values, source), uvs), band)| {
+            let mut missing = Vec::new();
+            let base = band.y0 as usize * w;
+            for span in &band.spans {
+                let f = span.triangle;
+                let [a, b, cc] = mesh.corners(f as usize);
+                let n = (b - a).cross(cc - a).normalize_or_zero();
+                let list = candidates.of(f);
+                let row = span.y as usize * w - base;
+                for (x, bary) in atlas.span_barycentrics(span) {
+                    let t = row + x as usize;
+                    let p = a * bary[0] + b * bary[1] + cc * bary[2];
+                    match ctx.resolve(list, p, n) {
+                        Some(hit) => {
+                            ctx.exemplar.sample_all(hit.uv.x, hit.uv.y, &mut values[t * c..(t + 1) * c]);
+                            source[t] = ctx.patches[hit.patch as usize].id + 1;
+                            uvs[t] = hit.uv;
+                        }
+                        None => {
+                            source[t] = UNCOVERED;
+                            missing.push(Uncovered { texel: (base + t) as u32, triangle: f, bary });
+                        }
+                    }
+                }
+            }
+            missing
+        })
+        .collect();
+    uncovered.par_sort_unstable_by_key(|u| u.texel);
+    uncovered
+}

@@ -1,0 +1,251 @@
+//! Deformable patches (Gagnon et al. 2021, Sec. 4): creation from the fluid
+//! mesh around a point, flattening, advection with projection, and the
+//! per-vertex weights of Eqs. 1–3.
+//!
+//! A patch owns a copy of the fluid triangles around its centre p with its
+//! own topology; from then on it is independent of the fluid mesh, which is
+//! a different mesh every frame. Each vertex keeps its *rest* coordinates:
+//! its exemplar uv, fixed at creation, where the exemplar's [0,1]² covers S
+//! world units (so rest coordinates × S are the triangle rest shapes in
+//! world units that δ_t compares against).
+
+use std::collections::HashSet;
+
+use glam::{Vec2, Vec3};
+use serde::{Deserialize, Serialize};
+
+use super::distortion::{distortion, triangle_quality};
+use crate::mesh::{Topology, TriMesh};
+use crate::surface::velocity::FlowInterval;
+use crate::surface::{SurfaceIndex, SurfacePoint, closest_point_on_triangle};
+
+/// Geometric constants every patch shares (DESIGN §1), world units.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PatchShape {
+    /// Patch radius r.
+    pub radius: f32,
+    /// World extent S covered by the exemplar's [0,1]².
+    pub exemplar_size: f32,
+    /// δ_max of Eq. 1.
+    pub delta_max: f32,
+    /// Vertices farther than this from the next frame's surface are removed (r/4, Sec. 4).
+    pub far_distance: f32,
+    /// B_V = 1 for vertices within this rest distance of p (r/4, Eq. 2).
+    pub centre_radius: f32,
+}
+
+/// One deformable patch.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Patch {
+    /// Creation order; lower ids are older and lie on top in the lapped fill.
+    pub id: u32,
+    /// Current 3-D vertex positions (on the current fluid surface).
+    pub positions: Vec<Vec3>,
+    /// Rest coordinates = exemplar uv, fixed at creation; the centre p is at (0.5, 0.5).
+    pub rest: Vec<Vec2>,
+    pub triangles: Vec<[u32; 3]>,
+    /// Vertices whose B_V is held at 1: those within r/4 of p (Eq. 2) and
+    /// the corners of the triangle that held p, so the texel that created
+    /// the patch is never eroded by it (the paper's own guard, made exact).
+    pub pinned: Vec<bool>,
+    /// w_V = Q_V · B_V (Eq. 3), refreshed by [`Patch::update_weights`].
+    #[serde(skip)]
+    pub weight: Vec<f32>,
+}
+
+/// Per-creation inputs from the current frame, built once per frame.
+pub struct FrameSurface<'a> {
+    pub mesh: &'a TriMesh,
+    pub topology: &'a Topology,
+    pub vertex_normals: &'a [Vec3],
+}
+
+impl Patch {
+    /// Creates the patch centred at `at` on the current fluid surface
+    /// (Sec. 4): the triangles within distance r of p that face the side of
+    /// the normal at p, restricted to the edge-connected component of p's
+    /// triangle, copied with their own topology and flattened by LSCM
+    /// (Lévy et al. 2002) followed by a similarity transform so that uv area
+    /// equals 3-D area / S², p maps to (0.5, 0.5) and the patch is turned by
+    /// `rotation` radians. Returns `None` only if `at` names no triangle.
+    pub fn create(
+        id: u32,
+        surface: &FrameSurface<'_>,
+        at: SurfacePoint,
+        shape: &PatchShape,
+        rotation: f32,
+    ) -> Option<Patch> {
+        let mesh = surface.mesh;
+        let seed = at.triangle;
+        if seed as usize >= mesh.triangles.len() {
+            return None;
+        }
+        let p = at.position(mesh);
+        let n_p = {
+            let n = at.interpolate(&mesh.triangles, surface.vertex_normals);
+            let n = n.normalize_or_zero();
+            if n == Vec3::ZERO { mesh.triangle_normal(seed as usize) } else { n }
+        };
+        // Flood fill over edge neighbours: this is the connected component of
+        // the seed among the triangles within r that face n_p.
+        let r2 = shape.radius * shape.radius;
+        let mut taken = vec![seed];
+        let mut seen: HashSet<u32> = HashSet::from([seed]);
+        let mut head = 0;
+        while head < taken.len() {
+            let t = taken[head];
+            head += 1;
+            for nb in surface.topology.triangle_neighbours(t) {
+                if !seen.insert(nb) {
+                    continue;
+                }
+                let [a, b, c] = mesh.corners(nb as usize);
+                let near = closest_point_on_triangle(p, a, b, c).distance_squared(p) <= r2;
+                if near && mesh.triangle_cross(nb as usize).dot(n_p) > 0.0 {
+                    taken.push(nb);
+                }
+            }
+        }
+        taken.sort_unstable();
+        let (sub, _) = mesh.submesh(&taken);
+        let seed_local = taken.binary_search(&seed).unwrap_or(0);
+        let flat = flatten(&sub.positions, &sub.triangles, n_p);
+        // Orientation: seen from the side the normal points to, the exemplar
+        // must not be mirrored. Our uv has v pointing down (texture.rs), so an
+        // unmirrored map has negative signed uv area for CCW triangles.
+        let signed: f64 = sub
+            .triangles
+            .iter()
+            .map(|t| {
+                let (a, b, c) = (flat[t[0] as usize], flat[t[1] as usize], flat[t[2] as usize]);
+                (b - a).perp_dot(c - a) as f64
+            })
+            .sum();
+        let flip = if signed > 0.0 { -1.0 } else { 1.0 };
+        let flat: Vec<Vec2> = flat.iter().map(|q| Vec2::new(q.x, q.y * flip)).collect();
+        let uv_area = signed.abs() * 0.5;
+        let area_3d = sub.area();
+        let scale = if uv_area > 0.0 {
+            ((area_3d / (shape.exemplar_size as f64).powi(2)) / uv_area).sqrt() as f32
+        } else {
+            1.0 / shape.exemplar_size
+        };
+        let [ia, ib, ic] = sub.triangles[seed_local];
+        let p_flat = flat[ia as usize] * at.bary[0] + flat[ib as usize] * at.bary[1] + flat[ic as usize] * at.bary[2];
+        let (sin, cos) = rotation.sin_cos();
+        let rest: Vec<Vec2> = flat
+            .iter()
+            .map(|&q| {
+                let d = (q - p_flat) * scale;
+                Vec2::new(cos * d.x - sin * d.y, sin * d.x + cos * d.y) + Vec2::splat(0.5)
+            })
+            .collect();
+        let centre = Vec2::splat(0.5);
+        let mut pinned: Vec<bool> = rest
+            .iter()
+            .map(|q| q.distance(centre) * shape.exemplar_size <= shape.centre_radius)
+            .collect();
+        for v in [ia, ib, ic] {
+            pinned[v as usize] = true;
+        }
+        let mut patch = Patch {
+            id,
+            positions: sub.positions,
+            rest,
+            triangles: sub.triangles,
+            pinned,
+            weight: Vec::new(),
+        };
+        patch.update_weights(shape);
+        Some(patch)
+    }
+
+    /// Advects every vertex through `flow` (RK4), projects it onto the next
+    /// frame's surface and removes vertices that end farther than
+    /// `shape.far_distance` from it, with their triangles (Sec. 4). Returns
+    /// false when nothing is left (the patch is then deleted).
+    pub fn advect(&mut self, flow: &FlowInterval<'_>, next: &SurfaceIndex, shape: &PatchShape) -> bool {
+        let mut keep = vec![true; self.positions.len()];
+        for (i, x) in self.positions.iter_mut().enumerate() {
+            let moved = flow.advect(*x);
+            match next.closest(moved, shape.far_distance) {
+                Some(hit) => *x = hit.point,
+                None => keep[i] = false,
+            }
+        }
+        if keep.iter().all(|&k| k) {
+            return !self.triangles.is_empty();
+        }
+        self.triangles.retain(|t| t.iter().all(|&v| keep[v as usize]));
+        self.compact();
+        !self.triangles.is_empty()
+    }
+
+    /// Drops vertices no triangle uses, renumbering the rest in order.
+    fn compact(&mut self) {
+        let mut used = vec![false; self.positions.len()];
+        for t in &self.triangles {
+            for &v in t {
+                used[v as usize] = true;
+            }
+        }
+        let mut remap = vec![u32::MAX; used.len()];
+        let mut next = 0u32;
+        for (i, &u) in used.iter().enumerate() {
+            if u {
+                remap[i] = next;
+                next += 1;
+            }
+        }
+        let pick = |i: &usize| used[*i];
+        self.positions = (0..used.len()).filter(pick).map(|i| self.positions[i]).collect();
+        self.rest = (0..used.len()).filter(pick).map(|i| self.rest[i]).collect();
+        self.pinned = (0..used.len()).filter(pick).map(|i| self.pinned[i]).collect();
+        for t in &mut self.triangles {
+            *t = t.map(|v| remap[v as usize]);
+        }
+        self.weight.clear();
+    }
+
+    /// Recomputes w_V = Q_V · B_V (Eqs. 1–3): Q_T from the triangle's
+    /// distortion δ_t between rest shape (rest × S) and current positions,
+    /// Q_V the mean of Q_T over the vertex's triangles, B_V = 1 inside the
+    /// current patch mesh and near p, 0 on the rest of its boundary.
+    pub fn update_weights(&mut self, shape: &PatchShape) {
+        let n = self.positions.len();
+        let mut sum = vec![0.0f64; n];
+        let mut count = vec![0u32; n];
+        let s = shape.exemplar_size;
+        for t in &self.triangles {
+            let rest = t.map(|v| self.rest[v as usize] * s);
+            let q = t.map(|v| self.positions[v as usize]);
+            let quality = triangle_quality(distortion(rest, q).delta, shape.delta_max as f64);
+            for &v in t {
+                sum[v as usize] += quality;
+                count[v as usize] += 1;
+            }
+        }
+        let topology = Topology::new(n, &self.triangles);
+        self.weight = (0..n)
+            .map(|v| {
+                let q_v = if count[v] > 0 { sum[v] / count[v] as f64 } else { 0.0 };
+                let b_v = if self.pinned[v] || !topology.is_boundary_vertex(v as u32) { 1.0 } else { 0.0 };
+                (q_v * b_v) as f32
+            })
+            .collect();
+    }
+}
+
+/// Flattens one connected patch: LSCM, or, should it fail (degenerate
+/// input), the orthogonal projection onto the tangent plane of `normal`,
+/// which is what the 2016 method uses for every patch.
+fn flatten(positions: &[Vec3], triangles: &[[u32; 3]], normal: Vec3) -> Vec<Vec2> {
+    if let Ok(uv) = crate::param::lscm::lscm(positions, triangles)
+        && uv.iter().all(|q| q.is_finite())
+    {
+        return uv;
+    }
+    let n = if normal.length_squared() > 0.0 { normal.normalize() } else { Vec3::Z };
+    let (a, b) = n.any_orthonormal_pair();
+    positions.iter().map(|&q| Vec2::new(q.dot(a), q.dot(b))).collect()
+}

@@ -1,0 +1,470 @@
+//! The frame job: read a frame, build its BVH and atlas, let the method
+//! fill the atlas, dilate, write every output atomically, save the method's
+//! state; repeat. Frames are streamed (at most the previous and the current
+//! mesh are held), so memory does not grow with the sequence length.
+//!
+//! Resume: after all outputs of frame F are written, `state.bin` is replaced
+//! (atomically) by the method state after F. `--resume` reads it, re-reads
+//! frame F as the previous frame and continues with F+1; because the state
+//! is the whole carried state and every RNG stream is derived from (seed,
+//! frame or patch id), the files are the same as those of an uninterrupted run.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+use crate::atlas::{Atlas, AtlasError, AtlasParams};
+use crate::io::IoError;
+use crate::mesh::{TriMesh, ValidationReport};
+use crate::methods::{FrameContext, Method, MethodError, PreviousFrame, SOURCE_OUTSIDE, SOURCE_UNCOVERED};
+use crate::surface::SurfaceIndex;
+use crate::texture::Texture;
+
+/// How an atlas channel is written.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ChannelFormat {
+    /// 8-bit PNG.
+    Png8,
+    /// 16-bit PNG.
+    Png16,
+    /// 32-bit float EXR.
+    Exr,
+}
+
+impl ChannelFormat {
+    pub fn extension(self) -> &'static str {
+        match self {
+            ChannelFormat::Png8 | ChannelFormat::Png16 => "png",
+            ChannelFormat::Exr => "exr",
+        }
+    }
+}
+
+/// Name and format of one output channel (`color`, `displacement`, ...).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ChannelSpec {
+    pub name: String,
+    pub format: ChannelFormat,
+}
+
+/// Which files are written per frame besides the channel atlases.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct OutputOptions {
+    /// `mesh.F.obj` + `mesh.F.mtl` [true].
+    pub obj: bool,
+    /// `mesh.F.glb` [true].
+    pub glb: bool,
+    /// `patches.F.png` and `source.F.exr` [true].
+    pub debug: bool,
+    /// Write `preview.F.png` every this many frames (0: never) [0].
+    pub preview_every: u32,
+    /// Preview width in pixels [512].
+    pub preview_size: u32,
+}
+
+impl Default for OutputOptions {
+    fn default() -> Self {
+        OutputOptions {
+            obj: true,
+            glb: true,
+            debug: true,
+            preview_every: 0,
+            preview_size: 512,
+        }
+    }
+}
+
+/// Where frames come from: a file sequence or a generated scene.
+pub trait FrameSource {
+    /// The frame numbers to process, in order.
+    fn frames(&self) -> Vec<i32>;
+    /// Reads frame `f`. Frames are requested in increasing order, except
+    /// that on resume the last finished frame is read once first.
+    fn read(&mut self, f: i32) -> Result<(TriMesh, ValidationReport), PipelineError>;
+    /// Input files (never overwritten by outputs).
+    fn input_paths(&self) -> Vec<PathBuf> {
+        Vec::new()
+    }
+}
+
+/// A frame job.
+#[derive(Clone, Debug)]
+pub struct Job {
+    pub out_dir: PathBuf,
+    pub atlas: AtlasParams,
+    /// Frames per second of the input [24].
+    pub fps: f32,
+    pub outputs: OutputOptions,
+    /// Continue from `state.bin` in `out_dir`.
+    pub resume: bool,
+    /// Identifies the configuration; a resumed run must match it.
+    pub fingerprint: String,
+}
+
+/// Errors of the frame job.
+#[derive(Debug, Error)]
+pub enum PipelineError {
+    #[error(transparent)]
+    Io(#[from] IoError),
+    #[error("frame {frame}: {source}")]
+    Atlas { frame: i32, source: AtlasError },
+    #[error(transparent)]
+    Method(#[from] MethodError),
+    #[error("{0}")]
+    Source(String),
+    #[error("{path}: {message}")]
+    Output { path: PathBuf, message: String },
+    #[error("cannot resume: {0}")]
+    Resume(String),
+    #[error("output {0} would overwrite an input file; choose another --out")]
+    WouldOverwriteInput(PathBuf),
+}
+
+/// Per-frame numbers, also written as `stats.F.json`.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct FrameStats {
+    pub frame: i32,
+    pub method: String,
+    pub vertices: usize,
+    pub triangles: usize,
+    pub dropped_degenerate: usize,
+    pub charts: usize,
+    pub atlas_width: u32,
+    pub atlas_height: u32,
+    #[serde(flatten)]
+    pub method_stats: BTreeMap<String, serde_json::Value>,
+    /// Seconds per stage: read, bvh, atlas, the method's stages, dilate, write.
+    pub seconds: BTreeMap<String, f64>,
+    /// Stage names in order (the map above is sorted by name).
+    pub stage_order: Vec<String>,
+}
+
+/// Progress reports for front ends.
+pub enum Event<'a> {
+    /// Starting frame `number`, the `index`-th of `total` to process.
+    Start { number: i32, index: usize, total: usize },
+    /// Frame finished.
+    Done { stats: &'a FrameStats },
+    /// Something the user should know that did not stop the run.
+    Warning(String),
+}
+
+/// What a run did.
+#[derive(Clone, Debug, Default)]
+pub struct Summary {
+    pub frames_done: usize,
+    pub resumed_after: Option<i32>,
+    pub seconds: f64,
+}
+
+#[derive(Serialize, Deserialize)]
+struct SavedState {
+    version: u32,
+    fingerprint: String,
+    method: String,
+    last_frame: i32,
+    method_state: Vec<u8>,
+}
+
+const STATE_FILE: &str = "state.bin";
+const STATE_VERSION: u32 = 1;
+
+/// Runs `method` over every frame of `source`.
+pub fn run(
+    job: &Job,
+    source: &mut dyn FrameSource,
+    method: &mut dyn Method,
+    observer: &mut dyn FnMut(Event<'_>),
+) -> Result<Summary, PipelineError> {
+    let start = Instant::now();
+    std::fs::create_dir_all(&job.out_dir).map_err(|e| PipelineError::Output {
+        path: job.out_dir.clone(),
+        message: format!("cannot create the output folder: {e}"),
+    })?;
+    let guard = crate::io::atomic::InputGuard::new(&source.input_paths());
+    let mut frames = source.frames();
+    let mut previous: Option<(TriMesh, SurfaceIndex)> = None;
+    let mut resumed_after = None;
+    if job.resume {
+        if let Some(saved) = read_state(&job.out_dir)? {
+            if saved.fingerprint != job.fingerprint || saved.method != method.name() {
+                return Err(PipelineError::Resume(format!(
+                    "{} was written by a run with another configuration or method ({}); \
+                     rerun without --resume or with the same settings",
+                    job.out_dir.join(STATE_FILE).display(),
+                    saved.method
+                )));
+            }
+            method.load_state(&saved.method_state)?;
+            let last = saved.last_frame;
+            if frames.contains(&last) {
+                let (mesh, _) = source.read(last)?;
+                let index = SurfaceIndex::new(&mesh);
+                previous = Some((mesh, index));
+            }
+            frames.retain(|&f| f > last);
+            resumed_after = Some(last);
+        }
+    }
+    let total = frames.len();
+    let mut done = 0;
+    for (k, &number) in frames.iter().enumerate() {
+        observer(Event::Start { number, index: k, total });
+        let mut seconds: Vec<(String, f64)> = Vec::new();
+        let mut lap = {
+            let mut last = Instant::now();
+            move |name: &str, seconds: &mut Vec<(String, f64)>| {
+                let now = Instant::now();
+                seconds.push((name.to_string(), now.duration_since(last).as_secs_f64()));
+                last = now;
+            }
+        };
+        let (mesh, report) = source.read(number)?;
+        if report.dropped_degenerate > 0 {
+            observer(Event::Warning(format!(
+                "frame {number}: dropped {} zero-area triangles",
+                report.dropped_degenerate
+            )));
+        }
+        if method.needs_velocity() && !mesh.is_empty() && mesh.velocity().is_none() {
+            return Err(MethodError::MissingVelocity { frame: number, method: method.name() }.into());
+        }
+        lap("read", &mut seconds);
+        let index = SurfaceIndex::new(&mesh);
+        lap("bvh", &mut seconds);
+        let atlas = Atlas::build(&mesh, &job.atlas).map_err(|source| PipelineError::Atlas { frame: number, source })?;
+        lap("atlas", &mut seconds);
+        let ctx = FrameContext {
+            number,
+            dt: 1.0 / job.fps,
+            mesh: &mesh,
+            index: &index,
+            previous: previous.as_ref().map(|(m, i)| PreviousFrame { mesh: m, index: i }),
+            atlas: &atlas,
+        };
+        let mut result = method.step(&ctx)?;
+        for (name, s) in &result.timings {
+            seconds.push((name.to_string(), *s));
+        }
+        lap("method", &mut seconds);
+        seconds.pop(); // the method's own stages replace this lap
+        for channel in &mut result.channels {
+            atlas.dilate(channel, job.atlas.gutter.max(1) * 2);
+        }
+        lap("dilate", &mut seconds);
+
+        let mut stats = FrameStats {
+            frame: number,
+            method: method.name().to_string(),
+            vertices: mesh.vertex_count(),
+            triangles: mesh.triangle_count(),
+            dropped_degenerate: report.dropped_degenerate,
+            charts: atlas.chart_count,
+            atlas_width: atlas.width,
+            atlas_height: atlas.height,
+            method_stats: std::mem::take(&mut result.stats),
+            ..Default::default()
+        };
+        write_frame(job, &guard, number, &mesh, &atlas, method, &result)?;
+        lap("write", &mut seconds);
+        stats.stage_order = seconds.iter().map(|(n, _)| n.clone()).collect();
+        stats.seconds = seconds.into_iter().collect();
+        let json = serde_json::to_vec_pretty(&stats).map_err(|e| PipelineError::Output {
+            path: job.out_dir.clone(),
+            message: e.to_string(),
+        })?;
+        write_file(&guard, &job.out_dir.join(format!("stats.{}.json", frame_tag(number))), &json)?;
+        save_state(job, &guard, method, number)?;
+        observer(Event::Done { stats: &stats });
+        done += 1;
+        previous = Some((mesh, index));
+    }
+    Ok(Summary {
+        frames_done: done,
+        resumed_after,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// The frame number as written in file names: at least 4 digits.
+pub fn frame_tag(number: i32) -> String {
+    if number < 0 {
+        format!("-{:04}", -(number as i64))
+    } else {
+        format!("{number:04}")
+    }
+}
+
+fn read_state(dir: &Path) -> Result<Option<SavedState>, PipelineError> {
+    let path = dir.join(STATE_FILE);
+    let bytes = match std::fs::read(&path) {
+        Ok(b) => b,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => return Err(PipelineError::Resume(format!("{}: {e}", path.display()))),
+    };
+    let saved: SavedState = postcard::from_bytes(&bytes)
+        .map_err(|e| PipelineError::Resume(format!("{}: damaged state file ({e})", path.display())))?;
+    if saved.version != STATE_VERSION {
+        return Err(PipelineError::Resume(format!(
+            "{}: state version {} is not {STATE_VERSION}",
+            path.display(),
+            saved.version
+        )));
+    }
+    Ok(Some(saved))
+}
+
+fn save_state(
+    job: &Job,
+    guard: &crate::io::atomic::InputGuard,
+    method: &dyn Method,
+    frame: i32,
+) -> Result<(), PipelineError> {
+    let saved = SavedState {
+        version: STATE_VERSION,
+        fingerprint: job.fingerprint.clone(),
+        method: method.name().to_string(),
+        last_frame: frame,
+        method_state: method.save_state()?,
+    };
+    let bytes = postcard::to_allocvec(&saved).map_err(|e| PipelineError::Output {
+        path: job.out_dir.join(STATE_FILE),
+        message: e.to_string(),
+    })?;
+    write_file(guard, &job.out_dir.join(STATE_FILE), &bytes)
+}
+
+fn write_file(guard: &crate::io::atomic::InputGuard, path: &Path, bytes: &[u8]) -> Result<(), PipelineError> {
+    if guard.is_input(path) {
+        return Err(PipelineError::WouldOverwriteInput(path.to_path_buf()));
+    }
+    crate::io::atomic::write_bytes(path, bytes)?;
+    Ok(())
+}
+
+/// A colour per patch id for `patches.F.png` (the paper's Fig. 1, left):
+/// outside charts black, uncovered magenta, patches hashed to bright colours.
+pub fn patch_colour(source: u32) -> [f32; 3] {
+    match source {
+        SOURCE_OUTSIDE => [0.0, 0.0, 0.0],
+        SOURCE_UNCOVERED => [1.0, 0.0, 1.0],
+        s => {
+            let h = crate::methods::erosion::mix(0x5eed, 3, s as u64);
+            let c = |k: u32| 0.25 + 0.7 * (((h >> (k * 16)) & 0xffff) as f32 / 65535.0);
+            [c(0), c(1), c(2)]
+        }
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn write_frame(
+    job: &Job,
+    guard: &crate::io::atomic::InputGuard,
+    number: i32,
+    mesh: &TriMesh,
+    atlas: &Atlas,
+    method: &dyn Method,
+    result: &crate::methods::FrameResult,
+) -> Result<(), PipelineError> {
+    let tag = frame_tag(number);
+    let dir = &job.out_dir;
+    let specs = method.channel_specs();
+    if specs.len() != result.channels.len() {
+        return Err(PipelineError::Output {
+            path: dir.clone(),
+            message: format!(
+                "internal: method {} returned {} channels for {} names",
+                method.name(),
+                result.channels.len(),
+                specs.len()
+            ),
+        });
+    }
+    let mut colour_png: Option<(String, Vec<u8>)> = None;
+    for (spec, texture) in specs.iter().zip(&result.channels) {
+        let file = format!("{}.{tag}.{}", spec.name, spec.format.extension());
+        let path = dir.join(&file);
+        let bytes = encode_channel(texture, spec.format).map_err(|e| PipelineError::Output {
+            path: path.clone(),
+            message: e.to_string(),
+        })?;
+        write_file(guard, &path, &bytes)?;
+        if colour_png.is_none() && spec.format != ChannelFormat::Exr {
+            colour_png = Some((file, bytes));
+        }
+    }
+    let uv = &atlas.uv_mesh;
+    let normals = uv_mesh_normals(mesh, atlas);
+    if job.outputs.obj {
+        let obj = dir.join(format!("mesh.{tag}.obj"));
+        let mtl = dir.join(format!("mesh.{tag}.mtl"));
+        for p in [&obj, &mtl] {
+            if guard.is_input(p) {
+                return Err(PipelineError::WouldOverwriteInput(p.clone()));
+            }
+        }
+        let material = colour_png.as_ref().map(|(file, _)| crate::io::obj_write::ObjMaterial {
+            mtl_path: mtl.clone(),
+            texture_file: file.clone(),
+        });
+        crate::io::obj_write::write_obj(&obj, &uv.positions, &uv.uvs, Some(&normals), &uv.triangles, material.as_ref())?;
+    }
+    if job.outputs.glb {
+        let path = dir.join(format!("mesh.{tag}.glb"));
+        if guard.is_input(&path) {
+            return Err(PipelineError::WouldOverwriteInput(path));
+        }
+        let png = colour_png.as_ref().map(|(_, b)| b.as_slice());
+        crate::io::gltf::write_glb(&path, &uv.positions, Some(&normals), &uv.uvs, &uv.triangles, png)?;
+    }
+    if job.outputs.debug
+        && let Some(source) = &result.source
+    {
+        let mut colours = Texture::filled(atlas.width, atlas.height, 3, 0.0);
+        for (t, &s) in source.iter().enumerate() {
+            colours.data[t * 3..t * 3 + 3].copy_from_slice(&patch_colour(s));
+        }
+        let path = dir.join(format!("patches.{tag}.png"));
+        let bytes = encode_channel(&colours, ChannelFormat::Png8).map_err(|e| PipelineError::Output {
+            path: path.clone(),
+            message: e.to_string(),
+        })?;
+        write_file(guard, &path, &bytes)?;
+        let ids: Vec<f32> = source
+            .iter()
+            .map(|&s| if s == SOURCE_OUTSIDE { -1.0 } else { s as f32 })
+            .collect();
+        let ids = Texture { width: atlas.width, height: atlas.height, channels: 1, data: ids };
+        let path = dir.join(format!("source.{tag}.exr"));
+        let bytes = encode_channel(&ids, ChannelFormat::Exr).map_err(|e| PipelineError::Output {
+            path: path.clone(),
+            message: e.to_string(),
+        })?;
+        write_file(guard, &path, &bytes)?;
+    }
+    Ok(())
+}
+
+/// Per-vertex normals of the atlas's output mesh (seam copies share the
+/// normal of their source vertex, so shading is smooth across seams).
+fn uv_mesh_normals(mesh: &TriMesh, atlas: &Atlas) -> Vec<glam::Vec3> {
+    let normals = mesh.vertex_normals();
+    atlas
+        .uv_mesh
+        .source_vertex
+        .iter()
+        .map(|&v| normals.get(v as usize).copied().unwrap_or(glam::Vec3::Z))
+        .collect()
+}
+
+fn encode_channel(texture: &Texture, format: ChannelFormat) -> Result<Vec<u8>, IoError> {
+    match format {
+        ChannelFormat::Png8 => crate::io::image::encode_png(texture, crate::io::image::BitDepth::Eight),
+        ChannelFormat::Png16 => crate::io::image::encode_png(texture, crate::io::image::BitDepth::Sixteen),
+        ChannelFormat::Exr => crate::io::image::encode_exr(texture),
+    }
+}
