@@ -56,7 +56,7 @@ pub enum IoError {
     /// The header (PLY, VTK) or overall structure cannot be understood.
     #[error("{}: bad header: {reason}", .path.display())]
     Header { path: PathBuf, reason: String },
-    #[error("{}: truncated: expected {expected} {element}s, file ends in {element} {at}", .path.display())]
+    #[error("{}: truncated: expected {}, file ends in {} {}", .path.display(), counted(*.expected, .element), .element, .at)]
     Truncated {
         path: PathBuf,
         element: String,
@@ -173,6 +173,20 @@ pub fn read_mesh(
     Ok((mesh, report))
 }
 
+/// "1 face", "5000 vertices": a count with its element name.
+pub(crate) fn counted(n: usize, element: &str) -> String {
+    if n == 1 {
+        return format!("1 {element}");
+    }
+    let plural = match element {
+        "vertex" => "vertices".to_string(),
+        "index" => "indices".to_string(),
+        e if e.ends_with('s') || e.ends_with('x') => format!("{e}es"),
+        e => format!("{e}s"),
+    };
+    format!("{n} {plural}")
+}
+
 /// Reads a whole file, mapping "not found" and "empty" to their own errors.
 pub(crate) fn read_bytes(path: &Path) -> Result<Vec<u8>, IoError> {
     let bytes = std::fs::read(path).map_err(|e| IoError::os(path, e))?;
@@ -209,6 +223,9 @@ mod tests {
         assert!(fan(&[0, 1, 2, 3, 7], &mut out));
         assert!(!fan(&[0, 1], &mut out));
         assert!(!fan(&[], &mut out));
+        assert_eq!(counted(5000, "vertex"), "5000 vertices");
+        assert_eq!(counted(1, "face"), "1 face");
+        assert_eq!(counted(0, "cell"), "0 cells");
         assert_eq!(out, vec![[4, 5, 6], [0, 1, 2], [0, 2, 3], [0, 3, 7]]);
     }
 

@@ -87,7 +87,7 @@ pub fn parse_ply(path: &Path, bytes: &[u8], options: &ReadOptions) -> Result<Tri
     let mut triangles = Vec::new();
     let mut described = Vec::new();
     for (name, def) in &header.elements {
-        described.push(format!("{} {}s", def.count, name));
+        described.push(super::counted(def.count, name));
         match name.as_str() {
             "vertex" => {
                 // Never trust a header count for an allocation.
