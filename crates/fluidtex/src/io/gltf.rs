@@ -1,0 +1,191 @@
+//! Binary glTF 2.0 (`.glb`) writer: one mesh, one material whose base
+//! colour is an embedded PNG.
+//!
+//! Written directly (the format is a 12-byte header, a JSON chunk and a
+//! binary chunk) rather than through the `gltf` crate, whose writing side is
+//! its JSON model only. Layout of the binary chunk, each view 4-byte aligned:
+//! positions (`VEC3` f32, with the `min`/`max` the spec requires), normals
+//! (optional), `TEXCOORD_0` (`VEC2` f32), indices (`SCALAR` u32), PNG bytes.
+//! glTF's UV origin is the top-left of the image, like ours, so UVs are
+//! written unchanged. The sampler is linear with clamp-to-edge, matching
+//! how atlases are sampled ([`crate::texture::Wrap::Clamp`]). A mesh with
+//! no triangle (the fluid vanished) gives a valid file with an empty scene,
+//! since glTF accessors cannot be empty.
+
+use std::io::Write;
+use std::path::Path;
+
+use glam::{Vec2, Vec3};
+use serde_json::{Value, json};
+
+use super::obj_write::check_mesh;
+use super::{IoError, write_atomic};
+
+const GLB_MAGIC: u32 = 0x4654_6C67; // "glTF"
+const CHUNK_JSON: u32 = 0x4E4F_534A;
+const CHUNK_BIN: u32 = 0x004E_4942;
+const ARRAY_BUFFER: u32 = 34962;
+const ELEMENT_ARRAY_BUFFER: u32 = 34963;
+const FLOAT: u32 = 5126;
+const UNSIGNED_INT: u32 = 5125;
+const LINEAR: u32 = 9729;
+const CLAMP_TO_EDGE: u32 = 33071;
+
+/// Writes a `.glb` atomically. `base_color_png` is the colour atlas, already
+/// PNG-encoded (see [`super::image::encode_png`]).
+pub fn write_glb(
+    path: &Path,
+    positions: &[Vec3],
+    uvs: &[Vec2],
+    normals: Option<&[Vec3]>,
+    triangles: &[[u32; 3]],
+    base_color_png: Option<&[u8]>,
+) -> Result<(), IoError> {
+    let bytes = encode_glb(positions, uvs, normals, triangles, base_color_png).map_err(|reason| {
+        IoError::Unwritable {
+            path: path.to_path_buf(),
+            reason,
+        }
+    })?;
+    write_atomic(path, |w| w.write_all(&bytes))
+}
+
+/// Builds the `.glb` bytes in memory.
+pub fn encode_glb(
+    positions: &[Vec3],
+    uvs: &[Vec2],
+    normals: Option<&[Vec3]>,
+    triangles: &[[u32; 3]],
+    base_color_png: Option<&[u8]>,
+) -> Result<Vec<u8>, String> {
+    check_mesh(positions, uvs, normals, triangles)?;
+    let mut bin: Vec<u8> = Vec::new();
+    let mut views: Vec<Value> = Vec::new();
+    let mut accessors: Vec<Value> = Vec::new();
+    let mut json = json!({
+        "asset": { "version": "2.0", "generator": concat!("fluidtex ", env!("CARGO_PKG_VERSION")) },
+        "scene": 0,
+    });
+
+    if triangles.is_empty() {
+        json["scenes"] = json!([{}]);
+        return Ok(assemble(&json, &bin));
+    }
+
+    let mut view = |bin: &mut Vec<u8>, data: &[u8], target: Option<u32>| -> usize {
+        let offset = bin.len();
+        bin.extend_from_slice(data);
+        bin.resize(bin.len().next_multiple_of(4), 0);
+        let mut v = json!({ "buffer": 0, "byteOffset": offset, "byteLength": data.len() });
+        if let Some(t) = target {
+            v["target"] = json!(t);
+        }
+        views.push(v);
+        views.len() - 1
+    };
+    let floats = |v: &mut dyn Iterator<Item = f32>| -> Vec<u8> { v.flat_map(f32::to_le_bytes).collect() };
+
+    let (lo, hi) = positions
+        .iter()
+        .fold((Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+    let pos_view = view(&mut bin, &floats(&mut positions.iter().flat_map(|p| p.to_array())), Some(ARRAY_BUFFER));
+    accessors.push(json!({
+        "bufferView": pos_view, "componentType": FLOAT, "count": positions.len(), "type": "VEC3",
+        "min": lo.to_array(), "max": hi.to_array(),
+    }));
+    let mut attributes = json!({ "POSITION": accessors.len() - 1 });
+    if let Some(ns) = normals {
+        let v = view(&mut bin, &floats(&mut ns.iter().flat_map(|n| n.to_array())), Some(ARRAY_BUFFER));
+        accessors.push(json!({ "bufferView": v, "componentType": FLOAT, "count": ns.len(), "type": "VEC3" }));
+        attributes["NORMAL"] = json!(accessors.len() - 1);
+    }
+    let uv_view = view(&mut bin, &floats(&mut uvs.iter().flat_map(|t| t.to_array())), Some(ARRAY_BUFFER));
+    accessors.push(json!({ "bufferView": uv_view, "componentType": FLOAT, "count": uvs.len(), "type": "VEC2" }));
+    attributes["TEXCOORD_0"] = json!(accessors.len() - 1);
+    let idx: Vec<u8> = triangles.iter().flatten().flat_map(|i| i.to_le_bytes()).collect();
+    let idx_view = view(&mut bin, &idx, Some(ELEMENT_ARRAY_BUFFER));
+    accessors.push(json!({
+        "bufferView": idx_view, "componentType": UNSIGNED_INT, "count": triangles.len() * 3, "type": "SCALAR",
+    }));
+    let indices = accessors.len() - 1;
+
+    let mut primitive = json!({ "attributes": attributes, "indices": indices, "mode": 4 });
+    if let Some(png) = base_color_png {
+        let img_view = view(&mut bin, png, None);
+        json["images"] = json!([{ "bufferView": img_view, "mimeType": "image/png" }]);
+        json["samplers"] = json!([{
+            "magFilter": LINEAR, "minFilter": LINEAR, "wrapS": CLAMP_TO_EDGE, "wrapT": CLAMP_TO_EDGE,
+        }]);
+        json["textures"] = json!([{ "sampler": 0, "source": 0 }]);
+        json["materials"] = json!([{
+            "name": "atlas",
+            "pbrMetallicRoughness": {
+                "baseColorTexture": { "index": 0 },
+                "metallicFactor": 0.0,
+                "roughnessFactor": 1.0,
+            },
+        }]);
+        primitive["material"] = json!(0);
+    }
+    json["scenes"] = json!([{ "nodes": [0] }]);
+    json["nodes"] = json!([{ "mesh": 0 }]);
+    json["meshes"] = json!([{ "primitives": [primitive] }]);
+    json["accessors"] = Value::Array(accessors);
+    json["bufferViews"] = Value::Array(views);
+    json["buffers"] = json!([{ "byteLength": bin.len() }]);
+    Ok(assemble(&json, &bin))
+}
+
+/// Header + JSON chunk (space-padded) + BIN chunk (zero-padded, if any).
+fn assemble(json: &Value, bin: &[u8]) -> Vec<u8> {
+    let mut text = json.to_string().into_bytes();
+    text.resize(text.len().next_multiple_of(4), b' ');
+    let bin_len = bin.len().next_multiple_of(4);
+    let total = 12 + 8 + text.len() + if bin.is_empty() { 0 } else { 8 + bin_len };
+    let mut out = Vec::with_capacity(total);
+    for word in [GLB_MAGIC, 2, total as u32, text.len() as u32, CHUNK_JSON] {
+        out.extend_from_slice(&word.to_le_bytes());
+    }
+    out.extend_from_slice(&text);
+    if !bin.is_empty() {
+        out.extend_from_slice(&(bin_len as u32).to_le_bytes());
+        out.extend_from_slice(&CHUNK_BIN.to_le_bytes());
+        out.extend_from_slice(bin);
+        out.resize(total, 0);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn chunks_are_aligned_and_lengths_add_up() {
+        let png = [1u8, 2, 3, 4, 5]; // odd length to exercise padding
+        let b = encode_glb(&[Vec3::ZERO, Vec3::X, Vec3::Y], &[Vec2::ZERO, Vec2::X, Vec2::Y], None, &[[0, 1, 2]], Some(&png)).unwrap();
+        let word = |k: usize| u32::from_le_bytes([b[k], b[k + 1], b[k + 2], b[k + 3]]) as usize;
+        assert_eq!(word(0), GLB_MAGIC as usize);
+        assert_eq!(word(4), 2);
+        assert_eq!(word(8), b.len());
+        let json_len = word(12);
+        assert_eq!(json_len % 4, 0);
+        let bin_at = 20 + json_len;
+        assert_eq!(word(bin_at + 4), CHUNK_BIN as usize);
+        assert_eq!(word(bin_at) % 4, 0);
+        assert_eq!(bin_at + 8 + word(bin_at), b.len());
+        let json: Value = serde_json::from_slice(&b[20..bin_at]).unwrap();
+        assert_eq!(json["buffers"][0]["byteLength"], json!(word(bin_at)));
+        assert_eq!(json["accessors"][0]["min"], json!([0.0, 0.0, 0.0]));
+        assert_eq!(json["accessors"][0]["max"], json!([1.0, 1.0, 0.0]));
+    }
+
+    #[test]
+    fn empty_mesh_gives_an_empty_scene() {
+        let b = encode_glb(&[], &[], None, &[], Some(&[0u8; 8])).unwrap();
+        let json: Value = serde_json::from_slice(&b[20..]).unwrap();
+        assert_eq!(json["scenes"], json!([{}]));
+        assert!(json.get("meshes").is_none());
+        assert_eq!(b.len(), 20 + u32::from_le_bytes([b[12], b[13], b[14], b[15]]) as usize);
+    }
+}

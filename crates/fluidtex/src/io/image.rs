@@ -1,0 +1,524 @@
+//! Writing textures (atlases, debug images) as PNG or EXR.
+//!
+//! **PNG.** 8- or 16-bit gray, gray-alpha, RGB or RGBA from a 1–4 channel
+//! [`Texture`]: values are clamped to [0, 1] and rounded (NaN becomes 0).
+//! Large atlases must not cost more to write than to compute (DESIGN §6), and
+//! a single deflate stream is sequential, so the default encoder
+//! ([`PngEncoder::Parallel`]) splits the filtered image into fixed strips of
+//! rows and deflates them on the rayon pool, each strip as raw deflate blocks
+//! ending in a sync flush (byte aligned, not final), the last one final; the
+//! strips concatenate into one valid zlib stream whose Adler-32 is combined
+//! from the strips' (zlib's `adler32_combine`). The technique is mtpng's; we
+//! do not use the mtpng crate because it links the C zlib (libz-sys), and no
+//! pure-Rust crate encodes PNG in parallel. Strip boundaries depend only on
+//! the image size, never on the thread count, so the bytes are identical
+//! however many threads run. Each strip starts with an empty history, which
+//! costs ~1% in size. [`PngEncoder::Image`] (the image crate, single-threaded,
+//! fast deflate) is kept as a reference and for comparison in `io_bench`.
+//!
+//! **EXR.** 16- or 32-bit float, 1–4 channels, named `Y`, `Y A`, `R G B`,
+//! `R G B A` by default; written by the exr crate, which compresses blocks
+//! in parallel on its own rayon pool.
+
+use std::io::Write;
+use std::path::Path;
+
+use miniz_oxide::deflate::core::{
+    CompressorOxide, TDEFLFlush, TDEFLStatus, compress_to_output, create_comp_flags_from_zip_params,
+};
+use rayon::prelude::*;
+
+use super::{IoError, write_atomic};
+use crate::texture::Texture;
+
+/// PNG sample depth.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PngDepth {
+    /// 8 bits per sample (default).
+    #[default]
+    Eight,
+    /// 16 bits per sample, for height/displacement channels.
+    Sixteen,
+}
+
+/// Which PNG encoder to use.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PngEncoder {
+    /// Strip-parallel deflate on the rayon pool (default; see module doc).
+    #[default]
+    Parallel,
+    /// The image crate's encoder, single-threaded, fast compression.
+    Image,
+}
+
+/// PNG writing options.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PngOptions {
+    /// Sample depth. Default [`PngDepth::Eight`].
+    pub depth: PngDepth,
+    /// Encoder. Default [`PngEncoder::Parallel`].
+    pub encoder: PngEncoder,
+    /// Deflate level 1 (fastest) to 9 (smallest) for the parallel encoder;
+    /// default 1. Atlases are rewritten every frame, so speed wins.
+    pub level: u8,
+}
+
+impl Default for PngOptions {
+    fn default() -> Self {
+        PngOptions {
+            depth: PngDepth::Eight,
+            encoder: PngEncoder::Parallel,
+            level: 1,
+        }
+    }
+}
+
+/// EXR sample type.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ExrSample {
+    /// Half float (default): enough for colour, half the size.
+    #[default]
+    F16,
+    F32,
+}
+
+/// EXR block compression.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ExrCompression {
+    None,
+    Rle,
+    /// zlib over 16 scan lines (default: lossless, parallel per block).
+    #[default]
+    Zip16,
+    Piz,
+}
+
+/// EXR writing options.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct ExrOptions {
+    /// Sample type. Default [`ExrSample::F16`].
+    pub sample: ExrSample,
+    /// Compression. Default [`ExrCompression::Zip16`].
+    pub compression: ExrCompression,
+    /// One name per channel. Default `None`: `Y`, `Y A`, `R G B`, `R G B A`.
+    pub channel_names: Option<Vec<String>>,
+    /// Compress on one thread only (for measurements). Default false.
+    pub single_threaded: bool,
+}
+
+/// Checks what every encoder assumes about a texture.
+fn check_texture(tex: &Texture) -> Result<(), String> {
+    if !(1..=4).contains(&tex.channels) {
+        return Err(format!("a texture needs 1 to 4 channels, got {}", tex.channels));
+    }
+    if tex.width == 0 || tex.height == 0 {
+        return Err(format!("{}x{} texture is empty", tex.width, tex.height));
+    }
+    let expected = tex.texel_count() * tex.channels;
+    if tex.data.len() != expected {
+        return Err(format!("{} values for a {}x{}x{} texture", tex.data.len(), tex.width, tex.height, tex.channels));
+    }
+    Ok(())
+}
+
+/// Encodes a texture as PNG bytes.
+pub fn encode_png(tex: &Texture, options: &PngOptions) -> Result<Vec<u8>, String> {
+    check_texture(tex)?;
+    if !(1..=9).contains(&options.level) {
+        return Err(format!("PNG deflate level {} is outside 1..=9", options.level));
+    }
+    let bytes_per_sample = match options.depth {
+        PngDepth::Eight => 1,
+        PngDepth::Sixteen => 2,
+    };
+    let raw = quantize(tex, options.depth);
+    match options.encoder {
+        PngEncoder::Parallel => Ok(encode_png_parallel(
+            tex.width,
+            tex.height,
+            tex.channels,
+            bytes_per_sample,
+            &raw,
+            options.level,
+        )),
+        PngEncoder::Image => encode_png_image_crate(tex, options.depth, &raw),
+    }
+}
+
+/// Writes a texture as a PNG file, atomically.
+pub fn write_png(path: &Path, tex: &Texture, options: &PngOptions) -> Result<(), IoError> {
+    let bytes = encode_png(tex, options).map_err(|reason| IoError::Unwritable {
+        path: path.to_path_buf(),
+        reason,
+    })?;
+    write_atomic(path, |w| w.write_all(&bytes))
+}
+
+/// Samples in PNG order: 8-bit, or 16-bit big endian; clamped and rounded.
+fn quantize(tex: &Texture, depth: PngDepth) -> Vec<u8> {
+    match depth {
+        PngDepth::Eight => tex
+            .data
+            .par_iter()
+            .with_min_len(1 << 16)
+            .map(|&x| (x.clamp(0.0, 1.0) * 255.0).round() as u8)
+            .collect(),
+        PngDepth::Sixteen => tex
+            .data
+            .par_iter()
+            .with_min_len(1 << 16)
+            .flat_map_iter(|&x| ((x.clamp(0.0, 1.0) * 65535.0).round() as u16).to_be_bytes())
+            .collect(),
+    }
+}
+
+fn color_type(channels: usize) -> u8 {
+    match channels {
+        1 => 0, // gray
+        2 => 4, // gray + alpha
+        3 => 2, // RGB
+        _ => 6, // RGBA
+    }
+}
+
+/// Uncompressed bytes per strip; fixed so output never depends on threads.
+const STRIP_BYTES: usize = 1 << 18;
+
+fn encode_png_parallel(
+    width: u32,
+    height: u32,
+    channels: usize,
+    bytes_per_sample: usize,
+    raw: &[u8],
+    level: u8,
+) -> Vec<u8> {
+    let bpp = channels * bytes_per_sample;
+    let row = width as usize * bpp;
+    let rows_per_strip = (STRIP_BYTES / (row + 1)).max(1);
+    let strips = (height as usize).div_ceil(rows_per_strip);
+    let flags = create_comp_flags_from_zip_params(i32::from(level), -15, 0);
+    let parts: Vec<(Vec<u8>, u32, usize)> = (0..strips)
+        .into_par_iter()
+        .map(|s| {
+            let y0 = s * rows_per_strip;
+            let y1 = (y0 + rows_per_strip).min(height as usize);
+            let mut filtered = Vec::with_capacity((y1 - y0) * (row + 1));
+            for y in y0..y1 {
+                let cur = &raw[y * row..(y + 1) * row];
+                let prev = if y == 0 { None } else { Some(&raw[(y - 1) * row..y * row]) };
+                filter_paeth(cur, prev, bpp, &mut filtered);
+            }
+            let adler = simd_adler32::adler32(&filtered.as_slice());
+            let mut out = Vec::with_capacity(filtered.len() / 2 + 64);
+            let mut c = CompressorOxide::new(flags);
+            let flush = if s + 1 == strips { TDEFLFlush::Finish } else { TDEFLFlush::Sync };
+            let (status, consumed) = compress_to_output(&mut c, &filtered, flush, |chunk| {
+                out.extend_from_slice(chunk);
+                true
+            });
+            // An in-memory callback cannot fail, so miniz always consumes all.
+            debug_assert!(status != TDEFLStatus::BadParam && consumed == filtered.len());
+            (out, adler, filtered.len())
+        })
+        .collect();
+
+    let mut zlib = Vec::with_capacity(parts.iter().map(|p| p.0.len()).sum::<usize>() + 6);
+    zlib.extend_from_slice(&[0x78, 0x01]);
+    let mut adler = 1u32;
+    for (bytes, a, len) in &parts {
+        zlib.extend_from_slice(bytes);
+        adler = adler32_combine(adler, *a, *len);
+    }
+    zlib.extend_from_slice(&adler.to_be_bytes());
+
+    let mut png = Vec::with_capacity(zlib.len() + 64 + zlib.len() / (1 << 20) * 12);
+    png.extend_from_slice(b"\x89PNG\r\n\x1a\n");
+    let mut ihdr = Vec::with_capacity(13);
+    ihdr.extend_from_slice(&width.to_be_bytes());
+    ihdr.extend_from_slice(&height.to_be_bytes());
+    ihdr.extend_from_slice(&[(8 * bytes_per_sample) as u8, color_type(channels), 0, 0, 0]);
+    chunk(&mut png, b"IHDR", &ihdr);
+    for part in zlib.chunks(1 << 20) {
+        chunk(&mut png, b"IDAT", part);
+    }
+    chunk(&mut png, b"IEND", &[]);
+    png
+}
+
+/// PNG filter type 4 (Paeth) for one row, prefixed by its filter byte.
+/// Paeth compresses photographic atlases best of the fixed filters and
+/// costs little next to deflate.
+fn filter_paeth(cur: &[u8], prev: Option<&[u8]>, bpp: usize, out: &mut Vec<u8>) {
+    out.push(4);
+    match prev {
+        None => {
+            // With no previous row Paeth reduces to Sub.
+            out.extend_from_slice(&cur[..bpp.min(cur.len())]);
+            out.extend(cur.iter().skip(bpp).zip(cur).map(|(&x, &a)| x.wrapping_sub(a)));
+        }
+        Some(prev) => {
+            out.extend(cur.iter().zip(prev).take(bpp).map(|(&x, &b)| x.wrapping_sub(b)));
+            out.extend(
+                cur.iter()
+                    .zip(prev)
+                    .skip(bpp)
+                    .zip(cur.iter().zip(prev))
+                    .map(|((&x, &b), (&a, &c))| x.wrapping_sub(paeth(a, b, c))),
+            );
+        }
+    }
+}
+
+#[inline]
+fn paeth(a: u8, b: u8, c: u8) -> u8 {
+    let (ia, ib, ic) = (i16::from(a), i16::from(b), i16::from(c));
+    let p = ia + ib - ic;
+    let (pa, pb, pc) = ((p - ia).abs(), (p - ib).abs(), (p - ic).abs());
+    if pa <= pb && pa <= pc {
+        a
+    } else if pb <= pc {
+        b
+    } else {
+        c
+    }
+}
+
+/// Adler-32 of the concatenation of two blocks (zlib's `adler32_combine`).
+fn adler32_combine(adler1: u32, adler2: u32, len2: usize) -> u32 {
+    const BASE: u64 = 65521;
+    let rem = len2 as u64 % BASE;
+    let (a1, b1) = (u64::from(adler1 & 0xffff), u64::from(adler1 >> 16));
+    let (a2, b2) = (u64::from(adler2 & 0xffff), u64::from(adler2 >> 16));
+    let sum1 = (a1 + a2 + BASE - 1) % BASE;
+    let sum2 = (rem * a1 % BASE + b1 + b2 + BASE - rem) % BASE;
+    (sum1 | (sum2 << 16)) as u32
+}
+
+fn chunk(png: &mut Vec<u8>, kind: &[u8; 4], data: &[u8]) {
+    png.extend_from_slice(&(data.len() as u32).to_be_bytes());
+    png.extend_from_slice(kind);
+    png.extend_from_slice(data);
+    let mut h = crc32fast::Hasher::new();
+    h.update(kind);
+    h.update(data);
+    png.extend_from_slice(&h.finalize().to_be_bytes());
+}
+
+fn encode_png_image_crate(tex: &Texture, depth: PngDepth, raw: &[u8]) -> Result<Vec<u8>, String> {
+    use image::ImageEncoder;
+    use image::codecs::png::{CompressionType, FilterType, PngEncoder as ImgPng};
+    let ty = match (tex.channels, depth) {
+        (1, PngDepth::Eight) => image::ExtendedColorType::L8,
+        (2, PngDepth::Eight) => image::ExtendedColorType::La8,
+        (3, PngDepth::Eight) => image::ExtendedColorType::Rgb8,
+        (_, PngDepth::Eight) => image::ExtendedColorType::Rgba8,
+        (1, PngDepth::Sixteen) => image::ExtendedColorType::L16,
+        (2, PngDepth::Sixteen) => image::ExtendedColorType::La16,
+        (3, PngDepth::Sixteen) => image::ExtendedColorType::Rgb16,
+        (_, PngDepth::Sixteen) => image::ExtendedColorType::Rgba16,
+    };
+    // image takes 16-bit samples in native order.
+    let native: Vec<u8>;
+    let data = match depth {
+        PngDepth::Eight => raw,
+        PngDepth::Sixteen => {
+            native = raw
+                .chunks_exact(2)
+                .flat_map(|b| u16::from_be_bytes([b[0], b[1]]).to_ne_bytes())
+                .collect();
+            &native
+        }
+    };
+    let mut out = Vec::new();
+    ImgPng::new_with_quality(&mut out, CompressionType::Fast, FilterType::Adaptive)
+        .write_image(data, tex.width, tex.height, ty)
+        .map_err(|e| e.to_string())?;
+    Ok(out)
+}
+
+fn default_channel_names(channels: usize) -> Vec<String> {
+    let names: &[&str] = match channels {
+        1 => &["Y"],
+        2 => &["Y", "A"],
+        3 => &["R", "G", "B"],
+        _ => &["R", "G", "B", "A"],
+    };
+    names.iter().map(|s| s.to_string()).collect()
+}
+
+/// Writes a texture as an EXR file, atomically.
+pub fn write_exr(path: &Path, tex: &Texture, options: &ExrOptions) -> Result<(), IoError> {
+    use exr::prelude::*;
+    let bad = |reason: String| IoError::Unwritable {
+        path: path.to_path_buf(),
+        reason,
+    };
+    check_texture(tex).map_err(bad)?;
+    let names = match &options.channel_names {
+        Some(n) => n.clone(),
+        None => default_channel_names(tex.channels),
+    };
+    if names.len() != tex.channels {
+        return Err(bad(format!("{} channel names for {} channels", names.len(), tex.channels)));
+    }
+    for (k, n) in names.iter().enumerate() {
+        if n.is_empty() || names[..k].contains(n) {
+            return Err(bad(format!("channel name {n:?} is empty or repeated")));
+        }
+    }
+    let c = tex.channels;
+    let channels: Vec<AnyChannel<FlatSamples>> = names
+        .iter()
+        .enumerate()
+        .map(|(k, name)| {
+            let plane = tex.data.iter().skip(k).step_by(c).copied();
+            let samples = match options.sample {
+                ExrSample::F16 => FlatSamples::F16(plane.map(f16::from_f32).collect()),
+                ExrSample::F32 => FlatSamples::F32(plane.collect()),
+            };
+            AnyChannel::new(name.as_str(), samples)
+        })
+        .collect();
+    let compression = match options.compression {
+        ExrCompression::None => Compression::Uncompressed,
+        ExrCompression::Rle => Compression::RLE,
+        ExrCompression::Zip16 => Compression::ZIP16,
+        ExrCompression::Piz => Compression::PIZ,
+    };
+    let encoding = Encoding {
+        compression,
+        blocks: Blocks::ScanLines,
+        line_order: LineOrder::Increasing,
+    };
+    let layer = Layer::new(
+        (tex.width as usize, tex.height as usize),
+        LayerAttributes::default(),
+        encoding,
+        AnyChannels::sort(channels.into()),
+    );
+    let image = Image::from_layer(layer);
+    let single = options.single_threaded;
+    write_atomic(path, |w| {
+        let writer = image.write();
+        let result = if single {
+            writer.non_parallel().to_buffered(w)
+        } else {
+            writer.to_buffered(w)
+        };
+        result.map_err(|e| std::io::Error::other(e.to_string()))
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use rand::{Rng, SeedableRng};
+    use rand_pcg::Pcg64;
+
+    use super::*;
+
+    fn random_texture(seed: u64, w: u32, h: u32, c: usize) -> Texture {
+        let mut rng = Pcg64::seed_from_u64(seed);
+        // Smooth gradient plus noise, with out-of-range values to clamp.
+        let data = (0..w as usize * h as usize * c)
+            .map(|i| (i % 97) as f32 / 80.0 - 0.1 + rng.random_range(-0.05..0.05))
+            .collect();
+        Texture::from_data(w, h, c, data).unwrap()
+    }
+
+    fn decode(bytes: &[u8]) -> image::DynamicImage {
+        image::load_from_memory_with_format(bytes, image::ImageFormat::Png).unwrap()
+    }
+
+    #[test]
+    fn adler_combine_matches_the_whole() {
+        let mut rng = Pcg64::seed_from_u64(1);
+        for _ in 0..20 {
+            let n = rng.random_range(0..5000);
+            let data: Vec<u8> = (0..n).map(|_| rng.random()).collect();
+            let k = rng.random_range(0..=n);
+            let (a, b) = data.split_at(k);
+            let combined = adler32_combine(simd_adler32::adler32(&a), simd_adler32::adler32(&b), b.len());
+            assert_eq!(combined, simd_adler32::adler32(&data.as_slice()));
+        }
+    }
+
+    #[test]
+    fn parallel_png_decodes_to_the_quantized_texture_for_every_layout() {
+        for (seed, (w, h)) in [(1u32, 1u32), (3, 700), (517, 300), (64, 64)].into_iter().enumerate() {
+            for c in 1..=4 {
+                let tex = random_texture(seed as u64, w, h, c);
+                for depth in [PngDepth::Eight, PngDepth::Sixteen] {
+                    let ours = encode_png(&tex, &PngOptions { depth, ..Default::default() }).unwrap();
+                    let reference = encode_png(&tex, &PngOptions { depth, encoder: PngEncoder::Image, level: 1 }).unwrap();
+                    let (a, b) = (decode(&ours), decode(&reference));
+                    assert_eq!(a.color(), b.color(), "{w}x{h}x{c} {depth:?}");
+                    assert_eq!(a.as_bytes(), b.as_bytes(), "{w}x{h}x{c} {depth:?}");
+                    if depth == PngDepth::Eight {
+                        let expect: Vec<u8> = tex.data.iter().map(|&x| (x.clamp(0.0, 1.0) * 255.0).round() as u8).collect();
+                        assert_eq!(a.as_bytes(), &expect[..]);
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn parallel_png_is_identical_for_any_thread_count() {
+        let tex = random_texture(9, 1000, 900, 3);
+        let enc = || encode_png(&tex, &PngOptions::default()).unwrap();
+        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap().install(enc);
+        let three = rayon::ThreadPoolBuilder::new().num_threads(3).build().unwrap().install(enc);
+        assert_eq!(one, three);
+    }
+
+    #[test]
+    fn clamps_and_rounds_known_values() {
+        let tex = Texture::from_data(4, 1, 1, vec![-1.0, 0.5, 0.2, f32::NAN]).unwrap();
+        let png = encode_png(&tex, &PngOptions::default()).unwrap();
+        assert_eq!(decode(&png).as_bytes(), &[0, 128, 51, 0]);
+        let png = encode_png(&tex, &PngOptions { depth: PngDepth::Sixteen, ..Default::default() }).unwrap();
+        assert_eq!(decode(&png).to_luma16().into_raw(), vec![0, 32768, 13107, 0]);
+    }
+
+    #[test]
+    fn rejects_bad_textures_and_levels() {
+        let tex = Texture { width: 2, height: 2, channels: 3, data: vec![0.0; 5] };
+        assert_eq!(encode_png(&tex, &PngOptions::default()).unwrap_err(), "5 values for a 2x2x3 texture");
+        let tex = Texture::filled(2, 2, 3, 0.0);
+        assert!(encode_png(&tex, &PngOptions { level: 0, ..Default::default() }).is_err());
+        let empty = Texture::filled(0, 3, 1, 0.0);
+        assert_eq!(encode_png(&empty, &PngOptions::default()).unwrap_err(), "0x3 texture is empty");
+    }
+
+    #[test]
+    fn exr_round_trips_with_names_and_types() {
+        use exr::prelude::*;
+        let dir = tempfile::tempdir().unwrap();
+        for (c, sample) in [(1, ExrSample::F32), (3, ExrSample::F16), (4, ExrSample::F32), (2, ExrSample::F16)] {
+            let tex = random_texture(c as u64, 37, 21, c);
+            let path = dir.path().join(format!("t{c}.exr"));
+            write_exr(&path, &tex, &ExrOptions { sample, ..Default::default() }).unwrap();
+            let img = read_all_flat_layers_from_file(&path).unwrap();
+            let layer = &img.layer_data[0];
+            assert_eq!(layer.size, Vec2(37, 21));
+            let names = default_channel_names(c);
+            for (k, name) in names.iter().enumerate() {
+                let ch = layer.channel_data.list.iter().find(|ch| ch.name == Text::from(name.as_str())).unwrap();
+                let values = ch.sample_data.values_as_f32().collect::<Vec<f32>>();
+                let expect: Vec<f32> = tex.data.iter().skip(k).step_by(c).copied().collect();
+                match sample {
+                    ExrSample::F32 => assert_eq!(values, expect),
+                    ExrSample::F16 => {
+                        let halves: Vec<f32> = expect.iter().map(|&x| f16::from_f32(x).to_f32()).collect();
+                        assert_eq!(values, halves);
+                    }
+                }
+            }
+        }
+        let tex = random_texture(0, 4, 4, 2);
+        let opts = ExrOptions { channel_names: Some(vec!["height".into(), "height".into()]), ..Default::default() };
+        assert!(write_exr(&dir.path().join("bad.exr"), &tex, &opts).is_err());
+        let opts = ExrOptions { channel_names: Some(vec!["height".into(), "mask".into()]), ..Default::default() };
+        write_exr(&dir.path().join("named.exr"), &tex, &opts).unwrap();
+    }
+}

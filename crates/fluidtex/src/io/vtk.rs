@@ -1,0 +1,529 @@
+//! Legacy VTK reader for the surface meshes splashsurf writes.
+//!
+//! splashsurf writes legacy VTK 4.2, binary (big endian, as the legacy
+//! format requires), `DATASET UNSTRUCTURED_GRID` with triangle cells, and
+//! point attributes as `FIELD` arrays. We read that and its neighbours:
+//! ASCII or binary; `UNSTRUCTURED_GRID` (`CELLS` + `CELL_TYPES`, in the 4.x
+//! count-prefixed layout or the 5.x `OFFSETS`/`CONNECTIVITY` layout) or
+//! `POLYDATA` (`POLYGONS`, `TRIANGLE_STRIPS`); point data as `VECTORS`,
+//! `NORMALS`, `SCALARS` (any component count) or `FIELD` arrays. Velocity is
+//! the 3-component point array named in [`ReadOptions::vtk_velocity_array`]
+//! or, by default, the first of `velocity`, `Velocity`, `vel`, `v`.
+//!
+//! Written by hand because the one Rust crate for it (vtkio) brings an XML
+//! stack and its legacy reader had open bugs splashsurf works around; the
+//! legacy format is a handful of keyword lines followed by arrays.
+//! Vertex, line and poly-line cells are skipped; volume cells are an error.
+//! `long`/`unsigned_long` are read as 8 bytes (64-bit Linux writers).
+
+use std::path::Path;
+
+use glam::Vec3;
+
+use super::{IoError, ReadOptions, read_bytes};
+use crate::mesh::{MeshError, TriMesh};
+
+/// Default names of the velocity array, tried in order.
+pub const VELOCITY_ARRAYS: [&str; 4] = ["velocity", "Velocity", "vel", "v"];
+
+/// Reads a legacy VTK file into a mesh (velocity attached when present).
+/// Not validated; [`super::read_mesh`] does that.
+pub fn read_vtk(path: &Path, options: &ReadOptions) -> Result<TriMesh, IoError> {
+    let bytes = read_bytes(path)?;
+    parse_vtk(path, &bytes, options)
+}
+
+/// Parses legacy VTK bytes; `path` is used in error messages only.
+pub fn parse_vtk(path: &Path, bytes: &[u8], options: &ReadOptions) -> Result<TriMesh, IoError> {
+    let mut c = Cursor {
+        path,
+        bytes,
+        pos: 0,
+        binary: false,
+    };
+    let magic = c.line()?;
+    if !magic.starts_with("# vtk DataFile") {
+        return Err(c.header("not a legacy VTK file (first line is not \"# vtk DataFile ...\")"));
+    }
+    let _title = c.line()?;
+    c.binary = match c.line()?.trim() {
+        "ASCII" => false,
+        "BINARY" => true,
+        other => return Err(c.header(&format!("expected ASCII or BINARY, found {other:?}"))),
+    };
+    let dataset = c.keyword_line()?;
+    let polydata = match dataset.as_slice() {
+        [k, t] if k == "DATASET" && t == "UNSTRUCTURED_GRID" => false,
+        [k, t] if k == "DATASET" && t == "POLYDATA" => true,
+        _ => {
+            return Err(c.header(&format!(
+                "expected DATASET UNSTRUCTURED_GRID or POLYDATA, found {:?}",
+                dataset.join(" ")
+            )));
+        }
+    };
+
+    let mut positions: Option<Vec<Vec3>> = None;
+    let mut polygons: Vec<Vec<u32>> = Vec::new();
+    let mut cell_types: Option<Vec<u32>> = None;
+    let mut velocity: Option<Vec<Vec3>> = None;
+    let mut section_len = 0usize; // point count of POINT_DATA, or 0 in CELL_DATA
+    let mut in_point_data = false;
+    let wanted: Vec<&str> = match &options.vtk_velocity_array {
+        Some(name) => vec![name.as_str()],
+        None => VELOCITY_ARRAYS.to_vec(),
+    };
+    let mut best_rank = usize::MAX;
+
+    while !c.at_end() {
+        let words = c.keyword_line()?;
+        let Some(key) = words.first() else { continue };
+        match key.as_str() {
+            "POINTS" => {
+                let n = c.count(&words, 1)?;
+                let ty = c.word(&words, 2)?;
+                let v = c.array(n * 3, ty, "point", 3)?;
+                positions = Some(v.chunks_exact(3).map(|p| Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32)).collect());
+            }
+            "CELLS" | "POLYGONS" | "TRIANGLE_STRIPS" | "VERTICES" | "LINES" => {
+                let element = if key == "CELLS" { "cell" } else { "polygon" };
+                let lists = c.cell_lists(&words, element)?;
+                match key.as_str() {
+                    "CELLS" | "POLYGONS" => polygons = lists,
+                    "TRIANGLE_STRIPS" => polygons.extend(lists.iter().flat_map(|s| strip(s)).map(|t| t.to_vec())),
+                    _ => {} // points and lines carry no surface
+                }
+            }
+            "CELL_TYPES" => {
+                let n = c.count(&words, 1)?;
+                let v = c.array(n, "int", "cell type", 1)?;
+                cell_types = Some(v.iter().map(|&t| t as u32).collect());
+            }
+            "POINT_DATA" => {
+                section_len = c.count(&words, 1)?;
+                in_point_data = true;
+            }
+            "CELL_DATA" => {
+                section_len = c.count(&words, 1)?;
+                in_point_data = false;
+            }
+            "VECTORS" | "NORMALS" | "SCALARS" | "FIELD" => {
+                // Every array is read (to get past it); velocity is kept.
+                for (name, comps, values) in c.attribute_arrays(&words, section_len)? {
+                    let rank = wanted.iter().position(|w| *w == name);
+                    if let (true, 3, Some(rank)) = (in_point_data, comps, rank) {
+                        if rank < best_rank {
+                            best_rank = rank;
+                            velocity = Some(
+                                values
+                                    .chunks_exact(3)
+                                    .map(|v| Vec3::new(v[0] as f32, v[1] as f32, v[2] as f32))
+                                    .collect(),
+                            );
+                        }
+                    }
+                }
+            }
+            "METADATA" => c.skip_metadata()?,
+            other => return Err(c.header(&format!("unsupported section {other:?}"))),
+        }
+    }
+
+    let positions = positions.ok_or_else(|| c.header("no POINTS section"))?;
+    let n = positions.len();
+    let mut triangles = Vec::with_capacity(polygons.len());
+    for (i, poly) in polygons.iter().enumerate() {
+        let keep = match (&cell_types, polydata) {
+            (_, true) => true,
+            (Some(types), false) => {
+                let t = types.get(i).copied().ok_or_else(|| IoError::Counts {
+                    path: path.to_path_buf(),
+                    reason: format!("{} cells but {} cell types", polygons.len(), types.len()),
+                })?;
+                match t {
+                    5 | 6 | 7 | 8 | 9 => true, // triangle, strip, polygon, pixel, quad
+                    1..=4 => false,            // vertex, poly-vertex, line, poly-line
+                    other => {
+                        return Err(IoError::Element {
+                            path: path.to_path_buf(),
+                            element: "cell".into(),
+                            index: i,
+                            reason: format!("has type {other}, not a surface cell"),
+                        });
+                    }
+                }
+            }
+            (None, false) if polygons.is_empty() => true,
+            (None, false) => return Err(c.header("CELLS without CELL_TYPES")),
+        };
+        if !keep {
+            continue;
+        }
+        if let Some(&index) = poly.iter().find(|&&k| k as usize >= n) {
+            return Err(IoError::Mesh {
+                path: path.to_path_buf(),
+                source: MeshError::IndexOutOfRange {
+                    face: i,
+                    index,
+                    vertex_count: n,
+                },
+            });
+        }
+        if cell_types.as_ref().and_then(|t| t.get(i)) == Some(&6) {
+            triangles.extend(strip(poly));
+        } else if cell_types.as_ref().and_then(|t| t.get(i)) == Some(&8) && poly.len() == 4 {
+            // A pixel's corners are in raster order, not around the boundary.
+            triangles.push([poly[0], poly[1], poly[3]]);
+            triangles.push([poly[0], poly[3], poly[2]]);
+        } else if !super::fan(poly, &mut triangles) {
+            return Err(IoError::Element {
+                path: path.to_path_buf(),
+                element: "cell".into(),
+                index: i,
+                reason: format!("has {} corners; a face needs at least 3", poly.len()),
+            });
+        }
+    }
+    let mut mesh = TriMesh::new(positions, triangles);
+    if let Some(v) = velocity {
+        if v.len() != n {
+            return Err(IoError::Counts {
+                path: path.to_path_buf(),
+                reason: format!("velocity has {} values for {n} points", v.len()),
+            });
+        }
+        mesh = mesh.with_velocity(v);
+    } else if let Some(name) = &options.vtk_velocity_array {
+        return Err(c.header(&format!("no 3-component point array named {name:?}")));
+    }
+    Ok(mesh)
+}
+
+/// Triangles of a strip, alternating orientation so all face the same way.
+fn strip(s: &[u32]) -> Vec<[u32; 3]> {
+    s.windows(3)
+        .enumerate()
+        .map(|(k, w)| if k % 2 == 0 { [w[0], w[1], w[2]] } else { [w[1], w[0], w[2]] })
+        .collect()
+}
+
+struct Cursor<'a> {
+    path: &'a Path,
+    bytes: &'a [u8],
+    pos: usize,
+    binary: bool,
+}
+
+impl Cursor<'_> {
+    fn header(&self, reason: &str) -> IoError {
+        IoError::Header {
+            path: self.path.to_path_buf(),
+            reason: reason.to_string(),
+        }
+    }
+
+    fn at_end(&mut self) -> bool {
+        self.skip_space();
+        self.pos >= self.bytes.len()
+    }
+
+    fn skip_space(&mut self) {
+        while self.bytes.get(self.pos).is_some_and(|b| b.is_ascii_whitespace()) {
+            self.pos += 1;
+        }
+    }
+
+    /// The rest of the current line (without the newline), consumed.
+    fn line(&mut self) -> Result<String, IoError> {
+        if self.pos >= self.bytes.len() {
+            return Err(self.header("the file ends inside the header"));
+        }
+        let rest = &self.bytes[self.pos..];
+        let end = rest.iter().position(|&b| b == b'\n').unwrap_or(rest.len());
+        self.pos += (end + 1).min(rest.len());
+        Ok(String::from_utf8_lossy(&rest[..end]).trim_end_matches('\r').to_string())
+    }
+
+    /// The next non-blank line, split into words.
+    fn keyword_line(&mut self) -> Result<Vec<String>, IoError> {
+        self.skip_space();
+        Ok(self.line()?.split_whitespace().map(str::to_string).collect())
+    }
+
+    fn word<'w>(&self, words: &'w [String], k: usize) -> Result<&'w str, IoError> {
+        words
+            .get(k)
+            .map(String::as_str)
+            .ok_or_else(|| self.header(&format!("{:?} is missing a field", words.join(" "))))
+    }
+
+    fn count(&self, words: &[String], k: usize) -> Result<usize, IoError> {
+        let w = self.word(words, k)?;
+        w.parse()
+            .map_err(|_| self.header(&format!("{w:?} is not a count in {:?}", words.join(" "))))
+    }
+
+    /// Reads `n` numbers of type `ty`; `element`/`per` name the element
+    /// (`point`, 3 values each) for truncation messages.
+    fn array(&mut self, n: usize, ty: &str, element: &str, per: usize) -> Result<Vec<f64>, IoError> {
+        let truncated = |at: usize| IoError::Truncated {
+            path: self.path.to_path_buf(),
+            element: element.to_string(),
+            expected: n / per.max(1),
+            at: at / per.max(1),
+        };
+        let mut out = Vec::with_capacity(n.min(self.bytes.len().saturating_sub(self.pos)));
+        if self.binary {
+            let size = type_size(ty).ok_or_else(|| self.header(&format!("unknown data type {ty:?}")))?;
+            let available = (self.bytes.len() - self.pos) / size;
+            if available < n {
+                return Err(truncated(available));
+            }
+            for chunk in self.bytes[self.pos..self.pos + n * size].chunks_exact(size) {
+                out.push(decode_be(chunk, ty));
+            }
+            self.pos += n * size;
+        } else {
+            type_size(ty).ok_or_else(|| self.header(&format!("unknown data type {ty:?}")))?;
+            for i in 0..n {
+                self.skip_space();
+                let rest = &self.bytes[self.pos..];
+                let end = rest.iter().position(|b| b.is_ascii_whitespace()).unwrap_or(rest.len());
+                if end == 0 {
+                    return Err(truncated(i));
+                }
+                let token = String::from_utf8_lossy(&rest[..end]);
+                let value: f64 = token.parse().map_err(|_| IoError::Element {
+                    path: self.path.to_path_buf(),
+                    element: element.to_string(),
+                    index: i / per.max(1),
+                    reason: format!("{token:?} is not a number"),
+                })?;
+                out.push(value);
+                self.pos += end;
+            }
+        }
+        Ok(out)
+    }
+
+    /// Reads a cell list section (`CELLS`/`POLYGONS`/...), either the 4.x
+    /// layout (`n size`, then per cell a count and its indices) or the 5.x
+    /// layout (`OFFSETS` and `CONNECTIVITY` arrays).
+    fn cell_lists(&mut self, words: &[String], element: &str) -> Result<Vec<Vec<u32>>, IoError> {
+        let n = self.count(words, 1)?;
+        let size = self.count(words, 2)?;
+        let save = self.pos;
+        let next = self.keyword_line()?;
+        if next.first().map(String::as_str) == Some("OFFSETS") {
+            let offsets = self.array(n, self.word(&next, 1)?.to_string().as_str(), "offset", 1)?;
+            let conn_words = self.keyword_line()?;
+            if conn_words.first().map(String::as_str) != Some("CONNECTIVITY") {
+                return Err(self.header("OFFSETS not followed by CONNECTIVITY"));
+            }
+            let conn = self.array(size, self.word(&conn_words, 1)?.to_string().as_str(), "index", 1)?;
+            let mut lists = Vec::with_capacity(n.saturating_sub(1));
+            for (i, w) in offsets.windows(2).enumerate() {
+                let (a, b) = (w[0] as usize, w[1] as usize);
+                let cell = conn.get(a..b).ok_or_else(|| IoError::Element {
+                    path: self.path.to_path_buf(),
+                    element: element.to_string(),
+                    index: i,
+                    reason: format!("offsets {a}..{b} fall outside the {size} indices"),
+                })?;
+                lists.push(self.indices(cell, element, i)?);
+            }
+            return Ok(lists);
+        }
+        self.pos = save;
+        let flat = self.array(size, "int", element, 1)?;
+        let mut lists = Vec::with_capacity(n.min(flat.len()));
+        let mut k = 0usize;
+        for i in 0..n {
+            let count = *flat.get(k).ok_or_else(|| IoError::Counts {
+                path: self.path.to_path_buf(),
+                reason: format!("{n} {element}s declared, the {size} values hold only {i}"),
+            })? as usize;
+            let cell = flat.get(k + 1..k + 1 + count).ok_or_else(|| IoError::Counts {
+                path: self.path.to_path_buf(),
+                reason: format!("{element} {i} runs past the {size} values declared"),
+            })?;
+            lists.push(self.indices(cell, element, i)?);
+            k += 1 + count;
+        }
+        if k != size {
+            return Err(IoError::Counts {
+                path: self.path.to_path_buf(),
+                reason: format!("{n} {element}s use {k} of the {size} values declared"),
+            });
+        }
+        Ok(lists)
+    }
+
+    fn indices(&self, cell: &[f64], element: &str, i: usize) -> Result<Vec<u32>, IoError> {
+        cell.iter()
+            .map(|&x| {
+                if x >= 0.0 && x <= u32::MAX as f64 && x.fract() == 0.0 {
+                    Ok(x as u32)
+                } else {
+                    Err(IoError::Element {
+                        path: self.path.to_path_buf(),
+                        element: element.to_string(),
+                        index: i,
+                        reason: format!("has the invalid point index {x}"),
+                    })
+                }
+            })
+            .collect()
+    }
+
+    /// Reads one attribute section and returns its arrays as
+    /// `(name, components, values)`.
+    fn attribute_arrays(
+        &mut self,
+        words: &[String],
+        tuples: usize,
+    ) -> Result<Vec<(String, usize, Vec<f64>)>, IoError> {
+        let key = self.word(words, 0)?.to_string();
+        match key.as_str() {
+            "VECTORS" | "NORMALS" => {
+                let name = self.word(words, 1)?.to_string();
+                let ty = self.word(words, 2)?.to_string();
+                let v = self.array(tuples * 3, &ty, "point", 3)?;
+                Ok(vec![(name, 3, v)])
+            }
+            "SCALARS" => {
+                let name = self.word(words, 1)?.to_string();
+                let ty = self.word(words, 2)?.to_string();
+                let comps = match words.get(3) {
+                    Some(w) => w.parse().map_err(|_| self.header(&format!("bad SCALARS component count {w:?}")))?,
+                    None => 1,
+                };
+                let lut = self.keyword_line()?;
+                if lut.first().map(String::as_str) != Some("LOOKUP_TABLE") {
+                    return Err(self.header("SCALARS without LOOKUP_TABLE"));
+                }
+                let v = self.array(tuples * comps, &ty, "point", comps)?;
+                Ok(vec![(name, comps, v)])
+            }
+            _ => {
+                let k = self.count(words, 2)?;
+                let mut out = Vec::new();
+                for _ in 0..k {
+                    let w = self.keyword_line()?;
+                    let name = self.word(&w, 0)?.to_string();
+                    let comps = self.count(&w, 1)?;
+                    let n = self.count(&w, 2)?;
+                    let ty = self.word(&w, 3)?.to_string();
+                    let v = self.array(n * comps, &ty, "point", comps)?;
+                    out.push((name, comps, v));
+                }
+                Ok(out)
+            }
+        }
+    }
+
+    /// Skips a 5.x `METADATA` block, which ends at a blank line.
+    fn skip_metadata(&mut self) -> Result<(), IoError> {
+        while self.pos < self.bytes.len() {
+            if self.line()?.trim().is_empty() {
+                break;
+            }
+        }
+        Ok(())
+    }
+}
+
+fn type_size(ty: &str) -> Option<usize> {
+    Some(match ty {
+        "bit" => return None,
+        "char" | "unsigned_char" | "vtktypeint8" | "vtktypeuint8" => 1,
+        "short" | "unsigned_short" | "vtktypeint16" | "vtktypeuint16" => 2,
+        "int" | "unsigned_int" | "float" | "vtktypeint32" | "vtktypeuint32" | "vtktypefloat32" => 4,
+        "long" | "unsigned_long" | "double" | "vtktypeint64" | "vtktypeuint64" | "vtktypefloat64" => 8,
+        _ => return None,
+    })
+}
+
+/// Decodes one big-endian value; `b.len()` equals `type_size(ty)`.
+fn decode_be(b: &[u8], ty: &str) -> f64 {
+    let mut a = [0u8; 8];
+    a[..b.len()].copy_from_slice(b);
+    match ty {
+        "char" | "vtktypeint8" => f64::from(a[0] as i8),
+        "unsigned_char" | "vtktypeuint8" => f64::from(a[0]),
+        "short" | "vtktypeint16" => f64::from(i16::from_be_bytes([a[0], a[1]])),
+        "unsigned_short" | "vtktypeuint16" => f64::from(u16::from_be_bytes([a[0], a[1]])),
+        "int" | "vtktypeint32" => f64::from(i32::from_be_bytes([a[0], a[1], a[2], a[3]])),
+        "unsigned_int" | "vtktypeuint32" => f64::from(u32::from_be_bytes([a[0], a[1], a[2], a[3]])),
+        "float" | "vtktypefloat32" => f64::from(f32::from_be_bytes([a[0], a[1], a[2], a[3]])),
+        "long" | "vtktypeint64" => i64::from_be_bytes(a) as f64,
+        "unsigned_long" | "vtktypeuint64" => u64::from_be_bytes(a) as f64,
+        _ => f64::from_be_bytes(a),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(b: &[u8]) -> Result<TriMesh, IoError> {
+        parse_vtk(Path::new("s.vtk"), b, &ReadOptions::default())
+    }
+
+    #[test]
+    fn ascii_unstructured_grid_with_field_velocity_and_a_vertex_cell() {
+        let text = b"# vtk DataFile Version 4.2\nsurface\nASCII\nDATASET UNSTRUCTURED_GRID\n\
+POINTS 4 float\n0 0 0 1 0 0 1 1 0\n0 1 0\nCELLS 3 11\n3 0 1 2\n4 0 1 2 3\n1 3\nCELL_TYPES 3\n5\n9\n1\n\
+POINT_DATA 4\nFIELD FieldData 2\nid 1 4 int\n0 1 2 3\nvelocity 3 4 float\n1 2 3 4 5 6 7 8 9 10 11 12\n";
+        let m = parse(text).unwrap();
+        assert_eq!(m.positions.len(), 4);
+        assert_eq!(m.triangles, vec![[0, 1, 2], [0, 1, 2], [0, 2, 3]]);
+        assert_eq!(m.velocity().unwrap()[3], Vec3::new(10.0, 11.0, 12.0));
+    }
+
+    #[test]
+    fn binary_polydata_with_vectors() {
+        let mut b = b"# vtk DataFile Version 3.0\nt\nBINARY\nDATASET POLYDATA\nPOINTS 3 double\n".to_vec();
+        for x in [0.0f64, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0] {
+            b.extend_from_slice(&x.to_be_bytes());
+        }
+        b.extend_from_slice(b"\nPOLYGONS 1 4\n");
+        for i in [3i32, 0, 1, 2] {
+            b.extend_from_slice(&i.to_be_bytes());
+        }
+        b.extend_from_slice(b"\nPOINT_DATA 3\nVECTORS vel float\n");
+        for x in [1.0f32, 0.0, 0.0, 0.0, 2.0, 0.0, 0.0, 0.0, 3.0] {
+            b.extend_from_slice(&x.to_be_bytes());
+        }
+        b.push(b'\n');
+        let m = parse(&b).unwrap();
+        assert_eq!(m.triangles, vec![[0, 1, 2]]);
+        assert_eq!(m.velocity().unwrap()[2], Vec3::new(0.0, 0.0, 3.0));
+        // Truncating inside the points names the point.
+        let err = parse(&b[..80]).unwrap_err();
+        assert!(
+            err.to_string().starts_with("s.vtk: truncated: expected 3 points, file ends in point"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn vtk5_offsets_and_connectivity() {
+        let text = b"# vtk DataFile Version 5.1\nx\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 4 float\n\
+0 0 0 1 0 0 1 1 0 0 1 0\nCELLS 3 7\nOFFSETS vtktypeint64\n0 3 7\nCONNECTIVITY vtktypeint64\n0 1 2 0 1 2 3\n\
+CELL_TYPES 2\n5\n9\n";
+        let m = parse(text).unwrap();
+        assert_eq!(m.triangles, vec![[0, 1, 2], [0, 1, 2], [0, 2, 3]]);
+    }
+
+    #[test]
+    fn errors_name_the_cell() {
+        let head = "# vtk DataFile Version 4.2\ns\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 3 float\n0 0 0 1 0 0 0 1 0\n";
+        let err = parse(format!("{head}CELLS 1 4\n3 0 1 7\nCELL_TYPES 1\n5\n").as_bytes()).unwrap_err();
+        assert_eq!(err.to_string(), "s.vtk: face 0 refers to vertex 7, but the mesh has 3 vertices");
+        let err = parse(format!("{head}CELLS 1 5\n4 0 1 2 0\nCELL_TYPES 1\n10\n").as_bytes()).unwrap_err();
+        assert_eq!(err.to_string(), "s.vtk: cell 0: has type 10, not a surface cell");
+        let err = parse(format!("{head}CELLS 2 4\n3 0 1 2\nCELL_TYPES 1\n5\n").as_bytes()).unwrap_err();
+        assert_eq!(err.to_string(), "s.vtk: bad counts: 2 cells declared, the 4 values hold only 1");
+    }
+}
