@@ -1,1 +1,75 @@
-pub fn run() {}
+//! The `fluidtex` command line: a thin clap front end over the `fluidtex`
+//! library. The binary only calls [`main_entry`]; integration tests call
+//! [`run`] with an argument list, so they drive the whole tool in-process.
+
+pub mod config;
+pub mod progress;
+
+mod commands;
+
+use std::ffi::OsString;
+
+use anyhow::Result;
+use clap::{Parser, Subcommand};
+
+pub use commands::bench::BenchArgs;
+pub use commands::scene::SceneArgs;
+
+/// Textures that ride animated fluid surfaces.
+///
+/// Reads a fluid mesh sequence with per-vertex velocity, writes per frame a
+/// texture atlas and the mesh with atlas UVs (OBJ + MTL, glb).
+#[derive(Parser, Debug)]
+#[command(name = "fluidtex", version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Describe a mesh sequence: frames, triangles, attributes, bounds, velocity range
+    Info(commands::info::InfoArgs),
+    /// Texture a mesh sequence
+    Run(commands::run::RunArgs),
+    /// Texture a built-in scene with the built-in pebbles exemplar, with previews
+    Demo(commands::demo::DemoArgs),
+    /// Generate a scene (analytic flows with exact velocity, or an SPH dam break)
+    Scene(SceneArgs),
+    /// Print per-stage timings on a generated surface
+    Bench(BenchArgs),
+}
+
+/// Runs the tool with `args` (the first element is the program name).
+pub fn run<I, T>(args: I) -> Result<()>
+where
+    I: IntoIterator<Item = T>,
+    T: Into<OsString> + Clone,
+{
+    let cli = Cli::try_parse_from(args)?;
+    match cli.command {
+        Command::Info(a) => commands::info::info(&a),
+        Command::Run(a) => commands::run::run(&a),
+        Command::Demo(a) => commands::demo::demo(&a),
+        Command::Scene(a) => commands::scene::scene(&a),
+        Command::Bench(a) => commands::bench::bench(&a),
+    }
+}
+
+/// The binary's entry point: runs, prints an error as one line, returns the
+/// process exit code.
+pub fn main_entry() -> i32 {
+    match run(std::env::args_os()) {
+        Ok(()) => 0,
+        Err(e) => {
+            if let Some(clap_err) = e.downcast_ref::<clap::Error>() {
+                // Help and version are not errors.
+                let _ = clap_err.print();
+                return clap_err.exit_code();
+            }
+            // One line: the context chain joined, outermost first.
+            eprintln!("error: {e:#}");
+            1
+        }
+    }
+}

@@ -10,6 +10,7 @@
 //! frame or patch id), the files are the same as those of an uninterrupted run.
 
 use std::collections::BTreeMap;
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -17,7 +18,8 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use crate::atlas::{Atlas, AtlasError, AtlasParams};
-use crate::io::IoError;
+use crate::io::image::{ExrOptions, ExrSample, PngDepth, PngOptions};
+use crate::io::{InputGuard, IoError};
 use crate::mesh::{TriMesh, ValidationReport};
 use crate::methods::{FrameContext, Method, MethodError, PreviousFrame, SOURCE_OUTSIDE, SOURCE_UNCOVERED};
 use crate::surface::SurfaceIndex;
@@ -120,8 +122,6 @@ pub enum PipelineError {
     Output { path: PathBuf, message: String },
     #[error("cannot resume: {0}")]
     Resume(String),
-    #[error("output {0} would overwrite an input file; choose another --out")]
-    WouldOverwriteInput(PathBuf),
 }
 
 /// Per-frame numbers, also written as `stats.F.json`.
@@ -185,7 +185,7 @@ pub fn run(
         path: job.out_dir.clone(),
         message: format!("cannot create the output folder: {e}"),
     })?;
-    let guard = crate::io::atomic::InputGuard::new(&source.input_paths());
+    let guard = InputGuard::new(&source.input_paths());
     let mut frames = source.frames();
     let mut previous: Option<(TriMesh, SurfaceIndex)> = None;
     let mut resumed_after = None;
@@ -320,7 +320,7 @@ fn read_state(dir: &Path) -> Result<Option<SavedState>, PipelineError> {
 
 fn save_state(
     job: &Job,
-    guard: &crate::io::atomic::InputGuard,
+    guard: &InputGuard,
     method: &dyn Method,
     frame: i32,
 ) -> Result<(), PipelineError> {
@@ -338,11 +338,8 @@ fn save_state(
     write_file(guard, &job.out_dir.join(STATE_FILE), &bytes)
 }
 
-fn write_file(guard: &crate::io::atomic::InputGuard, path: &Path, bytes: &[u8]) -> Result<(), PipelineError> {
-    if guard.is_input(path) {
-        return Err(PipelineError::WouldOverwriteInput(path.to_path_buf()));
-    }
-    crate::io::atomic::write_bytes(path, bytes)?;
+fn write_file(guard: &InputGuard, path: &Path, bytes: &[u8]) -> Result<(), PipelineError> {
+    guard.write_atomic(path, |w| w.write_all(bytes))?;
     Ok(())
 }
 
@@ -363,7 +360,7 @@ pub fn patch_colour(source: u32) -> [f32; 3] {
 #[allow(clippy::too_many_arguments)]
 fn write_frame(
     job: &Job,
-    guard: &crate::io::atomic::InputGuard,
+    guard: &InputGuard,
     number: i32,
     mesh: &TriMesh,
     atlas: &Atlas,
@@ -388,12 +385,9 @@ fn write_frame(
     for (spec, texture) in specs.iter().zip(&result.channels) {
         let file = format!("{}.{tag}.{}", spec.name, spec.format.extension());
         let path = dir.join(&file);
-        let bytes = encode_channel(texture, spec.format).map_err(|e| PipelineError::Output {
-            path: path.clone(),
-            message: e.to_string(),
-        })?;
-        write_file(guard, &path, &bytes)?;
-        if colour_png.is_none() && spec.format != ChannelFormat::Exr {
+        if let Some(bytes) = write_channel(guard, &path, texture, spec.format)?
+            && colour_png.is_none()
+        {
             colour_png = Some((file, bytes));
         }
     }
@@ -401,25 +395,19 @@ fn write_frame(
     let normals = uv_mesh_normals(mesh, atlas);
     if job.outputs.obj {
         let obj = dir.join(format!("mesh.{tag}.obj"));
-        let mtl = dir.join(format!("mesh.{tag}.mtl"));
-        for p in [&obj, &mtl] {
-            if guard.is_input(p) {
-                return Err(PipelineError::WouldOverwriteInput(p.clone()));
-            }
-        }
+        guard.check(&obj)?;
+        guard.check(&crate::io::obj_write::mtl_path(&obj))?;
         let material = colour_png.as_ref().map(|(file, _)| crate::io::obj_write::ObjMaterial {
-            mtl_path: mtl.clone(),
-            texture_file: file.clone(),
+            name: "fluidtex".to_string(),
+            map_kd: file.clone(),
         });
         crate::io::obj_write::write_obj(&obj, &uv.positions, &uv.uvs, Some(&normals), &uv.triangles, material.as_ref())?;
     }
     if job.outputs.glb {
         let path = dir.join(format!("mesh.{tag}.glb"));
-        if guard.is_input(&path) {
-            return Err(PipelineError::WouldOverwriteInput(path));
-        }
+        guard.check(&path)?;
         let png = colour_png.as_ref().map(|(_, b)| b.as_slice());
-        crate::io::gltf::write_glb(&path, &uv.positions, Some(&normals), &uv.uvs, &uv.triangles, png)?;
+        crate::io::gltf::write_glb(&path, &uv.positions, &uv.uvs, Some(&normals), &uv.triangles, png)?;
     }
     if job.outputs.debug
         && let Some(source) = &result.source
@@ -428,23 +416,13 @@ fn write_frame(
         for (t, &s) in source.iter().enumerate() {
             colours.data[t * 3..t * 3 + 3].copy_from_slice(&patch_colour(s));
         }
-        let path = dir.join(format!("patches.{tag}.png"));
-        let bytes = encode_channel(&colours, ChannelFormat::Png8).map_err(|e| PipelineError::Output {
-            path: path.clone(),
-            message: e.to_string(),
-        })?;
-        write_file(guard, &path, &bytes)?;
+        write_channel(guard, &dir.join(format!("patches.{tag}.png")), &colours, ChannelFormat::Png8)?;
         let ids: Vec<f32> = source
             .iter()
             .map(|&s| if s == SOURCE_OUTSIDE { -1.0 } else { s as f32 })
             .collect();
         let ids = Texture { width: atlas.width, height: atlas.height, channels: 1, data: ids };
-        let path = dir.join(format!("source.{tag}.exr"));
-        let bytes = encode_channel(&ids, ChannelFormat::Exr).map_err(|e| PipelineError::Output {
-            path: path.clone(),
-            message: e.to_string(),
-        })?;
-        write_file(guard, &path, &bytes)?;
+        write_channel(guard, &dir.join(format!("source.{tag}.exr")), &ids, ChannelFormat::Exr)?;
     }
     Ok(())
 }
@@ -461,10 +439,104 @@ fn uv_mesh_normals(mesh: &TriMesh, atlas: &Atlas) -> Vec<glam::Vec3> {
         .collect()
 }
 
-fn encode_channel(texture: &Texture, format: ChannelFormat) -> Result<Vec<u8>, IoError> {
-    match format {
-        ChannelFormat::Png8 => crate::io::image::encode_png(texture, crate::io::image::BitDepth::Eight),
-        ChannelFormat::Png16 => crate::io::image::encode_png(texture, crate::io::image::BitDepth::Sixteen),
-        ChannelFormat::Exr => crate::io::image::encode_exr(texture),
+/// Writes one channel atlas; returns the PNG bytes for PNG formats (the
+/// glb embeds the colour atlas without encoding it twice).
+fn write_channel(
+    guard: &InputGuard,
+    path: &Path,
+    texture: &Texture,
+    format: ChannelFormat,
+) -> Result<Option<Vec<u8>>, PipelineError> {
+    let depth = match format {
+        ChannelFormat::Png8 => PngDepth::Eight,
+        ChannelFormat::Png16 => PngDepth::Sixteen,
+        ChannelFormat::Exr => {
+            guard.check(path)?;
+            let options = ExrOptions { sample: ExrSample::F32, ..Default::default() };
+            crate::io::image::write_exr(path, texture, &options)?;
+            return Ok(None);
+        }
+    };
+    let options = PngOptions { depth, ..Default::default() };
+    let bytes = crate::io::image::encode_png(texture, &options).map_err(|message| PipelineError::Output {
+        path: path.to_path_buf(),
+        message,
+    })?;
+    write_file(guard, path, &bytes)?;
+    Ok(Some(bytes))
+}
+
+/// Frames read from files named by a pattern.
+pub struct SequenceSource {
+    sequence: crate::io::Sequence,
+    frames: Vec<i32>,
+}
+
+impl SequenceSource {
+    /// Opens `pattern` over `range` (`A-B` or `A`), or over every frame
+    /// found on disk when `range` is `None`. Every frame's file is checked
+    /// up front, so a missing frame fails the run before any work.
+    pub fn open(pattern: &str, range: Option<&str>, options: crate::io::ReadOptions) -> Result<SequenceSource, PipelineError> {
+        use crate::io::{FramePattern, FrameRange, Sequence};
+        let pattern = FramePattern::parse(pattern)?;
+        let range = match range {
+            Some(text) => text.parse::<FrameRange>()?,
+            None => {
+                let found = pattern.discover()?;
+                match (found.first(), found.last()) {
+                    (Some(&a), Some(&b)) => FrameRange::new(a, b)?,
+                    _ => {
+                        return Err(PipelineError::Source(format!(
+                            "no file matches {} (give --frames, or check the pattern)",
+                            pattern.as_str()
+                        )));
+                    }
+                }
+            }
+        };
+        let sequence = Sequence::new(pattern, range, options);
+        sequence.check_present()?;
+        Ok(SequenceSource { frames: range.frames().collect(), sequence })
+    }
+}
+
+impl FrameSource for SequenceSource {
+    fn frames(&self) -> Vec<i32> {
+        self.frames.clone()
+    }
+
+    fn read(&mut self, f: i32) -> Result<(TriMesh, ValidationReport), PipelineError> {
+        let frame = self.sequence.read_frame(f)?;
+        Ok((frame.mesh, frame.report))
+    }
+
+    fn input_paths(&self) -> Vec<PathBuf> {
+        self.frames.iter().map(|&f| self.sequence.pattern().path(f)).collect()
+    }
+}
+
+/// Frames generated by a scene of [`crate::scenes`].
+pub struct SceneSource {
+    scene: Box<dyn crate::scenes::Scene>,
+    frames: Vec<i32>,
+}
+
+impl SceneSource {
+    pub fn new(scene: Box<dyn crate::scenes::Scene>) -> SceneSource {
+        let info = scene.info();
+        SceneSource { frames: (info.first..=info.last).collect(), scene }
+    }
+}
+
+impl FrameSource for SceneSource {
+    fn frames(&self) -> Vec<i32> {
+        self.frames.clone()
+    }
+
+    fn read(&mut self, f: i32) -> Result<(TriMesh, ValidationReport), PipelineError> {
+        let mut mesh = self.scene.frame(f).map_err(|e| PipelineError::Source(e.to_string()))?;
+        let report = crate::mesh::validate(&mut mesh)
+            .map_err(|e| PipelineError::Source(format!("scene frame {f}: {e}")))?;
+        Ok((mesh, report))
     }
 }

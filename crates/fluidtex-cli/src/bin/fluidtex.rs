@@ -1,3 +1,3 @@
 fn main() {
-    fluidtex_cli::run()
+    std::process::exit(fluidtex_cli::main_entry());
 }

@@ -1,0 +1,161 @@
+//! `fluidtex run`: texture a mesh sequence.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use fluidtex::atlas::AtlasParams;
+use fluidtex::exemplar::{Exemplar, FeatureMethod, builtin_pebbles};
+use fluidtex::io::ReadOptions;
+use fluidtex::methods::Method;
+use fluidtex::methods::atlas_check::AtlasCheck;
+use fluidtex::methods::erosion::Erosion;
+use fluidtex::pipeline::{self, Event, FrameSource, Job, SequenceSource};
+
+use crate::config::{Config, RunFlags};
+use crate::progress::Progress;
+
+#[derive(Args, Debug)]
+pub struct RunArgs {
+    #[command(flatten)]
+    pub flags: RunFlags,
+    /// TOML config file; flags override its values
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Continue a killed run from the last finished frame in --out
+    #[arg(long)]
+    pub resume: bool,
+    /// No progress bar and no summary
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// Methods `--method` accepts.
+pub const METHODS: &[&str] = &["erosion", "atlas-check"];
+
+/// Size of the built-in exemplar in texels.
+pub const BUILTIN_EXEMPLAR_SIZE: u32 = 512;
+
+pub fn run(a: &RunArgs) -> Result<()> {
+    let mut config = match &a.config {
+        Some(p) => Config::load(p)?,
+        None => Config::default(),
+    };
+    a.flags.apply(&mut config)?;
+    let pattern = config
+        .mesh
+        .clone()
+        .context("no mesh sequence: give --mesh PATTERN (or `mesh = ...` in the config)")?;
+    let out = config.out.clone().context("no output folder: give --out DIR")?;
+    let options = read_options(config.velocity.as_ref().map(|v| v.as_slice()))?;
+    let mut source = SequenceSource::open(&pattern, config.frames.as_deref(), options)?;
+    execute(&config, out, &mut source, a.resume, a.quiet)
+}
+
+/// Runs the configured method over `source` into `out` with a progress bar.
+pub fn execute(config: &Config, out: PathBuf, source: &mut dyn FrameSource, resume: bool, quiet: bool) -> Result<()> {
+    let mut method = build_method(config)?;
+    let job = build_job(config, out.clone(), resume)?;
+    let total = source.frames().len() as u64;
+    let progress = Progress::new(total, method.name(), quiet);
+    let mut observer = |e: Event<'_>| match e {
+        Event::Start { number, .. } => progress.set_message(format!("frame {number}")),
+        Event::Done { stats } => {
+            let patches = stats
+                .method_stats
+                .get("patches_alive")
+                .map(|p| format!(", {p} patches"))
+                .unwrap_or_default();
+            let secs: f64 = stats.seconds.values().sum();
+            progress.set_message(format!("frame {} done in {secs:.2}s{patches}", stats.frame));
+            progress.inc();
+        }
+        Event::Warning(w) => progress.warn(&w),
+    };
+    let summary = pipeline::run(&job, source, method.as_mut(), &mut observer)?;
+    progress.finish();
+    if !quiet {
+        if let Some(f) = summary.resumed_after {
+            eprintln!("resumed after frame {f}");
+        }
+        let per = if summary.frames_done > 0 { summary.seconds / summary.frames_done as f64 } else { 0.0 };
+        eprintln!(
+            "{}: {} frames in {:.1} s ({per:.2} s/frame) -> {}",
+            method.name(),
+            summary.frames_done,
+            summary.seconds,
+            out.display()
+        );
+    }
+    Ok(())
+}
+
+/// The reader options for `--velocity a,b,c`.
+pub fn read_options(velocity: Option<&[String]>) -> Result<ReadOptions> {
+    let mut o = ReadOptions::default();
+    match velocity {
+        None => {}
+        Some([a, b, c]) => o.velocity_properties = Some([a.clone(), b.clone(), c.clone()]),
+        Some(other) => bail!("--velocity needs three property names, got {}", other.len()),
+    }
+    Ok(o)
+}
+
+/// The exemplar the config names, or the built-in pebbles.
+pub fn build_exemplar(config: &Config) -> Result<Exemplar> {
+    let method = match config.feature_method.as_deref() {
+        None | Some("auto") => FeatureMethod::Auto,
+        Some("luminance") => FeatureMethod::Luminance,
+        Some("distance") => FeatureMethod::DistanceTransform,
+        Some(other) => bail!("feature method {other}: expected auto, luminance or distance"),
+    };
+    let channels: Vec<(String, PathBuf)> = config.channels.iter().map(|(k, v)| (k.clone(), v.clone())).collect();
+    match &config.exemplar {
+        Some(path) => Ok(Exemplar::load(path, &channels, config.feature.as_deref(), method)?),
+        None => {
+            if !channels.is_empty() || config.feature.is_some() {
+                bail!("--channel and --feature need --exemplar (the built-in pebbles carry their own)");
+            }
+            Ok(builtin_pebbles(BUILTIN_EXEMPLAR_SIZE, config.seed.unwrap_or(0)))
+        }
+    }
+}
+
+/// The method the config names.
+pub fn build_method(config: &Config) -> Result<Box<dyn Method>> {
+    let seed = config.seed.unwrap_or(0);
+    let name = config.method.as_deref().unwrap_or("erosion");
+    Ok(match name {
+        "erosion" => Box::new(Erosion::new(config.erosion.clone(), Arc::new(build_exemplar(config)?), seed)?),
+        "atlas-check" => Box::new(AtlasCheck::new(config.atlas_check.clone())?),
+        other => bail!("unknown method {other}; available: {}", METHODS.join(", ")),
+    })
+}
+
+/// The frame job the config describes.
+pub fn build_job(config: &Config, out: PathBuf, resume: bool) -> Result<Job> {
+    let size = config.atlas.unwrap_or(4096);
+    if !(16..=32768).contains(&size) {
+        bail!("--atlas {size}: allowed 16 to 32768 texels");
+    }
+    let fps = config.fps.unwrap_or(24.0);
+    if !(fps.is_finite() && fps > 0.0 && fps <= 10_000.0) {
+        bail!("--fps {fps}: must be a number in (0, 10000]");
+    }
+    let mut atlas = AtlasParams { width: size, height: size, ..Default::default() };
+    if let Some(g) = config.gutter {
+        if g > 64 {
+            bail!("--gutter {g}: allowed 0 to 64 texels");
+        }
+        atlas.gutter = g;
+    }
+    Ok(Job {
+        out_dir: out,
+        atlas,
+        fps,
+        outputs: config.outputs.clone(),
+        resume,
+        fingerprint: config.fingerprint(),
+    })
+}
