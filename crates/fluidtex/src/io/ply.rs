@@ -111,7 +111,9 @@ pub fn parse_ply(path: &Path, bytes: &[u8], options: &ReadOptions) -> Result<Tri
                 let parser = Parser::<FaceRec>::new();
                 for i in 0..face_def.count {
                     let f = ctx.element(&parser, &mut rest, face_def, i)?;
-                    let indices = f.indices().map_err(|reason| ctx.elem_err("face", i, reason))?;
+                    let indices = f
+                        .indices()
+                        .map_err(|reason| ctx.elem_err("face", i, reason))?;
                     if let Some(&index) = indices.iter().find(|&&k| k as usize >= vertex_count) {
                         return Err(IoError::Mesh {
                             path: path.to_path_buf(),
@@ -126,10 +128,7 @@ pub fn parse_ply(path: &Path, bytes: &[u8], options: &ReadOptions) -> Result<Tri
                         return Err(ctx.elem_err(
                             "face",
                             i,
-                            format!(
-                                "has {} corners; a face needs at least 3",
-                                indices.len()
-                            ),
+                            format!("has {} corners; a face needs at least 3", indices.len()),
                         ));
                     }
                 }
@@ -482,7 +481,9 @@ impl FaceRec {
             return self
                 .signed
                 .iter()
-                .map(|&i| u32::try_from(i).map_err(|_| format!("has the negative vertex index {i}")))
+                .map(|&i| {
+                    u32::try_from(i).map_err(|_| format!("has the negative vertex index {i}"))
+                })
                 .collect();
         }
         Ok(self.unsigned)
@@ -623,8 +624,14 @@ mod tests {
              property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"
         );
         let cases = [
-            ("2 0 1\n", "t.ply: face 1: has 2 corners; a face needs at least 3"),
-            ("3 0 -1 2\n", "t.ply: face 1: has the negative vertex index -1"),
+            (
+                "2 0 1\n",
+                "t.ply: face 1: has 2 corners; a face needs at least 3",
+            ),
+            (
+                "3 0 -1 2\n",
+                "t.ply: face 1: has the negative vertex index -1",
+            ),
             (
                 "3 0 1 3\n",
                 "t.ply: face 1 refers to vertex 3, but the mesh has 3 vertices",
