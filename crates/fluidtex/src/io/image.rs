@@ -120,7 +120,7 @@ fn check_texture(tex: &Texture) -> Result<(), String> {
     if tex.width == 0 || tex.height == 0 {
         return Err(format!("{}x{} texture is empty", tex.width, tex.height));
     }
-    let expected = tex.texel_count() * tex.channels;
+    let expected = tex.texel_count().saturating_mul(tex.channels);
     if tex.data.len() != expected {
         return Err(format!(
             "{} values for a {}x{}x{} texture",

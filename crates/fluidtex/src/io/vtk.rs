@@ -82,7 +82,7 @@ pub fn parse_vtk(path: &Path, bytes: &[u8], options: &ReadOptions) -> Result<Tri
             "POINTS" => {
                 let n = c.count(&words, 1)?;
                 let ty = c.word(&words, 2)?;
-                let v = c.array(n * 3, ty, "point", 3)?;
+                let v = c.array(n.saturating_mul(3), ty, "point", 3)?;
                 positions = Some(
                     v.chunks_exact(3)
                         .map(|p| Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32))
@@ -381,13 +381,13 @@ impl Cursor<'_> {
                 reason: format!("{n} {element}s declared, the {size} values hold only {i}"),
             })? as usize;
             let cell = flat
-                .get(k + 1..k + 1 + count)
+                .get(k + 1..(k + 1).saturating_add(count))
                 .ok_or_else(|| IoError::Counts {
                     path: self.path.to_path_buf(),
                     reason: format!("{element} {i} runs past the {size} values declared"),
                 })?;
             lists.push(self.indices(cell, element, i)?);
-            k += 1 + count;
+            k = k + 1 + count;
         }
         if k != size {
             return Err(IoError::Counts {
@@ -427,7 +427,7 @@ impl Cursor<'_> {
             "VECTORS" | "NORMALS" => {
                 let name = self.word(words, 1)?.to_string();
                 let ty = self.word(words, 2)?.to_string();
-                let v = self.array(tuples * 3, &ty, "point", 3)?;
+                let v = self.array(tuples.saturating_mul(3), &ty, "point", 3)?;
                 Ok(vec![(name, 3, v)])
             }
             "SCALARS" => {
@@ -443,7 +443,7 @@ impl Cursor<'_> {
                 if lut.first().map(String::as_str) != Some("LOOKUP_TABLE") {
                     return Err(self.header("SCALARS without LOOKUP_TABLE"));
                 }
-                let v = self.array(tuples * comps, &ty, "point", comps)?;
+                let v = self.array(tuples.saturating_mul(comps), &ty, "point", comps)?;
                 Ok(vec![(name, comps, v)])
             }
             _ => {
@@ -455,7 +455,7 @@ impl Cursor<'_> {
                     let comps = self.count(&w, 1)?;
                     let n = self.count(&w, 2)?;
                     let ty = self.word(&w, 3)?.to_string();
-                    let v = self.array(n * comps, &ty, "point", comps)?;
+                    let v = self.array(n.saturating_mul(comps), &ty, "point", comps)?;
                     out.push((name, comps, v));
                 }
                 Ok(out)
@@ -581,5 +581,46 @@ CELL_TYPES 2\n5\n9\n";
             err.to_string(),
             "s.vtk: bad counts: 2 cells declared, the 4 values hold only 1"
         );
+    }
+
+    /// Every truncation and several single-byte corruptions at every offset
+    /// of an ASCII and a binary file: errors are fine, panics are not.
+    #[test]
+    fn never_panics_on_truncated_or_corrupted_input() {
+        let ascii = b"# vtk DataFile Version 4.2\nsurface\nASCII\nDATASET UNSTRUCTURED_GRID\n\
+POINTS 4 float\n0 0 0 1 0 0 1 1 0 0 1 0\nCELLS 2 9\n3 0 1 2\n4 0 1 2 3\nCELL_TYPES 2\n5\n9\n\
+POINT_DATA 4\nVECTORS velocity float\n1 2 3 4 5 6 7 8 9 10 11 12\n"
+            .to_vec();
+        let mut binary =
+            b"# vtk DataFile Version 4.2\nt\nBINARY\nDATASET UNSTRUCTURED_GRID\nPOINTS 3 float\n"
+                .to_vec();
+        for x in [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0] {
+            binary.extend_from_slice(&x.to_be_bytes());
+        }
+        binary.extend_from_slice(b"\nCELLS 1 4\n");
+        for i in [3i32, 0, 1, 2] {
+            binary.extend_from_slice(&i.to_be_bytes());
+        }
+        binary.extend_from_slice(b"\nCELL_TYPES 1\n");
+        binary.extend_from_slice(&5i32.to_be_bytes());
+        binary.extend_from_slice(b"\nPOINT_DATA 3\nFIELD FieldData 1\nvelocity 3 3 double\n");
+        for x in 0..9 {
+            binary.extend_from_slice(&f64::from(x).to_be_bytes());
+        }
+        for good in [ascii, binary] {
+            assert!(parse(&good).is_ok());
+            for n in 0..good.len() {
+                let mut cases = vec![good[..n].to_vec()];
+                for b in [0u8, 0xff, 0x7f, b'9', b' ', b'\n', b'-'] {
+                    let mut c = good.clone();
+                    c[n] = b;
+                    cases.push(c);
+                }
+                for c in cases {
+                    let r = std::panic::catch_unwind(|| parse(&c).map(|_| ()));
+                    assert!(r.is_ok(), "panicked on {:?}", String::from_utf8_lossy(&c));
+                }
+            }
+        }
     }
 }
