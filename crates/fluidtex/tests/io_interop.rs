@@ -3,6 +3,8 @@
 //! `make_interop.py --print`: positions and velocities are multiples of
 //! 1/1024, so they are exact in f32 and compared exactly.
 
+#![allow(clippy::unwrap_used, clippy::excessive_precision)]
+
 use std::path::{Path, PathBuf};
 
 use fluidtex::io::{FramePattern, FrameRange, ReadOptions, Sequence, read_mesh};
@@ -10,7 +12,9 @@ use fluidtex::mesh::TriMesh;
 use glam::Vec3;
 
 fn data(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/interop").join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/interop")
+        .join(name)
 }
 
 fn read(name: &str) -> TriMesh {
@@ -24,19 +28,55 @@ fn known(frame: i32) -> [(usize, Vec3, Vec3); 3] {
     let v3 = Vec3::new;
     match frame {
         1 => [
-            (0, v3(-0.0126953125, 0.30078125, 0.9375), v3(-0.212890625, -0.1318359375, -0.25)),
-            (17, v3(0.404296875, 0.279296875, 1.1875), v3(-0.2021484375, 0.0771484375, -0.25)),
-            (161, v3(-0.2255859375, -0.2568359375, 1.0185546875), v3(0.0654296875, -0.2373046875, -0.25)),
+            (
+                0,
+                v3(-0.0126953125, 0.30078125, 0.9375),
+                v3(-0.212890625, -0.1318359375, -0.25),
+            ),
+            (
+                17,
+                v3(0.404296875, 0.279296875, 1.1875),
+                v3(-0.2021484375, 0.0771484375, -0.25),
+            ),
+            (
+                161,
+                v3(-0.2255859375, -0.2568359375, 1.0185546875),
+                v3(0.0654296875, -0.2373046875, -0.25),
+            ),
         ],
         2 => [
-            (0, v3(-0.0126953125, 0.30078125, 0.875), v3(-0.42578125, -0.2626953125, -0.5)),
-            (17, v3(0.404296875, 0.279296875, 1.125), v3(-0.404296875, 0.154296875, -0.5)),
-            (161, v3(-0.2255859375, -0.2568359375, 0.9560546875), v3(0.1318359375, -0.4755859375, -0.5)),
+            (
+                0,
+                v3(-0.0126953125, 0.30078125, 0.875),
+                v3(-0.42578125, -0.2626953125, -0.5),
+            ),
+            (
+                17,
+                v3(0.404296875, 0.279296875, 1.125),
+                v3(-0.404296875, 0.154296875, -0.5),
+            ),
+            (
+                161,
+                v3(-0.2255859375, -0.2568359375, 0.9560546875),
+                v3(0.1318359375, -0.4755859375, -0.5),
+            ),
         ],
         _ => [
-            (0, v3(-0.0126953125, 0.30078125, 0.8125), v3(-0.6376953125, -0.39453125, -0.75)),
-            (17, v3(0.404296875, 0.279296875, 1.0625), v3(-0.6064453125, 0.2314453125, -0.75)),
-            (161, v3(-0.2255859375, -0.2568359375, 0.8935546875), v3(0.197265625, -0.712890625, -0.75)),
+            (
+                0,
+                v3(-0.0126953125, 0.30078125, 0.8125),
+                v3(-0.6376953125, -0.39453125, -0.75),
+            ),
+            (
+                17,
+                v3(0.404296875, 0.279296875, 1.0625),
+                v3(-0.6064453125, 0.2314453125, -0.75),
+            ),
+            (
+                161,
+                v3(-0.2255859375, -0.2568359375, 0.8935546875),
+                v3(0.197265625, -0.712890625, -0.75),
+            ),
         ],
     }
 }
@@ -47,7 +87,10 @@ fn check_frame(mesh: &TriMesh, frame: i32) {
     let z = 0.0625 * frame as f32;
     assert_eq!(
         mesh.bounding_box(),
-        Some((Vec3::new(-0.25, -0.625, 0.5 - z), Vec3::new(0.75, 0.375, 1.5 - z))),
+        Some((
+            Vec3::new(-0.25, -0.625, 0.5 - z),
+            Vec3::new(0.75, 0.375, 1.5 - z)
+        )),
         "frame {frame}"
     );
     let v = mesh.velocity().expect("velocity");
@@ -61,15 +104,23 @@ fn check_frame(mesh: &TriMesh, frame: i32) {
     for (p, v) in mesh.positions.iter().zip(v) {
         let r = *p - centre;
         let expect = Vec3::new(-omega * r.y, omega * r.x, -0.25 * frame as f32);
-        assert!((*v - expect).abs().max_element() <= 1.5 / 1024.0 * frame as f32, "{v} vs {expect}");
+        assert!(
+            (*v - expect).abs().max_element() <= 1.5 / 1024.0 * frame as f32,
+            "{v} vs {expect}"
+        );
     }
 }
 
 #[test]
 fn meshio_ascii_sequence_with_vx_names() {
-    let pattern = FramePattern::parse(&format!("{}/meshio_ascii.####.ply", data("").display())).unwrap();
+    let pattern =
+        FramePattern::parse(&format!("{}/meshio_ascii.####.ply", data("").display())).unwrap();
     assert_eq!(pattern.discover().unwrap(), vec![1, 2, 3]);
-    let seq = Sequence::new(pattern, FrameRange::new(1, 3).unwrap(), ReadOptions::default());
+    let seq = Sequence::new(
+        pattern,
+        FrameRange::new(1, 3).unwrap(),
+        ReadOptions::default(),
+    );
     let frames: Vec<i32> = seq
         .map(|f| {
             let f = f.unwrap();
@@ -82,7 +133,8 @@ fn meshio_ascii_sequence_with_vx_names() {
 
 #[test]
 fn trimesh_binary_sequence_with_velocity_x_names() {
-    let pattern = FramePattern::parse(&format!("{}/trimesh_binary.$F4.ply", data("").display())).unwrap();
+    let pattern =
+        FramePattern::parse(&format!("{}/trimesh_binary.$F4.ply", data("").display())).unwrap();
     for f in Sequence::new(pattern, "1-3".parse().unwrap(), ReadOptions::default()) {
         let f = f.unwrap();
         check_frame(&f.mesh, f.number);
@@ -130,7 +182,10 @@ fn trimesh_obj_positions() {
     let ply = read("meshio_ascii.0002.ply");
     for t in 0..320 {
         for (a, b) in mesh.corners(t).iter().zip(ply.corners(t)) {
-            assert!((*a - b).abs().max_element() <= 1.2e-7, "triangle {t}: {a} vs {b}");
+            assert!(
+                (*a - b).abs().max_element() <= 1.2e-7,
+                "triangle {t}: {a} vs {b}"
+            );
         }
     }
 }

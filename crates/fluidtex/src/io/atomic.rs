@@ -132,7 +132,10 @@ mod tests {
         write_atomic(&out, |w| w.write_all(b"one")).unwrap();
         write_atomic(&out, |w| w.write_all(b"two")).unwrap();
         assert_eq!(std::fs::read(&out).unwrap(), b"two");
-        let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
+        let names: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
         assert_eq!(names, vec![std::ffi::OsString::from("a.txt")]);
     }
 
@@ -160,7 +163,10 @@ mod tests {
         std::fs::create_dir(&sub).unwrap();
         let guard = InputGuard::new([&input]);
         let spelled = sub.join("..").join("fluid.0001.ply");
-        assert!(matches!(guard.check(&spelled), Err(IoError::OverwritesInput { .. })));
+        assert!(matches!(
+            guard.check(&spelled),
+            Err(IoError::OverwritesInput { .. })
+        ));
         #[cfg(unix)]
         {
             let link = dir.path().join("link.ply");
@@ -169,8 +175,16 @@ mod tests {
         }
         assert!(guard.check(&dir.path().join("fluid.0001.obj")).is_ok());
         assert!(guard.check(&dir.path().join("new/x.obj")).is_ok());
-        let err = guard.write_atomic(&input, |w| w.write_all(b"y")).unwrap_err();
-        assert_eq!(err.to_string(), format!("{}: refusing to overwrite an input of this run", input.display()));
+        let err = guard
+            .write_atomic(&input, |w| w.write_all(b"y"))
+            .unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            format!(
+                "{}: refusing to overwrite an input of this run",
+                input.display()
+            )
+        );
         assert_eq!(std::fs::read(&input).unwrap(), b"x");
     }
 }

@@ -41,12 +41,13 @@ pub fn write_glb(
     triangles: &[[u32; 3]],
     base_color_png: Option<&[u8]>,
 ) -> Result<(), IoError> {
-    let bytes = encode_glb(positions, uvs, normals, triangles, base_color_png).map_err(|reason| {
-        IoError::Unwritable {
-            path: path.to_path_buf(),
-            reason,
-        }
-    })?;
+    let bytes =
+        encode_glb(positions, uvs, normals, triangles, base_color_png).map_err(|reason| {
+            IoError::Unwritable {
+                path: path.to_path_buf(),
+                reason,
+            }
+        })?;
     write_atomic(path, |w| w.write_all(&bytes))
 }
 
@@ -83,26 +84,46 @@ pub fn encode_glb(
         views.push(v);
         views.len() - 1
     };
-    let floats = |v: &mut dyn Iterator<Item = f32>| -> Vec<u8> { v.flat_map(f32::to_le_bytes).collect() };
+    let floats =
+        |v: &mut dyn Iterator<Item = f32>| -> Vec<u8> { v.flat_map(f32::to_le_bytes).collect() };
 
-    let (lo, hi) = positions
-        .iter()
-        .fold((Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)), |(lo, hi), &p| (lo.min(p), hi.max(p)));
-    let pos_view = view(&mut bin, &floats(&mut positions.iter().flat_map(|p| p.to_array())), Some(ARRAY_BUFFER));
+    let (lo, hi) = positions.iter().fold(
+        (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
+        |(lo, hi), &p| (lo.min(p), hi.max(p)),
+    );
+    let pos_view = view(
+        &mut bin,
+        &floats(&mut positions.iter().flat_map(|p| p.to_array())),
+        Some(ARRAY_BUFFER),
+    );
     accessors.push(json!({
         "bufferView": pos_view, "componentType": FLOAT, "count": positions.len(), "type": "VEC3",
         "min": lo.to_array(), "max": hi.to_array(),
     }));
     let mut attributes = json!({ "POSITION": accessors.len() - 1 });
     if let Some(ns) = normals {
-        let v = view(&mut bin, &floats(&mut ns.iter().flat_map(|n| n.to_array())), Some(ARRAY_BUFFER));
-        accessors.push(json!({ "bufferView": v, "componentType": FLOAT, "count": ns.len(), "type": "VEC3" }));
+        let v = view(
+            &mut bin,
+            &floats(&mut ns.iter().flat_map(|n| n.to_array())),
+            Some(ARRAY_BUFFER),
+        );
+        accessors.push(
+            json!({ "bufferView": v, "componentType": FLOAT, "count": ns.len(), "type": "VEC3" }),
+        );
         attributes["NORMAL"] = json!(accessors.len() - 1);
     }
-    let uv_view = view(&mut bin, &floats(&mut uvs.iter().flat_map(|t| t.to_array())), Some(ARRAY_BUFFER));
+    let uv_view = view(
+        &mut bin,
+        &floats(&mut uvs.iter().flat_map(|t| t.to_array())),
+        Some(ARRAY_BUFFER),
+    );
     accessors.push(json!({ "bufferView": uv_view, "componentType": FLOAT, "count": uvs.len(), "type": "VEC2" }));
     attributes["TEXCOORD_0"] = json!(accessors.len() - 1);
-    let idx: Vec<u8> = triangles.iter().flatten().flat_map(|i| i.to_le_bytes()).collect();
+    let idx: Vec<u8> = triangles
+        .iter()
+        .flatten()
+        .flat_map(|i| i.to_le_bytes())
+        .collect();
     let idx_view = view(&mut bin, &idx, Some(ELEMENT_ARRAY_BUFFER));
     accessors.push(json!({
         "bufferView": idx_view, "componentType": UNSIGNED_INT, "count": triangles.len() * 3, "type": "SCALAR",
@@ -163,7 +184,14 @@ mod tests {
     #[test]
     fn chunks_are_aligned_and_lengths_add_up() {
         let png = [1u8, 2, 3, 4, 5]; // odd length to exercise padding
-        let b = encode_glb(&[Vec3::ZERO, Vec3::X, Vec3::Y], &[Vec2::ZERO, Vec2::X, Vec2::Y], None, &[[0, 1, 2]], Some(&png)).unwrap();
+        let b = encode_glb(
+            &[Vec3::ZERO, Vec3::X, Vec3::Y],
+            &[Vec2::ZERO, Vec2::X, Vec2::Y],
+            None,
+            &[[0, 1, 2]],
+            Some(&png),
+        )
+        .unwrap();
         let word = |k: usize| u32::from_le_bytes([b[k], b[k + 1], b[k + 2], b[k + 3]]) as usize;
         assert_eq!(word(0), GLB_MAGIC as usize);
         assert_eq!(word(4), 2);
@@ -186,6 +214,9 @@ mod tests {
         let json: Value = serde_json::from_slice(&b[20..]).unwrap();
         assert_eq!(json["scenes"], json!([{}]));
         assert!(json.get("meshes").is_none());
-        assert_eq!(b.len(), 20 + u32::from_le_bytes([b[12], b[13], b[14], b[15]]) as usize);
+        assert_eq!(
+            b.len(),
+            20 + u32::from_le_bytes([b[12], b[13], b[14], b[15]]) as usize
+        );
     }
 }

@@ -1,7 +1,7 @@
 //! Reading fluid mesh sequences and writing every per-frame output.
 //!
 //! **Reading.** [`read_mesh`] picks a reader from the file extension
-//! ([`ply`], [`obj`], [`vtk`]), then runs [`mesh::validate`]: indices out of
+//! ([`ply`], [`obj`], [`vtk`]), then runs [`mesh::validate()`]: indices out of
 //! range and NaN/inf positions or velocities are errors, zero-area triangles
 //! are dropped and counted in the returned [`ValidationReport`]. A frame with
 //! no face is valid (the fluid can vanish) and reads as an empty mesh.

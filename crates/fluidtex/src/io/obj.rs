@@ -28,12 +28,13 @@ pub fn parse_obj(path: &Path, bytes: &[u8]) -> Result<TriMesh, IoError> {
         single_index: false,
         ..Default::default()
     };
-    let (models, _materials) =
-        tobj::load_obj_buf(&mut &bytes[..], &options, |_| Err(tobj::LoadError::OpenFileFailed))
-            .map_err(|e| IoError::Malformed {
-                path: path.to_path_buf(),
-                reason: describe(&e),
-            })?;
+    let (models, _materials) = tobj::load_obj_buf(&mut &bytes[..], &options, |_| {
+        Err(tobj::LoadError::OpenFileFailed)
+    })
+    .map_err(|e| IoError::Malformed {
+        path: path.to_path_buf(),
+        reason: describe(&e),
+    })?;
     let mut positions = Vec::new();
     let mut triangles = Vec::new();
     for model in &models {
@@ -78,21 +79,16 @@ mod tests {
         assert_eq!(m.triangles.len(), 3);
         // Each object is renumbered; positions follow the corners.
         let tri = |t: usize| m.corners(t);
-        assert_eq!(
-            tri(0),
-            [Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0)]
-        );
-        assert_eq!(
-            tri(1),
-            [Vec3::ZERO, Vec3::new(1.0, 1.0, 0.0), Vec3::Y]
-        );
+        assert_eq!(tri(0), [Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0)]);
+        assert_eq!(tri(1), [Vec3::ZERO, Vec3::new(1.0, 1.0, 0.0), Vec3::Y]);
         assert_eq!(tri(2), [Vec3::ZERO, Vec3::X, Vec3::Y]);
         assert!(m.velocity().is_none());
     }
 
     #[test]
     fn errors_name_the_record() {
-        let err = parse_obj(Path::new("t.obj"), b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n").unwrap_err();
+        let err =
+            parse_obj(Path::new("t.obj"), b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n").unwrap_err();
         assert_eq!(
             err.to_string(),
             "t.obj: a face refers to a vertex that does not exist"

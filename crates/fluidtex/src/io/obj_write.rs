@@ -49,7 +49,11 @@ pub fn write_obj(
         .map(|n| n.to_string_lossy().into_owned())
         .ok_or_else(|| bad("no file name".into()))?;
     if let Some(m) = material {
-        for (what, s) in [("material name", &m.name), ("map_Kd file name", &m.map_kd), ("MTL file name", &mtl_name)] {
+        for (what, s) in [
+            ("material name", &m.name),
+            ("map_Kd file name", &m.map_kd),
+            ("MTL file name", &mtl_name),
+        ] {
             if s.is_empty() || s.chars().any(char::is_whitespace) {
                 return Err(bad(format!("{what} {s:?} is empty or has whitespace")));
             }
@@ -117,7 +121,10 @@ pub(crate) fn check_mesh(
     if let Some(i) = uvs.iter().position(|v| !v.is_finite()) {
         return Err(format!("uv {i} is not finite"));
     }
-    if let Some(t) = triangles.iter().position(|t| t.iter().any(|&i| i as usize >= n)) {
+    if let Some(t) = triangles
+        .iter()
+        .position(|t| t.iter().any(|&i| i as usize >= n))
+    {
         return Err(format!("triangle {t} indexes past the {n} vertices"));
     }
     Ok(())
@@ -136,15 +143,37 @@ mod tests {
         let path = dir.path().join("frame.0001.obj");
         let mut rng = Pcg64::seed_from_u64(7);
         let n = 50;
-        let positions: Vec<Vec3> = (0..n).map(|_| Vec3::new(rng.random(), rng.random(), rng.random_range(-5.0..5.0))).collect();
-        let uvs: Vec<Vec2> = (0..n).map(|_| Vec2::new(rng.random(), rng.random())).collect();
-        let normals: Vec<Vec3> = (0..n).map(|_| Vec3::new(rng.random(), rng.random(), 1.0).normalize()).collect();
-        let triangles: Vec<[u32; 3]> = (0..80).map(|_| [rng.random_range(0..n), rng.random_range(0..n), rng.random_range(0..n)]).collect();
+        let positions: Vec<Vec3> = (0..n)
+            .map(|_| Vec3::new(rng.random(), rng.random(), rng.random_range(-5.0..5.0)))
+            .collect();
+        let uvs: Vec<Vec2> = (0..n)
+            .map(|_| Vec2::new(rng.random(), rng.random()))
+            .collect();
+        let normals: Vec<Vec3> = (0..n)
+            .map(|_| Vec3::new(rng.random(), rng.random(), 1.0).normalize())
+            .collect();
+        let triangles: Vec<[u32; 3]> = (0..80)
+            .map(|_| {
+                [
+                    rng.random_range(0..n),
+                    rng.random_range(0..n),
+                    rng.random_range(0..n),
+                ]
+            })
+            .collect();
         let mat = ObjMaterial {
             name: "atlas".into(),
             map_kd: "frame.0001.png".into(),
         };
-        write_obj(&path, &positions, &uvs, Some(&normals), &triangles, Some(&mat)).unwrap();
+        write_obj(
+            &path,
+            &positions,
+            &uvs,
+            Some(&normals),
+            &triangles,
+            Some(&mat),
+        )
+        .unwrap();
 
         let opts = tobj::LoadOptions {
             single_index: true,
@@ -154,7 +183,10 @@ mod tests {
         let materials = materials.unwrap();
         assert_eq!(materials.len(), 1);
         assert_eq!(materials[0].name, "atlas");
-        assert_eq!(materials[0].diffuse_texture.as_deref(), Some("frame.0001.png"));
+        assert_eq!(
+            materials[0].diffuse_texture.as_deref(),
+            Some("frame.0001.png")
+        );
         assert_eq!(models.len(), 1);
         let m = &models[0].mesh;
         assert_eq!(m.material_id, Some(0));
@@ -174,7 +206,15 @@ mod tests {
     fn plain_obj_without_material_or_normals() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("m.obj");
-        write_obj(&path, &[Vec3::ZERO, Vec3::X, Vec3::Y], &[Vec2::ZERO, Vec2::X, Vec2::Y], None, &[[0, 1, 2]], None).unwrap();
+        write_obj(
+            &path,
+            &[Vec3::ZERO, Vec3::X, Vec3::Y],
+            &[Vec2::ZERO, Vec2::X, Vec2::Y],
+            None,
+            &[[0, 1, 2]],
+            None,
+        )
+        .unwrap();
         let text = std::fs::read_to_string(&path).unwrap();
         assert_eq!(
             text,
@@ -189,11 +229,20 @@ mod tests {
         let path = dir.path().join("m.obj");
         let p = [Vec3::ZERO, Vec3::X, Vec3::Y];
         let e = write_obj(&path, &p, &[Vec2::ZERO], None, &[[0, 1, 2]], None).unwrap_err();
-        assert!(e.to_string().ends_with("m.obj: cannot write: 1 uvs for 3 vertices"));
+        assert!(
+            e.to_string()
+                .ends_with("m.obj: cannot write: 1 uvs for 3 vertices")
+        );
         let uv = [Vec2::ZERO; 3];
         let e = write_obj(&path, &p, &uv, None, &[[0, 1, 3]], None).unwrap_err();
-        assert!(e.to_string().ends_with("cannot write: triangle 0 indexes past the 3 vertices"));
-        let mat = ObjMaterial { name: "a b".into(), map_kd: "x.png".into() };
+        assert!(
+            e.to_string()
+                .ends_with("cannot write: triangle 0 indexes past the 3 vertices")
+        );
+        let mat = ObjMaterial {
+            name: "a b".into(),
+            map_kd: "x.png".into(),
+        };
         assert!(write_obj(&path, &p, &uv, None, &[[0, 1, 2]], Some(&mat)).is_err());
         assert!(!path.exists());
     }

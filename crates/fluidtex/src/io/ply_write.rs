@@ -29,17 +29,24 @@ pub fn write_ply(path: &Path, mesh: &TriMesh, encoding: PlyEncoding) -> Result<(
     {
         return Err(IoError::Unwritable {
             path: path.to_path_buf(),
-            reason: format!("triangle [{a}, {b}, {c}] indexes past the {} vertices", mesh.positions.len()),
+            reason: format!(
+                "triangle [{a}, {b}, {c}] indexes past the {} vertices",
+                mesh.positions.len()
+            ),
         });
     }
     let velocity = mesh.velocity();
-    if let Some(v) = velocity {
-        if v.len() != mesh.positions.len() {
-            return Err(IoError::Unwritable {
-                path: path.to_path_buf(),
-                reason: format!("{} velocities for {} vertices", v.len(), mesh.positions.len()),
-            });
-        }
+    if let Some(v) = velocity
+        && v.len() != mesh.positions.len()
+    {
+        return Err(IoError::Unwritable {
+            path: path.to_path_buf(),
+            reason: format!(
+                "{} velocities for {} vertices",
+                v.len(),
+                mesh.positions.len()
+            ),
+        });
     }
     write_atomic(path, |w| {
         let format = match encoding {
@@ -118,11 +125,23 @@ mod tests {
     fn random_mesh(seed: u64) -> TriMesh {
         let mut rng = Pcg64::seed_from_u64(seed);
         let n = rng.random_range(3..200);
-        let mut v3 = || Vec3::new(rng.random_range(-1e3..1e3), rng.random::<f32>(), rng.random_range(-1e-6..1e-6));
+        let mut v3 = || {
+            Vec3::new(
+                rng.random_range(-1e3..1e3),
+                rng.random::<f32>(),
+                rng.random_range(-1e-6..1e-6),
+            )
+        };
         let positions: Vec<Vec3> = (0..n).map(|_| v3()).collect();
         let velocity: Vec<Vec3> = (0..n).map(|_| v3()).collect();
         let triangles = (0..rng.random_range(0..300))
-            .map(|_| [rng.random_range(0..n as u32), rng.random_range(0..n as u32), rng.random_range(0..n as u32)])
+            .map(|_| {
+                [
+                    rng.random_range(0..n as u32),
+                    rng.random_range(0..n as u32),
+                    rng.random_range(0..n as u32),
+                ]
+            })
             .collect();
         TriMesh::new(positions, triangles).with_velocity(velocity)
     }
@@ -135,7 +154,10 @@ mod tests {
             if seed == 3 {
                 mesh.attributes.clear();
             }
-            for (enc, name) in [(PlyEncoding::BinaryLittleEndian, "b.ply"), (PlyEncoding::Ascii, "a.ply")] {
+            for (enc, name) in [
+                (PlyEncoding::BinaryLittleEndian, "b.ply"),
+                (PlyEncoding::Ascii, "a.ply"),
+            ] {
                 let path = dir.path().join(name);
                 write_ply(&path, &mesh, enc).unwrap();
                 let back = read_ply(&path, &ReadOptions::default()).unwrap();
@@ -150,7 +172,10 @@ mod tests {
         let mesh = TriMesh::new(vec![Vec3::ZERO; 3], vec![[0, 1, 3]]);
         let path = dir.path().join("x.ply");
         let err = write_ply(&path, &mesh, PlyEncoding::Ascii).unwrap_err();
-        assert!(err.to_string().ends_with("x.ply: cannot write: triangle [0, 1, 3] indexes past the 3 vertices"));
+        assert!(
+            err.to_string()
+                .ends_with("x.ply: cannot write: triangle [0, 1, 3] indexes past the 3 vertices")
+        );
         assert!(!path.exists());
     }
 }

@@ -50,7 +50,8 @@ impl FramePattern {
             let token = match bytes[i] {
                 b'$' if bytes.get(i + 1) == Some(&b'F') => {
                     let digits = count_digits(&bytes[i + 2..]);
-                    let pad = parse_pad(&text[i + 2..i + 2 + digits]).ok_or_else(|| err("bad $F padding"))?;
+                    let pad = parse_pad(&text[i + 2..i + 2 + digits])
+                        .ok_or_else(|| err("bad $F padding"))?;
                     Some((i, i + 2 + digits, pad))
                 }
                 b'#' => {
@@ -87,7 +88,9 @@ impl FramePattern {
             found.ok_or_else(|| err("no frame token ($F4, #### or %04d)"))?;
         let suffix = &text[end..];
         if suffix.contains(['/', std::path::MAIN_SEPARATOR]) {
-            return Err(err("the frame token must be in the file name, not a directory"));
+            return Err(err(
+                "the frame token must be in the file name, not a directory",
+            ));
         }
         Ok(FramePattern {
             prefix: text[..start].to_string(),
@@ -124,7 +127,11 @@ impl FramePattern {
             Some(k) => (&self.prefix[..=k], &self.prefix[k + 1..]),
             None => ("", self.prefix.as_str()),
         };
-        let dir_path = if dir.is_empty() { Path::new(".") } else { Path::new(dir) };
+        let dir_path = if dir.is_empty() {
+            Path::new(".")
+        } else {
+            Path::new(dir)
+        };
         let entries = std::fs::read_dir(dir_path).map_err(|e| IoError::os(dir_path, e))?;
         let mut frames = Vec::new();
         for entry in entries {
@@ -137,10 +144,11 @@ impl FramePattern {
             else {
                 continue;
             };
-            if let Ok(frame) = middle.parse::<i32>() {
-                if self.format_frame(frame) == middle && entry.path().is_file() {
-                    frames.push(frame);
-                }
+            if let Ok(frame) = middle.parse::<i32>()
+                && self.format_frame(frame) == middle
+                && entry.path().is_file()
+            {
+                frames.push(frame);
             }
         }
         frames.sort_unstable();
@@ -224,9 +232,8 @@ impl FromStr for FrameRange {
                 (f, f)
             }
         };
-        FrameRange::new(first, last).map_err(|_| {
-            err(&format!("first frame {first} is after last frame {last}"))
-        })
+        FrameRange::new(first, last)
+            .map_err(|_| err(&format!("first frame {first} is after last frame {last}")))
     }
 }
 
@@ -326,8 +333,14 @@ mod tests {
     fn tokens_format_frames() {
         assert_eq!(p("fluid.$F4.ply").path(7), PathBuf::from("fluid.0007.ply"));
         assert_eq!(p("fluid.$F.ply").path(7), PathBuf::from("fluid.7.ply"));
-        assert_eq!(p("fluid.$F3.ply").path(1234), PathBuf::from("fluid.1234.ply"));
-        assert_eq!(p("a/b/fluid.####.ply").path(12), PathBuf::from("a/b/fluid.0012.ply"));
+        assert_eq!(
+            p("fluid.$F3.ply").path(1234),
+            PathBuf::from("fluid.1234.ply")
+        );
+        assert_eq!(
+            p("a/b/fluid.####.ply").path(12),
+            PathBuf::from("a/b/fluid.0012.ply")
+        );
         assert_eq!(p("fluid_%04d.ply").path(3), PathBuf::from("fluid_0003.ply"));
         assert_eq!(p("fluid_%d.ply").path(3), PathBuf::from("fluid_3.ply"));
         assert_eq!(p("fluid.$F4.ply").path(-7), PathBuf::from("fluid.-007.ply"));
@@ -339,28 +352,67 @@ mod tests {
         for (text, reason) in [
             ("fluid.ply", "no frame token ($F4, #### or %04d)"),
             ("f.$F4.##.ply", "more than one frame token"),
-            ("f.%4d.ply", "space-padded %Nd is not a frame pattern; use %0Nd"),
+            (
+                "f.%4d.ply",
+                "space-padded %Nd is not a frame pattern; use %0Nd",
+            ),
             ("f.%s.ply", "only %d and %0Nd printf tokens are supported"),
-            ("f$F4/mesh.ply", "the frame token must be in the file name, not a directory"),
+            (
+                "f$F4/mesh.ply",
+                "the frame token must be in the file name, not a directory",
+            ),
         ] {
             let e = FramePattern::parse(text).unwrap_err();
-            assert_eq!(e.to_string(), format!("invalid frame pattern {text:?}: {reason}"));
+            assert_eq!(
+                e.to_string(),
+                format!("invalid frame pattern {text:?}: {reason}")
+            );
         }
     }
 
     #[test]
     fn ranges_parse_with_negative_frames() {
         let r = |s: &str| s.parse::<FrameRange>().unwrap();
-        assert_eq!(r("1-240"), FrameRange { first: 1, last: 240 });
-        assert_eq!(r("12"), FrameRange { first: 12, last: 12 });
-        assert_eq!(r("-10-5"), FrameRange { first: -10, last: 5 });
-        assert_eq!(r("-10--1"), FrameRange { first: -10, last: -1 });
+        assert_eq!(
+            r("1-240"),
+            FrameRange {
+                first: 1,
+                last: 240
+            }
+        );
+        assert_eq!(
+            r("12"),
+            FrameRange {
+                first: 12,
+                last: 12
+            }
+        );
+        assert_eq!(
+            r("-10-5"),
+            FrameRange {
+                first: -10,
+                last: 5
+            }
+        );
+        assert_eq!(
+            r("-10--1"),
+            FrameRange {
+                first: -10,
+                last: -1
+            }
+        );
         assert_eq!(r(" 3 - 4 "), FrameRange { first: 3, last: 4 });
         assert_eq!(r("1-240").len(), 240);
         let e = "9-3".parse::<FrameRange>().unwrap_err();
-        assert_eq!(e.to_string(), "invalid frame range \"9-3\": first frame 9 is after last frame 3");
+        assert_eq!(
+            e.to_string(),
+            "invalid frame range \"9-3\": first frame 9 is after last frame 3"
+        );
         let e = "1-x".parse::<FrameRange>().unwrap_err();
-        assert_eq!(e.to_string(), "invalid frame range \"1-x\": \"x\" is not a frame number");
+        assert_eq!(
+            e.to_string(),
+            "invalid frame range \"1-x\": \"x\" is not a frame number"
+        );
         assert!("".parse::<FrameRange>().is_err());
         assert!(FrameRange::new(2, 1).is_err());
     }
@@ -368,7 +420,15 @@ mod tests {
     #[test]
     fn discover_matches_exact_padding_only() {
         let dir = tempfile::tempdir().unwrap();
-        for name in ["f.0001.ply", "f.0003.ply", "f.12.ply", "f.0002.obj", "f.-001.ply", "g.0005.ply", "f.00004.ply"] {
+        for name in [
+            "f.0001.ply",
+            "f.0003.ply",
+            "f.12.ply",
+            "f.0002.obj",
+            "f.-001.ply",
+            "g.0005.ply",
+            "f.00004.ply",
+        ] {
             std::fs::write(dir.path().join(name), b"x").unwrap();
         }
         std::fs::create_dir(dir.path().join("f.0009.ply")).unwrap();

@@ -82,15 +82,21 @@ pub fn parse_vtk(path: &Path, bytes: &[u8], options: &ReadOptions) -> Result<Tri
             "POINTS" => {
                 let n = c.count(&words, 1)?;
                 let ty = c.word(&words, 2)?;
-                let v = c.array(n * 3, ty, "point", 3)?;
-                positions = Some(v.chunks_exact(3).map(|p| Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32)).collect());
+                let v = c.array(n.saturating_mul(3), ty, "point", 3)?;
+                positions = Some(
+                    v.chunks_exact(3)
+                        .map(|p| Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32))
+                        .collect(),
+                );
             }
             "CELLS" | "POLYGONS" | "TRIANGLE_STRIPS" | "VERTICES" | "LINES" => {
                 let element = if key == "CELLS" { "cell" } else { "polygon" };
                 let lists = c.cell_lists(&words, element)?;
                 match key.as_str() {
                     "CELLS" | "POLYGONS" => polygons = lists,
-                    "TRIANGLE_STRIPS" => polygons.extend(lists.iter().flat_map(|s| strip(s)).map(|t| t.to_vec())),
+                    "TRIANGLE_STRIPS" => {
+                        polygons.extend(lists.iter().flat_map(|s| strip(s)).map(|t| t.to_vec()))
+                    }
                     _ => {} // points and lines carry no surface
                 }
             }
@@ -111,16 +117,16 @@ pub fn parse_vtk(path: &Path, bytes: &[u8], options: &ReadOptions) -> Result<Tri
                 // Every array is read (to get past it); velocity is kept.
                 for (name, comps, values) in c.attribute_arrays(&words, section_len)? {
                     let rank = wanted.iter().position(|w| *w == name);
-                    if let (true, 3, Some(rank)) = (in_point_data, comps, rank) {
-                        if rank < best_rank {
-                            best_rank = rank;
-                            velocity = Some(
-                                values
-                                    .chunks_exact(3)
-                                    .map(|v| Vec3::new(v[0] as f32, v[1] as f32, v[2] as f32))
-                                    .collect(),
-                            );
-                        }
+                    if let (true, 3, Some(rank)) = (in_point_data, comps, rank)
+                        && rank < best_rank
+                    {
+                        best_rank = rank;
+                        velocity = Some(
+                            values
+                                .chunks_exact(3)
+                                .map(|v| Vec3::new(v[0] as f32, v[1] as f32, v[2] as f32))
+                                .collect(),
+                        );
                     }
                 }
             }
@@ -141,8 +147,8 @@ pub fn parse_vtk(path: &Path, bytes: &[u8], options: &ReadOptions) -> Result<Tri
                     reason: format!("{} cells but {} cell types", polygons.len(), types.len()),
                 })?;
                 match t {
-                    5 | 6 | 7 | 8 | 9 => true, // triangle, strip, polygon, pixel, quad
-                    1..=4 => false,            // vertex, poly-vertex, line, poly-line
+                    5..=9 => true,  // triangle, strip, polygon, pixel, quad
+                    1..=4 => false, // vertex, poly-vertex, line, poly-line
                     other => {
                         return Err(IoError::Element {
                             path: path.to_path_buf(),
@@ -203,7 +209,13 @@ pub fn parse_vtk(path: &Path, bytes: &[u8], options: &ReadOptions) -> Result<Tri
 fn strip(s: &[u32]) -> Vec<[u32; 3]> {
     s.windows(3)
         .enumerate()
-        .map(|(k, w)| if k % 2 == 0 { [w[0], w[1], w[2]] } else { [w[1], w[0], w[2]] })
+        .map(|(k, w)| {
+            if k % 2 == 0 {
+                [w[0], w[1], w[2]]
+            } else {
+                [w[1], w[0], w[2]]
+            }
+        })
         .collect()
 }
 
@@ -228,7 +240,11 @@ impl Cursor<'_> {
     }
 
     fn skip_space(&mut self) {
-        while self.bytes.get(self.pos).is_some_and(|b| b.is_ascii_whitespace()) {
+        while self
+            .bytes
+            .get(self.pos)
+            .is_some_and(|b| b.is_ascii_whitespace())
+        {
             self.pos += 1;
         }
     }
@@ -241,13 +257,19 @@ impl Cursor<'_> {
         let rest = &self.bytes[self.pos..];
         let end = rest.iter().position(|&b| b == b'\n').unwrap_or(rest.len());
         self.pos += (end + 1).min(rest.len());
-        Ok(String::from_utf8_lossy(&rest[..end]).trim_end_matches('\r').to_string())
+        Ok(String::from_utf8_lossy(&rest[..end])
+            .trim_end_matches('\r')
+            .to_string())
     }
 
     /// The next non-blank line, split into words.
     fn keyword_line(&mut self) -> Result<Vec<String>, IoError> {
         self.skip_space();
-        Ok(self.line()?.split_whitespace().map(str::to_string).collect())
+        Ok(self
+            .line()?
+            .split_whitespace()
+            .map(str::to_string)
+            .collect())
     }
 
     fn word<'w>(&self, words: &'w [String], k: usize) -> Result<&'w str, IoError> {
@@ -265,7 +287,13 @@ impl Cursor<'_> {
 
     /// Reads `n` numbers of type `ty`; `element`/`per` name the element
     /// (`point`, 3 values each) for truncation messages.
-    fn array(&mut self, n: usize, ty: &str, element: &str, per: usize) -> Result<Vec<f64>, IoError> {
+    fn array(
+        &mut self,
+        n: usize,
+        ty: &str,
+        element: &str,
+        per: usize,
+    ) -> Result<Vec<f64>, IoError> {
         let truncated = |at: usize| IoError::Truncated {
             path: self.path.to_path_buf(),
             element: element.to_string(),
@@ -274,7 +302,8 @@ impl Cursor<'_> {
         };
         let mut out = Vec::with_capacity(n.min(self.bytes.len().saturating_sub(self.pos)));
         if self.binary {
-            let size = type_size(ty).ok_or_else(|| self.header(&format!("unknown data type {ty:?}")))?;
+            let size =
+                type_size(ty).ok_or_else(|| self.header(&format!("unknown data type {ty:?}")))?;
             let available = (self.bytes.len() - self.pos) / size;
             if available < n {
                 return Err(truncated(available));
@@ -288,7 +317,10 @@ impl Cursor<'_> {
             for i in 0..n {
                 self.skip_space();
                 let rest = &self.bytes[self.pos..];
-                let end = rest.iter().position(|b| b.is_ascii_whitespace()).unwrap_or(rest.len());
+                let end = rest
+                    .iter()
+                    .position(|b| b.is_ascii_whitespace())
+                    .unwrap_or(rest.len());
                 if end == 0 {
                     return Err(truncated(i));
                 }
@@ -320,7 +352,12 @@ impl Cursor<'_> {
             if conn_words.first().map(String::as_str) != Some("CONNECTIVITY") {
                 return Err(self.header("OFFSETS not followed by CONNECTIVITY"));
             }
-            let conn = self.array(size, self.word(&conn_words, 1)?.to_string().as_str(), "index", 1)?;
+            let conn = self.array(
+                size,
+                self.word(&conn_words, 1)?.to_string().as_str(),
+                "index",
+                1,
+            )?;
             let mut lists = Vec::with_capacity(n.saturating_sub(1));
             for (i, w) in offsets.windows(2).enumerate() {
                 let (a, b) = (w[0] as usize, w[1] as usize);
@@ -343,12 +380,14 @@ impl Cursor<'_> {
                 path: self.path.to_path_buf(),
                 reason: format!("{n} {element}s declared, the {size} values hold only {i}"),
             })? as usize;
-            let cell = flat.get(k + 1..k + 1 + count).ok_or_else(|| IoError::Counts {
-                path: self.path.to_path_buf(),
-                reason: format!("{element} {i} runs past the {size} values declared"),
-            })?;
+            let cell = flat
+                .get(k + 1..(k + 1).saturating_add(count))
+                .ok_or_else(|| IoError::Counts {
+                    path: self.path.to_path_buf(),
+                    reason: format!("{element} {i} runs past the {size} values declared"),
+                })?;
             lists.push(self.indices(cell, element, i)?);
-            k += 1 + count;
+            k = k + 1 + count;
         }
         if k != size {
             return Err(IoError::Counts {
@@ -388,21 +427,23 @@ impl Cursor<'_> {
             "VECTORS" | "NORMALS" => {
                 let name = self.word(words, 1)?.to_string();
                 let ty = self.word(words, 2)?.to_string();
-                let v = self.array(tuples * 3, &ty, "point", 3)?;
+                let v = self.array(tuples.saturating_mul(3), &ty, "point", 3)?;
                 Ok(vec![(name, 3, v)])
             }
             "SCALARS" => {
                 let name = self.word(words, 1)?.to_string();
                 let ty = self.word(words, 2)?.to_string();
                 let comps = match words.get(3) {
-                    Some(w) => w.parse().map_err(|_| self.header(&format!("bad SCALARS component count {w:?}")))?,
+                    Some(w) => w
+                        .parse()
+                        .map_err(|_| self.header(&format!("bad SCALARS component count {w:?}")))?,
                     None => 1,
                 };
                 let lut = self.keyword_line()?;
                 if lut.first().map(String::as_str) != Some("LOOKUP_TABLE") {
                     return Err(self.header("SCALARS without LOOKUP_TABLE"));
                 }
-                let v = self.array(tuples * comps, &ty, "point", comps)?;
+                let v = self.array(tuples.saturating_mul(comps), &ty, "point", comps)?;
                 Ok(vec![(name, comps, v)])
             }
             _ => {
@@ -414,7 +455,7 @@ impl Cursor<'_> {
                     let comps = self.count(&w, 1)?;
                     let n = self.count(&w, 2)?;
                     let ty = self.word(&w, 3)?.to_string();
-                    let v = self.array(n * comps, &ty, "point", comps)?;
+                    let v = self.array(n.saturating_mul(comps), &ty, "point", comps)?;
                     out.push((name, comps, v));
                 }
                 Ok(out)
@@ -439,7 +480,8 @@ fn type_size(ty: &str) -> Option<usize> {
         "char" | "unsigned_char" | "vtktypeint8" | "vtktypeuint8" => 1,
         "short" | "unsigned_short" | "vtktypeint16" | "vtktypeuint16" => 2,
         "int" | "unsigned_int" | "float" | "vtktypeint32" | "vtktypeuint32" | "vtktypefloat32" => 4,
-        "long" | "unsigned_long" | "double" | "vtktypeint64" | "vtktypeuint64" | "vtktypefloat64" => 8,
+        "long" | "unsigned_long" | "double" | "vtktypeint64" | "vtktypeuint64"
+        | "vtktypefloat64" => 8,
         _ => return None,
     })
 }
@@ -483,7 +525,8 @@ POINT_DATA 4\nFIELD FieldData 2\nid 1 4 int\n0 1 2 3\nvelocity 3 4 float\n1 2 3 
 
     #[test]
     fn binary_polydata_with_vectors() {
-        let mut b = b"# vtk DataFile Version 3.0\nt\nBINARY\nDATASET POLYDATA\nPOINTS 3 double\n".to_vec();
+        let mut b =
+            b"# vtk DataFile Version 3.0\nt\nBINARY\nDATASET POLYDATA\nPOINTS 3 double\n".to_vec();
         for x in [0.0f64, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0] {
             b.extend_from_slice(&x.to_be_bytes());
         }
@@ -502,7 +545,8 @@ POINT_DATA 4\nFIELD FieldData 2\nid 1 4 int\n0 1 2 3\nvelocity 3 4 float\n1 2 3 
         // Truncating inside the points names the point.
         let err = parse(&b[..80]).unwrap_err();
         assert!(
-            err.to_string().starts_with("s.vtk: truncated: expected 3 points, file ends in point"),
+            err.to_string()
+                .starts_with("s.vtk: truncated: expected 3 points, file ends in point"),
             "{err}"
         );
     }
@@ -519,11 +563,64 @@ CELL_TYPES 2\n5\n9\n";
     #[test]
     fn errors_name_the_cell() {
         let head = "# vtk DataFile Version 4.2\ns\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 3 float\n0 0 0 1 0 0 0 1 0\n";
-        let err = parse(format!("{head}CELLS 1 4\n3 0 1 7\nCELL_TYPES 1\n5\n").as_bytes()).unwrap_err();
-        assert_eq!(err.to_string(), "s.vtk: face 0 refers to vertex 7, but the mesh has 3 vertices");
-        let err = parse(format!("{head}CELLS 1 5\n4 0 1 2 0\nCELL_TYPES 1\n10\n").as_bytes()).unwrap_err();
-        assert_eq!(err.to_string(), "s.vtk: cell 0: has type 10, not a surface cell");
-        let err = parse(format!("{head}CELLS 2 4\n3 0 1 2\nCELL_TYPES 1\n5\n").as_bytes()).unwrap_err();
-        assert_eq!(err.to_string(), "s.vtk: bad counts: 2 cells declared, the 4 values hold only 1");
+        let err =
+            parse(format!("{head}CELLS 1 4\n3 0 1 7\nCELL_TYPES 1\n5\n").as_bytes()).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "s.vtk: face 0 refers to vertex 7, but the mesh has 3 vertices"
+        );
+        let err = parse(format!("{head}CELLS 1 5\n4 0 1 2 0\nCELL_TYPES 1\n10\n").as_bytes())
+            .unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "s.vtk: cell 0: has type 10, not a surface cell"
+        );
+        let err =
+            parse(format!("{head}CELLS 2 4\n3 0 1 2\nCELL_TYPES 1\n5\n").as_bytes()).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "s.vtk: bad counts: 2 cells declared, the 4 values hold only 1"
+        );
+    }
+
+    /// Every truncation and several single-byte corruptions at every offset
+    /// of an ASCII and a binary file: errors are fine, panics are not.
+    #[test]
+    fn never_panics_on_truncated_or_corrupted_input() {
+        let ascii = b"# vtk DataFile Version 4.2\nsurface\nASCII\nDATASET UNSTRUCTURED_GRID\n\
+POINTS 4 float\n0 0 0 1 0 0 1 1 0 0 1 0\nCELLS 2 9\n3 0 1 2\n4 0 1 2 3\nCELL_TYPES 2\n5\n9\n\
+POINT_DATA 4\nVECTORS velocity float\n1 2 3 4 5 6 7 8 9 10 11 12\n"
+            .to_vec();
+        let mut binary =
+            b"# vtk DataFile Version 4.2\nt\nBINARY\nDATASET UNSTRUCTURED_GRID\nPOINTS 3 float\n"
+                .to_vec();
+        for x in [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0] {
+            binary.extend_from_slice(&x.to_be_bytes());
+        }
+        binary.extend_from_slice(b"\nCELLS 1 4\n");
+        for i in [3i32, 0, 1, 2] {
+            binary.extend_from_slice(&i.to_be_bytes());
+        }
+        binary.extend_from_slice(b"\nCELL_TYPES 1\n");
+        binary.extend_from_slice(&5i32.to_be_bytes());
+        binary.extend_from_slice(b"\nPOINT_DATA 3\nFIELD FieldData 1\nvelocity 3 3 double\n");
+        for x in 0..9 {
+            binary.extend_from_slice(&f64::from(x).to_be_bytes());
+        }
+        for good in [ascii, binary] {
+            assert!(parse(&good).is_ok());
+            for n in 0..good.len() {
+                let mut cases = vec![good[..n].to_vec()];
+                for b in [0u8, 0xff, 0x7f, b'9', b' ', b'\n', b'-'] {
+                    let mut c = good.clone();
+                    c[n] = b;
+                    cases.push(c);
+                }
+                for c in cases {
+                    let r = std::panic::catch_unwind(|| parse(&c).map(|_| ()));
+                    assert!(r.is_ok(), "panicked on {:?}", String::from_utf8_lossy(&c));
+                }
+            }
+        }
     }
 }
