@@ -11,7 +11,7 @@ use glam::{DVec3, Vec3};
 use serde_json::json;
 
 use super::flow::{Amplitude, Field, Motion, PulledBack, Shape, SplitMerge};
-use super::marching_cubes::{BAND_MARGIN, BLOCK, EDGE_CLAMP, Grid, extract};
+use super::marching_cubes::{BAND_MARGIN, BLOCK, EDGE_CLAMP, Grid, TOP_BLOCK, extract};
 use super::relax::{FINAL_NEWTON_STEPS, RELAX_ITERATIONS, relax};
 use super::{Scene, SceneError, SceneInfo, SceneParams};
 use crate::mesh::TriMesh;
@@ -92,7 +92,7 @@ fn definition(name: &str, resolution: Option<u32>) -> Option<Definition> {
             }),
             domain: (DVec3::ZERO, DVec3::ONE),
             closed: true,
-            defaults: params(96, 0, 72),
+            defaults: params(64, 0, 72),
         },
         // Single vortex, T = 8 s (frames 0–192).
         "vortex" => Definition {
@@ -104,7 +104,7 @@ fn definition(name: &str, resolution: Option<u32>) -> Option<Definition> {
             }),
             domain: VORTEX_DOMAIN,
             closed: true,
-            defaults: params(128, 0, 192),
+            defaults: params(96, 0, 192),
         },
         // A quarter turn per second about the vertical axis through the
         // centre: one full turn over frames 0–96.
@@ -120,7 +120,7 @@ fn definition(name: &str, resolution: Option<u32>) -> Option<Definition> {
             }),
             domain: SPHERE_DOMAIN,
             closed: true,
-            defaults: params(64, 0, 96),
+            defaults: params(40, 0, 96),
         },
         // ω(ζ) = π/4 + (π/4)/0.3 · ζ: the top pole turns a quarter turn per
         // second, the bottom pole stays still.
@@ -137,7 +137,7 @@ fn definition(name: &str, resolution: Option<u32>) -> Option<Definition> {
             }),
             domain: SPHERE_DOMAIN,
             closed: true,
-            defaults: params(64, 0, 96),
+            defaults: params(40, 0, 96),
         },
         // The plane z = 0.5 over the unit square, γ = 0.5/s. The grid's z
         // range is set from the cell size so the plane passes mid-cell.
@@ -173,7 +173,7 @@ fn definition(name: &str, resolution: Option<u32>) -> Option<Definition> {
             }),
             domain: VORTEX_DOMAIN,
             closed: true,
-            defaults: params(128, 0, 84),
+            defaults: params(96, 0, 84),
         },
         // Merged (through the blend) while d < R + k/4 = 0.17: about
         // t ∈ (1.15 s, 2.85 s), frames 28–68 of 0–96.
@@ -189,7 +189,7 @@ fn definition(name: &str, resolution: Option<u32>) -> Option<Definition> {
             }),
             domain: (DVec3::new(0.05, 0.3, 0.3), DVec3::new(0.95, 0.7, 0.7)),
             closed: true,
-            defaults: params(96, 0, 96),
+            defaults: params(64, 0, 96),
         },
         _ => return None,
     };
@@ -296,7 +296,7 @@ impl Scene for AnalyticScene {
                     "cell_size": self.grid.h,
                     "cells": self.grid.cells,
                     "grid_origin": self.grid.lo.to_array(),
-                    "block": BLOCK,
+                    "band_blocks": [TOP_BLOCK, BLOCK],
                     "band_margin": BAND_MARGIN,
                     "edge_clamp": EDGE_CLAMP,
                     "relax_iterations": self.relax_iterations,

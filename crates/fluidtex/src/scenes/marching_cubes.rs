@@ -8,16 +8,19 @@
 //! array (fast-surface-nets, splashsurf_lib's particle-density pipeline), and
 //! surface nets give non-manifold edges where two sheets share a cell.
 //!
-//! **Narrow band.** Nodes of a coarse grid (every [`BLOCK`]-th node) are
-//! evaluated first, each giving φ and the point of the initial configuration
-//! it maps back to. Where the flow map is close to affine over a block, the
+//! **Narrow band.** Blocks of [`TOP_BLOCK`]³ cells are split level by level
+//! down to [`BLOCK`]³ cells, keeping only those that may hold the surface.
+//! The corners of a block are evaluated, each giving φ and the point of the
+//! initial configuration it maps back to. Where the flow map is close to affine over a block, the
 //! block's image lies in the bounding box of its corners' images; the block
 //! can hold surface only if the initial shape passes through that box
 //! ([`Motion::box_bound`]). The box is grown by [`BAND_MARGIN`] times its
 //! diagonal on every side (plus half a cell) for the map's curvature, and a
 //! block is refined — sampled at full resolution — if its corners change
-//! sign or the grown box may meet the surface. The tests compare the result
-//! with dense sampling where the flow stretches most.
+//! sign or the grown box may meet the surface; only the nodes of kept finest
+//! blocks are all evaluated, so the cost follows the surface area rather
+//! than the grid volume. The tests compare the result with dense sampling
+//! where the flow stretches most.
 //!
 //! **Marching cubes** (Lorensen & Cline 1987) without a case table: per cell,
 //! each of the 6 faces contributes oriented contour segments (a segment runs
@@ -42,8 +45,10 @@ use rayon::prelude::*;
 
 use super::flow::Motion;
 
-/// Cells per coarse block along each axis.
-pub const BLOCK: usize = 4;
+/// Cells per block along each axis at the coarsest level of the band.
+pub const TOP_BLOCK: usize = 16;
+/// Cells per block along each axis at the finest level of the band.
+pub const BLOCK: usize = 2;
 /// Safety growth of the narrow band's boxes, in box diagonals (module doc).
 pub const BAND_MARGIN: f64 = 0.5;
 /// Smallest crossing parameter along a grid edge.
@@ -55,20 +60,21 @@ pub struct Grid {
     pub lo: DVec3,
     /// Cell edge length (world units).
     pub h: f64,
-    /// Cells per axis, each a multiple of [`BLOCK`].
+    /// Cells per axis, each a multiple of [`TOP_BLOCK`].
     pub cells: [usize; 3],
 }
 
 impl Grid {
     /// A grid over the box `[lo, hi]` with `resolution` cells along its
-    /// longest side; the cell counts are rounded up to whole blocks, so the
-    /// grid may extend a little past `hi`.
+    /// longest side; the cell counts are rounded up to whole top-level
+    /// blocks, so the grid may extend past `hi` (at no cost: the band skips
+    /// empty space).
     pub fn new(lo: DVec3, hi: DVec3, resolution: u32) -> Grid {
         let ext = hi - lo;
         let h = ext.max_element() / f64::from(resolution.max(1));
         let count = |e: f64| {
             let n = (e / h - 1e-9).ceil().max(1.0) as usize;
-            n.div_ceil(BLOCK) * BLOCK
+            n.div_ceil(TOP_BLOCK) * TOP_BLOCK
         };
         Grid {
             lo,
@@ -111,69 +117,20 @@ fn corner_offset(c: usize) -> [usize; 3] {
     [c & 1, (c >> 1) & 1, (c >> 2) & 1]
 }
 
-/// Extracts the zero level set of `motion` at time `t` over `grid`.
-pub fn extract(motion: &dyn Motion, t: f64, grid: &Grid) -> Contour {
-    let blocks = [
-        grid.cells[0] / BLOCK,
-        grid.cells[1] / BLOCK,
-        grid.cells[2] / BLOCK,
-    ];
-    let cn = [blocks[0] + 1, blocks[1] + 1, blocks[2] + 1];
-
-    // 1. Coarse nodes: value and image in the initial configuration.
-    let coarse: Vec<(f64, DVec3)> = (0..cn[0] * cn[1] * cn[2])
-        .into_par_iter()
-        .map(|id| {
-            let (i, j, k) = (id % cn[0], (id / cn[0]) % cn[1], id / (cn[0] * cn[1]));
-            motion.locate(grid.node_pos(i * BLOCK, j * BLOCK, k * BLOCK), t)
-        })
-        .collect();
-
-    // 2. Blocks that may hold the surface.
-    let refined: Vec<[usize; 3]> = (0..blocks[0] * blocks[1] * blocks[2])
-        .into_par_iter()
-        .filter_map(|id| {
-            let b = [
-                id % blocks[0],
-                (id / blocks[0]) % blocks[1],
-                id / (blocks[0] * blocks[1]),
-            ];
-            let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-            let (mut any_in, mut any_out) = (false, false);
-            for c in 0..8 {
-                let o = corner_offset(c);
-                let (v, p) =
-                    coarse[(b[0] + o[0]) + cn[0] * ((b[1] + o[1]) + cn[1] * (b[2] + o[2]))];
-                lo = lo.min(p);
-                hi = hi.max(p);
-                if v < 0.0 {
-                    any_in = true;
-                } else {
-                    any_out = true;
-                }
-            }
-            // Grow the images' box for the curvature of the flow map.
-            let grow = DVec3::splat(BAND_MARGIN * (hi - lo).length() + 0.5 * grid.h);
-            let keep = (any_in && any_out) || motion.box_bound(lo - grow, hi + grow, t) <= 0.0;
-            keep.then_some(b)
-        })
-        .collect();
-
-    // 3. Fine nodes of the refined blocks, each evaluated once.
-    let mut ids: Vec<u64> = Vec::with_capacity(refined.len() * (BLOCK + 1).pow(3));
-    for b in &refined {
-        for k in 0..=BLOCK {
-            for j in 0..=BLOCK {
-                for i in 0..=BLOCK {
-                    ids.push(grid.node_id(b[0] * BLOCK + i, b[1] * BLOCK + j, b[2] * BLOCK + k));
-                }
-            }
-        }
-    }
+/// Evaluates `motion` at every listed node not yet in `cache` (in parallel;
+/// inserted in sorted order, so the cache never depends on scheduling).
+fn evaluate(
+    motion: &dyn Motion,
+    t: f64,
+    grid: &Grid,
+    mut ids: Vec<u64>,
+    cache: &mut HashMap<u64, (f64, DVec3)>,
+) {
     ids.sort_unstable();
     ids.dedup();
+    ids.retain(|id| !cache.contains_key(id));
     let nodes = grid.nodes();
-    let values: Vec<f64> = ids
+    let values: Vec<(f64, DVec3)> = ids
         .par_iter()
         .map(|&id| {
             let id = id as usize;
@@ -182,20 +139,104 @@ pub fn extract(motion: &dyn Motion, t: f64, grid: &Grid) -> Contour {
                 (id / nodes[0]) % nodes[1],
                 id / (nodes[0] * nodes[1]),
             );
-            motion.phi(grid.node_pos(i, j, k), t)
+            motion.locate(grid.node_pos(i, j, k), t)
         })
         .collect();
+    cache.extend(ids.into_iter().zip(values));
+}
 
-    // 4. Contour loops per block (parallel), then vertices numbered in block
+/// Extracts the zero level set of `motion` at time `t` over `grid`.
+pub fn extract(motion: &dyn Motion, t: f64, grid: &Grid) -> Contour {
+    let mut cache: HashMap<u64, (f64, DVec3)> = HashMap::new();
+    // Blocks (origin in cells) of the current size, coarsest first.
+    let mut size = TOP_BLOCK;
+    let mut blocks: Vec<[usize; 3]> = Vec::new();
+    for k in (0..grid.cells[2]).step_by(size) {
+        for j in (0..grid.cells[1]).step_by(size) {
+            for i in (0..grid.cells[0]).step_by(size) {
+                blocks.push([i, j, k]);
+            }
+        }
+    }
+    loop {
+        let corners = |b: [usize; 3]| {
+            (0..8).map(move |c| {
+                let o = corner_offset(c);
+                grid.node_id(b[0] + o[0] * size, b[1] + o[1] * size, b[2] + o[2] * size)
+            })
+        };
+        evaluate(
+            motion,
+            t,
+            grid,
+            blocks.iter().flat_map(|&b| corners(b)).collect(),
+            &mut cache,
+        );
+        let cache_ref = &cache;
+        blocks = blocks
+            .into_par_iter()
+            .filter(|b| {
+                let (mut lo, mut hi) =
+                    (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+                let (mut any_in, mut any_out) = (false, false);
+                for id in corners(*b) {
+                    let (v, p) = cache_ref
+                        .get(&id)
+                        .copied()
+                        .unwrap_or((f64::NAN, DVec3::NAN));
+                    lo = lo.min(p);
+                    hi = hi.max(p);
+                    if v < 0.0 {
+                        any_in = true;
+                    } else {
+                        any_out = true;
+                    }
+                }
+                // Grow the images' box for the curvature of the flow map.
+                let grow = DVec3::splat(BAND_MARGIN * (hi - lo).length() + 0.5 * grid.h);
+                (any_in && any_out) || motion.box_bound(lo - grow, hi + grow, t) <= 0.0
+            })
+            .collect();
+        if size == BLOCK {
+            break;
+        }
+        size /= 2;
+        blocks = blocks
+            .iter()
+            .flat_map(|b| {
+                (0..8).map(move |c| {
+                    let o = corner_offset(c);
+                    [b[0] + o[0] * size, b[1] + o[1] * size, b[2] + o[2] * size]
+                })
+            })
+            .collect();
+    }
+    let refined_blocks = blocks.len();
+
+    // Every node of the kept finest blocks.
+    let mut ids = Vec::with_capacity(blocks.len() * (BLOCK + 1).pow(3));
+    for b in &blocks {
+        for k in 0..=BLOCK {
+            for j in 0..=BLOCK {
+                for i in 0..=BLOCK {
+                    ids.push(grid.node_id(b[0] + i, b[1] + j, b[2] + k));
+                }
+            }
+        }
+    }
+    evaluate(motion, t, grid, ids, &mut cache);
+
+    // Contour loops per block (parallel), then vertices numbered in block
     // order so the mesh does not depend on scheduling.
-    let per_block: Vec<Vec<Vec<(u64, DVec3)>>> = refined
+    let cache_ref = &cache;
+    let per_block: Vec<Vec<Vec<(u64, DVec3)>>> = blocks
         .par_iter()
-        .map(|b| block_loops(grid, *b, &ids, &values))
+        .map(|b| block_loops(grid, *b, cache_ref))
         .collect();
 
     let mut out = Contour {
-        evaluations: coarse.len() + values.len(),
-        refined_blocks: refined.len(),
+        evaluations: cache.len(),
+        refined_blocks,
         ..Contour::default()
     };
     let mut vertex_of: HashMap<u64, u32> = HashMap::new();
@@ -244,19 +285,21 @@ fn triangulate_loop(idx: &[u32], out: &mut Contour) {
     }
 }
 
-/// The contour loops of one block: each loop lists (global edge key, vertex
-/// position) in order, anticlockwise seen from φ > 0.
-fn block_loops(grid: &Grid, b: [usize; 3], ids: &[u64], values: &[f64]) -> Vec<Vec<(u64, DVec3)>> {
+/// The contour loops of one finest block: each loop lists (global edge key,
+/// vertex position) in order, anticlockwise seen from φ > 0.
+fn block_loops(
+    grid: &Grid,
+    b: [usize; 3],
+    cache: &HashMap<u64, (f64, DVec3)>,
+) -> Vec<Vec<(u64, DVec3)>> {
     const N: usize = BLOCK + 1;
-    // Values of the block's nodes; every one was evaluated in step 3.
+    // Values of the block's nodes; every one was evaluated before.
     let mut local = [0.0f64; N * N * N];
     for k in 0..N {
         for j in 0..N {
             for i in 0..N {
-                let id = grid.node_id(b[0] * BLOCK + i, b[1] * BLOCK + j, b[2] * BLOCK + k);
-                if let Ok(pos) = ids.binary_search(&id) {
-                    local[i + N * (j + N * k)] = values[pos];
-                }
+                let id = grid.node_id(b[0] + i, b[1] + j, b[2] + k);
+                local[i + N * (j + N * k)] = cache.get(&id).map_or(f64::NAN, |v| v.0);
             }
         }
     }
@@ -273,7 +316,7 @@ fn block_loops(grid: &Grid, b: [usize; 3], ids: &[u64], values: &[f64]) -> Vec<V
                 if inside.iter().all(|&x| x) || inside.iter().all(|&x| !x) {
                     continue;
                 }
-                let origin = [b[0] * BLOCK + i, b[1] * BLOCK + j, b[2] * BLOCK + k];
+                let origin = [b[0] + i, b[1] + j, b[2] + k];
                 cell_loops(grid, origin, &f, &inside, &mut loops);
             }
         }

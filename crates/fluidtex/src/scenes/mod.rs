@@ -35,6 +35,8 @@ pub mod flow;
 pub mod marching_cubes;
 pub mod quality;
 pub mod relax;
+#[cfg(test)]
+mod tests;
 
 use glam::Vec3;
 use serde::Serialize;
