@@ -1,1 +1,333 @@
-//! (module under construction)
+//! Texture exemplars: the colour image, extra channels driven by the same
+//! patch selection (displacement, roughness, ...), and the feature map that
+//! decides what the erosion removes first (Gagnon et al. 2021, Sec. 5.2).
+//!
+//! - [`Exemplar::load`] reads PNG, JPEG or EXR files ([`decode`], [`openexr`]),
+//!   grey or colour, 8/16-bit or float, any size; values are the stored ones
+//!   scaled to `[0, 1]` for integer formats (no colour-space conversion, so
+//!   an atlas written back in [`SampleFormat`] reproduces them).
+//! - [`feature`] holds feature maps, given or derived automatically.
+//! - [`builtin_pebbles`] is a procedural, tileable pebble exemplar with its
+//!   own height as feature map, for demos and tests without files.
+//! - [`Exemplar::sample_all`] is the lookup of the lapped fill: every
+//!   channel at one `(u, v)`, tiled ([`crate::texture::Wrap::Repeat`]), with
+//!   the texel convention of [`crate::texture`].
+
+pub mod decode;
+pub mod feature;
+pub mod openexr;
+pub mod pebbles;
+mod sampling;
+
+use std::path::{Path, PathBuf};
+
+use thiserror::Error;
+
+pub use feature::{DistanceParams, FeatureMap, FeatureMethod, FeatureOrigin};
+pub use pebbles::builtin_pebbles;
+
+use crate::texture::Texture;
+use sampling::{Lattice, blend};
+
+/// How a channel's samples were stored, and so how its atlas is written.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum SampleFormat {
+    /// 8-bit integer (PNG 8-bit).
+    U8,
+    /// 16-bit integer (PNG 16-bit).
+    U16,
+    /// Float (EXR).
+    F32,
+}
+
+/// An extra channel (displacement, roughness, ...) synthesised with the same
+/// patch selection as the colour.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExtraChannel {
+    pub name: String,
+    /// Same width and height as the colour.
+    pub texture: Texture,
+    pub format: SampleFormat,
+}
+
+/// Errors reading or assembling an exemplar. `what` names the file (or the
+/// in-memory texture) at fault.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum ExemplarError {
+    #[error("{what}: file not found")]
+    NotFound { what: String },
+    #[error("{what}: cannot read: {reason}")]
+    Io { what: String, reason: String },
+    #[error("{what}: cannot decode image: {reason}")]
+    Decode { what: String, reason: String },
+    #[error("{what}: image has zero size ({width}x{height})")]
+    ZeroSize {
+        what: String,
+        width: u32,
+        height: u32,
+    },
+    #[error(
+        "{what} is {width}x{height} but the colour exemplar {colour} is {colour_width}x{colour_height}; they must match"
+    )]
+    SizeMismatch {
+        what: String,
+        width: u32,
+        height: u32,
+        colour: String,
+        colour_width: u32,
+        colour_height: u32,
+    },
+    #[error(
+        "{what}: texel ({x}, {y}) channel {channel} is {value}; images must hold finite values"
+    )]
+    NotFinite {
+        what: String,
+        x: u32,
+        y: u32,
+        channel: usize,
+        value: f32,
+    },
+    #[error("{what}: feature value {value} at texel ({x}, {y}) is outside [0, 1]")]
+    FeatureRange {
+        what: String,
+        x: u32,
+        y: u32,
+        value: f32,
+    },
+    #[error("{what}: a feature map has 1 channel, got {channels}")]
+    FeatureChannels { what: String, channels: usize },
+    #[error("{what}: a texture has 1 to 4 channels and width*height*channels values: {reason}")]
+    Layout { what: String, reason: String },
+    #[error("extra channel name '{name}' is used twice")]
+    DuplicateChannel { name: String },
+    #[error("{name} = {value} is outside [{min}, {max}]")]
+    InvalidParameter {
+        name: &'static str,
+        value: f32,
+        min: f32,
+        max: f32,
+    },
+}
+
+/// A texture exemplar with its extra channels and feature map.
+///
+/// The fields are public for reading. [`Exemplar::sample_all`] reads a
+/// packed copy of all channels made by [`Exemplar::new`]; code that changes
+/// a field afterwards must call [`Exemplar::repack`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct Exemplar {
+    /// Colour, 1 (grey), 3 or 4 channels; integer formats scaled to `[0, 1]`,
+    /// no colour-space conversion.
+    pub colour: Texture,
+    /// How the colour was stored: how its atlas channel is written.
+    pub colour_format: SampleFormat,
+    /// Extra channels, in order; same size as `colour`.
+    pub channels: Vec<ExtraChannel>,
+    pub feature: FeatureMap,
+    packed: Packed,
+}
+
+/// All channels of a texel side by side (colour, then extras in order), so a
+/// lookup reads four contiguous runs instead of four per texture.
+#[derive(Clone, Debug, PartialEq)]
+struct Packed {
+    lattice: Lattice,
+    stride: usize,
+    data: Vec<f32>,
+}
+
+impl Exemplar {
+    /// Assembles an exemplar, checking that every texture is non-empty,
+    /// finite, well formed and the size of `colour`, that channel names are
+    /// unique, and that the feature map is valid.
+    pub fn new(
+        colour: Texture,
+        colour_format: SampleFormat,
+        channels: Vec<ExtraChannel>,
+        feature: FeatureMap,
+    ) -> Result<Exemplar, ExemplarError> {
+        let mut e = Exemplar::assemble(colour, colour_format, channels, feature);
+        e.repack()?;
+        Ok(e)
+    }
+
+    /// Packs without validating: for generators whose output is valid by
+    /// construction. Texels missing from a malformed texture read as 0.
+    pub(crate) fn assemble(
+        colour: Texture,
+        colour_format: SampleFormat,
+        channels: Vec<ExtraChannel>,
+        feature: FeatureMap,
+    ) -> Exemplar {
+        let mut e = Exemplar {
+            colour,
+            colour_format,
+            channels,
+            feature,
+            packed: Packed {
+                lattice: Lattice::new(1, 1),
+                stride: 0,
+                data: Vec::new(),
+            },
+        };
+        e.pack();
+        e
+    }
+
+    /// Re-validates the fields and rebuilds the packed copy that
+    /// [`Exemplar::sample_all`] reads.
+    pub fn repack(&mut self) -> Result<(), ExemplarError> {
+        let colour_name = "colour texture";
+        well_formed(&self.colour, colour_name)?;
+        decode::check(&self.colour, colour_name)?;
+        let (w, h) = (self.colour.width, self.colour.height);
+        let mismatch = |what: String, t: &Texture| ExemplarError::SizeMismatch {
+            what,
+            width: t.width,
+            height: t.height,
+            colour: colour_name.to_owned(),
+            colour_width: w,
+            colour_height: h,
+        };
+        for (i, c) in self.channels.iter().enumerate() {
+            let what = format!("extra channel '{}'", c.name);
+            well_formed(&c.texture, &what)?;
+            decode::check(&c.texture, &what)?;
+            if (c.texture.width, c.texture.height) != (w, h) {
+                return Err(mismatch(what, &c.texture));
+            }
+            if self.channels[..i].iter().any(|o| o.name == c.name) {
+                return Err(ExemplarError::DuplicateChannel {
+                    name: c.name.clone(),
+                });
+            }
+        }
+        feature::check_map(&self.feature.map, "feature map")?;
+        if (self.feature.map.width, self.feature.map.height) != (w, h) {
+            return Err(mismatch("feature map".into(), &self.feature.map));
+        }
+        self.pack();
+        Ok(())
+    }
+
+    fn pack(&mut self) {
+        let textures: Vec<&Texture> = std::iter::once(&self.colour)
+            .chain(self.channels.iter().map(|c| &c.texture))
+            .collect();
+        let stride: usize = textures.iter().map(|t| t.channels).sum();
+        let mut data = Vec::with_capacity(stride * self.colour.texel_count());
+        for i in 0..self.colour.texel_count() {
+            for t in &textures {
+                match t.data.get(i * t.channels..(i + 1) * t.channels) {
+                    Some(texel) => data.extend_from_slice(texel),
+                    None => data.extend(std::iter::repeat_n(0.0, t.channels)),
+                }
+            }
+        }
+        self.packed = Packed {
+            lattice: Lattice::new(self.colour.width, self.colour.height),
+            stride,
+            data,
+        };
+    }
+
+    /// Loads an exemplar: the colour image, extra channels `(name, path)` in
+    /// order, and a feature map read from `feature` or, when `None`, derived
+    /// with `derive` (default [`DistanceParams`]). A feature map file with
+    /// more than one channel is reduced to its Rec. 709 luminance; its values
+    /// must lie in `[0, 1]`. Errors name the file at fault.
+    pub fn load(
+        colour: &Path,
+        channels: &[(String, PathBuf)],
+        feature: Option<&Path>,
+        derive: FeatureMethod,
+    ) -> Result<Exemplar, ExemplarError> {
+        let main = decode::read_image(colour)?;
+        let (w, h) = (main.texture.width, main.texture.height);
+        let check_size = |path: &Path, t: &Texture| {
+            if (t.width, t.height) == (w, h) {
+                Ok(())
+            } else {
+                Err(ExemplarError::SizeMismatch {
+                    what: path.display().to_string(),
+                    width: t.width,
+                    height: t.height,
+                    colour: colour.display().to_string(),
+                    colour_width: w,
+                    colour_height: h,
+                })
+            }
+        };
+        let mut extras = Vec::with_capacity(channels.len());
+        for (name, path) in channels {
+            let d = decode::read_image(path)?;
+            check_size(path, &d.texture)?;
+            extras.push(ExtraChannel {
+                name: name.clone(),
+                texture: d.texture,
+                format: d.format,
+            });
+        }
+        let feature = match feature {
+            Some(path) => {
+                let d = decode::read_image(path)?;
+                check_size(path, &d.texture)?;
+                let grey = Texture {
+                    width: d.texture.width,
+                    height: d.texture.height,
+                    channels: 1,
+                    data: feature::luminance(&d.texture),
+                };
+                FeatureMap::new(
+                    grey,
+                    FeatureOrigin::Given(path.to_path_buf()),
+                    &path.display().to_string(),
+                )?
+            }
+            None => feature::derive(&main.texture, derive, &DistanceParams::default())?.map,
+        };
+        Exemplar::new(main.texture, main.format, extras, feature)
+    }
+
+    /// Every channel (colour, then extras in order) at `(u, v)`: bilinear,
+    /// repeating. Writes `min(out.len(), total_channels())` values; pass a
+    /// buffer of [`Exemplar::total_channels`].
+    #[inline]
+    pub fn sample_all(&self, u: f32, v: f32, out: &mut [f32]) {
+        let p = &self.packed;
+        blend(&p.data, p.stride, &p.lattice.footprint(u, v), out);
+    }
+
+    /// Colour channels plus all extra channels.
+    #[inline]
+    pub fn total_channels(&self) -> usize {
+        self.packed.stride
+    }
+
+    /// Width and height in texels.
+    pub fn size(&self) -> (u32, u32) {
+        (self.colour.width, self.colour.height)
+    }
+}
+
+/// Texture invariants that [`Texture::from_data`] enforces but a struct
+/// literal may not.
+fn well_formed(t: &Texture, what: &str) -> Result<(), ExemplarError> {
+    let expected = t.width as usize * t.height as usize * t.channels;
+    if !(1..=4).contains(&t.channels) || t.data.len() != expected {
+        return Err(ExemplarError::Layout {
+            what: what.to_owned(),
+            reason: format!(
+                "{}x{} with {} channels holds {} values",
+                t.width,
+                t.height,
+                t.channels,
+                t.data.len()
+            ),
+        });
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,152 @@
+//! Tiled bilinear lookup for exemplars: the lattice arithmetic shared by
+//! [`super::Exemplar::sample_all`] and [`super::FeatureMap::sample`].
+//!
+//! The convention is the one of [`crate::texture`] (texel centres at +0.5,
+//! `v = 0` at the top, bilinear after subtracting 0.5), with
+//! [`crate::texture::Wrap::Repeat`] folding. It is written again here rather
+//! than calling [`crate::texture::Texture::sample_bilinear`] because the lapped
+//! fill calls it once per atlas texel and patch: folding by a bit mask for
+//! power-of-two sizes (and one remainder otherwise) and reading one
+//! interleaved buffer of all channels is what keeps the cost independent of
+//! the exemplar's resolution and channel count.
+
+/// Where a bilinear lookup reads: the linear indices of the four texels
+/// (top-left, top-right, bottom-left, bottom-right) and the weights.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Footprint {
+    pub texels: [usize; 4],
+    pub fx: f32,
+    pub fy: f32,
+}
+
+/// Folds one axis of a repeating lattice.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Axis {
+    size: u32,
+    scale: f32,
+    /// `size - 1` when `size` is a power of two.
+    mask: Option<u32>,
+}
+
+impl Axis {
+    fn new(size: u32) -> Axis {
+        Axis {
+            size,
+            scale: size as f32,
+            mask: size.is_power_of_two().then(|| size - 1),
+        }
+    }
+
+    /// Lower and upper texel index and the weight of the upper one.
+    #[inline(always)]
+    fn fold(&self, coord: f32) -> (u32, u32, f32) {
+        let p = coord * self.scale - 0.5;
+        let floor = p.floor();
+        let frac = p - floor;
+        // Saturating float→int cast: absurd coordinates read some texel
+        // instead of panicking.
+        let i = floor as i32;
+        match self.mask {
+            Some(mask) => {
+                let a = (i as u32) & mask;
+                (a, (a + 1) & mask, frac)
+            }
+            None => {
+                let a = i.rem_euclid(self.size as i32) as u32;
+                let b = if a + 1 == self.size { 0 } else { a + 1 };
+                (a, b, frac)
+            }
+        }
+    }
+}
+
+/// A `width × height` lattice that repeats in both directions.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Lattice {
+    x: Axis,
+    y: Axis,
+}
+
+impl Lattice {
+    /// Both sizes must be at least 1 (callers validate that first).
+    pub fn new(width: u32, height: u32) -> Lattice {
+        Lattice {
+            x: Axis::new(width.max(1)),
+            y: Axis::new(height.max(1)),
+        }
+    }
+
+    /// The four texels a bilinear lookup at `(u, v)` reads, with wrap-around.
+    #[inline(always)]
+    pub fn footprint(&self, u: f32, v: f32) -> Footprint {
+        let (x0, x1, fx) = self.x.fold(u);
+        let (y0, y1, fy) = self.y.fold(v);
+        let w = self.x.size as usize;
+        let (r0, r1) = (y0 as usize * w, y1 as usize * w);
+        Footprint {
+            texels: [
+                r0 + x0 as usize,
+                r0 + x1 as usize,
+                r1 + x0 as usize,
+                r1 + x1 as usize,
+            ],
+            fx,
+            fy,
+        }
+    }
+}
+
+/// Bilinear blend of `stride`-channel texels read from `data` into `out`
+/// (`min(out.len(), stride)` values). Reads nothing out of bounds: a
+/// footprint from the matching [`Lattice`] always lies inside `data`.
+#[inline(always)]
+pub(crate) fn blend(data: &[f32], stride: usize, f: &Footprint, out: &mut [f32]) {
+    let texel = |i: usize| data.get(i * stride..(i + 1) * stride).unwrap_or(&[]);
+    let [a, b, c, d] = f.texels.map(texel);
+    let (fx, fy) = (f.fx, f.fy);
+    for ((((o, &a), &b), &c), &d) in out.iter_mut().zip(a).zip(b).zip(c).zip(d) {
+        let top = a + (b - a) * fx;
+        let bottom = c + (d - c) * fx;
+        *o = top + (bottom - top) * fy;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::texture::{Texture, Wrap};
+    use rand::{Rng, SeedableRng};
+    use rand_pcg::Pcg64;
+
+    /// The fast path must agree with the reference sampler of texture.rs
+    /// (up to the rounding of the reordered lerp) on power-of-two and other sizes.
+    #[test]
+    fn agrees_with_reference_sampler() {
+        let mut rng = Pcg64::seed_from_u64(7);
+        for (w, h) in [(8, 4), (5, 3), (1, 7), (16, 16), (6, 1)] {
+            let data: Vec<f32> = (0..w * h * 2).map(|_| rng.random::<f32>()).collect();
+            let t = Texture::from_data(w, h, 2, data.clone()).expect("sizes match");
+            let lattice = Lattice::new(w, h);
+            for _ in 0..500 {
+                let u = rng.random_range(-3.0f32..3.0);
+                let v = rng.random_range(-3.0f32..3.0);
+                let (mut fast, mut slow) = ([0.0; 2], [0.0; 2]);
+                blend(&data, 2, &lattice.footprint(u, v), &mut fast);
+                t.sample_bilinear(u, v, Wrap::Repeat, &mut slow);
+                for k in 0..2 {
+                    assert!((fast[k] - slow[k]).abs() < 1e-5, "{w}x{h} at ({u}, {v})");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn absurd_coordinates_do_not_panic() {
+        let lattice = Lattice::new(3, 5);
+        let data = vec![1.0; 15];
+        let mut out = [0.0];
+        for u in [f32::NAN, f32::INFINITY, -1e30, 1e30] {
+            blend(&data, 1, &lattice.footprint(u, 0.3), &mut out);
+        }
+    }
+}
