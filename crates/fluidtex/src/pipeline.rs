@@ -52,6 +52,25 @@ pub struct ChannelSpec {
     pub format: ChannelFormat,
 }
 
+impl From<crate::exemplar::SampleFormat> for ChannelFormat {
+    fn from(f: crate::exemplar::SampleFormat) -> ChannelFormat {
+        use crate::exemplar::SampleFormat;
+        match f {
+            SampleFormat::U8 => ChannelFormat::Png8,
+            SampleFormat::U16 => ChannelFormat::Png16,
+            SampleFormat::F32 => ChannelFormat::Exr,
+        }
+    }
+}
+
+/// The output channels of an exemplar: `color`, then its extra channels by
+/// name, each written in the format it was read in.
+pub fn exemplar_channels(e: &crate::exemplar::Exemplar) -> Vec<ChannelSpec> {
+    let mut specs = vec![ChannelSpec { name: "color".into(), format: e.colour_format.into() }];
+    specs.extend(e.channels.iter().map(|c| ChannelSpec { name: c.name.clone(), format: c.format.into() }));
+    specs
+}
+
 /// Which files are written per frame besides the channel atlases.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]

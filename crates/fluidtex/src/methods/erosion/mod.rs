@@ -184,7 +184,7 @@ impl Method for Erosion {
     }
 
     fn channel_specs(&self) -> Vec<ChannelSpec> {
-        self.exemplar.channel_specs()
+        crate::pipeline::exemplar_channels(&self.exemplar)
     }
 
     fn step(&mut self, ctx: &FrameContext<'_>) -> Result<FrameResult, MethodError> {
