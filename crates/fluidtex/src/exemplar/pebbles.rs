@@ -32,20 +32,22 @@ const GAP: f32 = 0.03;
 const ROUNDING: f32 = 0.1;
 /// Sizes accepted by [`builtin_pebbles`]; others are clamped into range.
 const SIZE_RANGE: (u32, u32) = (8, 8192);
-/// Sentinel for crevice texels in [`Layout::stone`].
-pub(crate) const CREVICE: u32 = u32::MAX;
+/// Sentinel for crevice texels in [`PebbleLayout::stone`].
+pub const CREVICE: u32 = u32::MAX;
 
 /// The built-in pebbles exemplar, `size × size` texels (clamped to
 /// `[8, 8192]`), 3 colour channels stored as 8-bit, feature map = height.
 /// Deterministic in `(size, seed)`; tiles seamlessly.
 pub fn builtin_pebbles(size: u32, seed: u64) -> Exemplar {
-    generate(size, seed).exemplar
+    pebbles_with_masks(size, seed).exemplar
 }
 
-/// The exemplar and the generator's own stone masks.
-pub(crate) struct Layout {
+/// The built-in exemplar with the generator's own stone masks (ground truth
+/// for tests of feature maps and erosion).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PebbleLayout {
     pub exemplar: Exemplar,
-    /// Per texel, the stone it belongs to, or [`CREVICE`].
+    /// Per texel (row-major), the stone it belongs to, or [`CREVICE`].
     pub stone: Vec<u32>,
 }
 
@@ -63,7 +65,8 @@ struct Stone {
     colour: [f32; 3],
 }
 
-pub(crate) fn generate(size: u32, seed: u64) -> Layout {
+/// [`builtin_pebbles`] plus which stone each texel belongs to.
+pub fn pebbles_with_masks(size: u32, seed: u64) -> PebbleLayout {
     let size = size.clamp(SIZE_RANGE.0, SIZE_RANGE.1);
     let n = size as usize;
     let stones: Vec<Stone> = (0..CELLS * CELLS).map(|c| stone(seed, c)).collect();
@@ -166,7 +169,7 @@ pub(crate) fn generate(size: u32, seed: u64) -> Layout {
     };
     // Sizes match and values are finite and in range by construction.
     let exemplar = Exemplar::assemble(colour, SampleFormat::U8, Vec::new(), feature);
-    Layout {
+    PebbleLayout {
         exemplar,
         stone: id,
     }
