@@ -414,6 +414,10 @@ fn each_error_names_the_file() {
         ),
         Err(ExemplarError::DuplicateChannel { .. })
     ));
+    assert!(matches!(
+        FeatureMap::new(Texture::filled(2, 2, 3, 0.5), FeatureOrigin::Builtin, "rgb"),
+        Err(ExemplarError::FeatureChannels { channels: 3, .. })
+    ));
     // A struct literal with a wrong data length is rejected, not sampled.
     let broken = Texture {
         width: 2,
