@@ -6,7 +6,9 @@
 //!   grey or colour, 8/16-bit or float, any size; values are the stored ones
 //!   scaled to `[0, 1]` for integer formats (no colour-space conversion, so
 //!   an atlas written back in [`SampleFormat`] reproduces them).
-//! - [`feature`] holds feature maps, given or derived automatically.
+//! - [`feature`] holds feature maps `F_m`, given or derived automatically
+//!   ([`FeatureMethod`]), with [`FeatureMap::sample`] and the erosion test's
+//!   normaliser [`FeatureMap::erosion_normaliser`].
 //! - [`builtin_pebbles`] is a procedural, tileable pebble exemplar with its
 //!   own height as feature map, for demos and tests without files.
 //! - [`Exemplar::sample_all`] is the lookup of the lapped fill: every
@@ -233,7 +235,8 @@ impl Exemplar {
 
     /// Loads an exemplar: the colour image, extra channels `(name, path)` in
     /// order, and a feature map read from `feature` or, when `None`, derived
-    /// with `derive` (default [`DistanceParams`]). A feature map file with
+    /// from the colour with `derive` (default [`DistanceParams`];
+    /// [`feature::derive`] takes others). A feature map file with
     /// more than one channel is reduced to its Rec. 709 luminance; its values
     /// must lie in `[0, 1]`. Errors name the file at fault.
     pub fn load(

@@ -32,20 +32,22 @@ const GAP: f32 = 0.03;
 const ROUNDING: f32 = 0.1;
 /// Sizes accepted by [`builtin_pebbles`]; others are clamped into range.
 const SIZE_RANGE: (u32, u32) = (8, 8192);
-/// Sentinel for crevice texels in [`Layout::stone`].
-pub(crate) const CREVICE: u32 = u32::MAX;
+/// Sentinel for crevice texels in [`PebbleLayout::stone`].
+pub const CREVICE: u32 = u32::MAX;
 
 /// The built-in pebbles exemplar, `size × size` texels (clamped to
 /// `[8, 8192]`), 3 colour channels stored as 8-bit, feature map = height.
 /// Deterministic in `(size, seed)`; tiles seamlessly.
 pub fn builtin_pebbles(size: u32, seed: u64) -> Exemplar {
-    generate(size, seed).exemplar
+    pebbles_with_masks(size, seed).exemplar
 }
 
-/// The exemplar and the generator's own stone masks.
-pub(crate) struct Layout {
+/// The built-in exemplar with the generator's own stone masks (ground truth
+/// for tests of feature maps and erosion).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PebbleLayout {
     pub exemplar: Exemplar,
-    /// Per texel, the stone it belongs to, or [`CREVICE`].
+    /// Per texel (row-major), the stone it belongs to, or [`CREVICE`].
     pub stone: Vec<u32>,
 }
 
@@ -63,7 +65,8 @@ struct Stone {
     colour: [f32; 3],
 }
 
-pub(crate) fn generate(size: u32, seed: u64) -> Layout {
+/// [`builtin_pebbles`] plus which stone each texel belongs to.
+pub fn pebbles_with_masks(size: u32, seed: u64) -> PebbleLayout {
     let size = size.clamp(SIZE_RANGE.0, SIZE_RANGE.1);
     let n = size as usize;
     let stones: Vec<Stone> = (0..CELLS * CELLS).map(|c| stone(seed, c)).collect();
@@ -108,6 +111,10 @@ pub(crate) fn generate(size: u32, seed: u64) -> Layout {
 
     // Pass 2: colour, lit through the height field's normals.
     let mut colour = vec![0.0f32; n * n * 3];
+    let (coarse, fine) = (
+        ValueNoise::new(seed ^ 0x9e37, 48),
+        ValueNoise::new(seed ^ 0x7f4a, 160),
+    );
     let relief = size as f32 / CELLS as f32 * 0.06;
     colour
         .par_chunks_mut(n * 3)
@@ -121,8 +128,7 @@ pub(crate) fn generate(size: u32, seed: u64) -> Layout {
                 };
                 let i = y * n + x;
                 let (u, v) = ((x as f32 + 0.5) / n as f32, (y as f32 + 0.5) / n as f32);
-                let grain = 0.75 * value_noise(seed ^ 0x9e37, u, v, 48)
-                    + 0.25 * value_noise(seed ^ 0x7f4a, u, v, 160);
+                let grain = 0.75 * coarse.at(u, v) + 0.25 * fine.at(u, v);
                 let rgb = match stones.get(id[i] as usize) {
                     Some(s) => {
                         // Normal of the height field (y down in the image).
@@ -166,7 +172,7 @@ pub(crate) fn generate(size: u32, seed: u64) -> Layout {
     };
     // Sizes match and values are finite and in range by construction.
     let exemplar = Exemplar::assemble(colour, SampleFormat::U8, Vec::new(), feature);
-    Layout {
+    PebbleLayout {
         exemplar,
         stone: id,
     }
@@ -347,21 +353,37 @@ fn stone(seed: u64, cell: u32) -> Stone {
     }
 }
 
-/// Tileable value noise in `[0, 1]` with `period` lattice cells per unit.
-fn value_noise(seed: u64, u: f32, v: f32, period: u32) -> f32 {
-    let (x, y) = (u * period as f32, v * period as f32);
-    let (x0, y0) = (x.floor(), y.floor());
-    let (fx, fy) = (x - x0, y - y0);
-    let (sx, sy) = (fx * fx * (3.0 - 2.0 * fx), fy * fy * (3.0 - 2.0 * fy));
-    let p = period as i32;
-    let at = |i: i32, j: i32| {
-        let (i, j) = (wrap(i, p) as u64, wrap(j, p) as u64);
-        unit(hash(seed, (j << 32) | i))
-    };
-    let (i, j) = (x0 as i32, y0 as i32);
-    let top = at(i, j) + (at(i + 1, j) - at(i, j)) * sx;
-    let bottom = at(i, j + 1) + (at(i + 1, j + 1) - at(i, j + 1)) * sx;
-    top + (bottom - top) * sy
+/// Tileable value noise in `[0, 1]`: random values on a `period × period`
+/// lattice (drawn once), smoothstep-interpolated, repeating with period 1 in
+/// `(u, v)`.
+struct ValueNoise {
+    period: usize,
+    lattice: Vec<f32>,
+}
+
+impl ValueNoise {
+    fn new(seed: u64, period: usize) -> ValueNoise {
+        let lattice = (0..period * period)
+            .map(|k| unit(hash(seed, k as u64)))
+            .collect();
+        ValueNoise { period, lattice }
+    }
+
+    #[inline]
+    fn at(&self, u: f32, v: f32) -> f32 {
+        let p = self.period;
+        let (x, y) = (u * p as f32, v * p as f32);
+        // u, v ≥ 0 here, so truncation is the floor.
+        let (i, j) = (x as usize, y as usize);
+        let (fx, fy) = (x - i as f32, y - j as f32);
+        let (sx, sy) = (fx * fx * (3.0 - 2.0 * fx), fy * fy * (3.0 - 2.0 * fy));
+        let (i0, i1) = (i % p, (i + 1) % p);
+        let (j0, j1) = ((j % p) * p, ((j + 1) % p) * p);
+        let l = &self.lattice;
+        let top = l[j0 + i0] + (l[j0 + i1] - l[j0 + i0]) * sx;
+        let bottom = l[j1 + i0] + (l[j1 + i1] - l[j1 + i0]) * sx;
+        top + (bottom - top) * sy
+    }
 }
 
 /// SplitMix64 finaliser of `(seed, key)`: stateless, so any texel can draw

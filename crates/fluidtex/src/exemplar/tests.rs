@@ -391,9 +391,7 @@ fn each_error_names_the_file() {
     );
     let m = message(load(&ok, Some(&missing), None));
     assert!(m.contains("missing.png"), "{m}");
-    for m in [&m] {
-        assert!(!m.contains('\n'), "one line: {m}");
-    }
+    assert!(!m.contains('\n'), "one line: {m}");
 
     // Zero size and duplicate names are caught when assembling in memory
     // (image encoders refuse to write empty images).
@@ -415,6 +413,10 @@ fn each_error_names_the_file() {
             flat_feature(2, 2, 0.0)
         ),
         Err(ExemplarError::DuplicateChannel { .. })
+    ));
+    assert!(matches!(
+        FeatureMap::new(Texture::filled(2, 2, 3, 0.5), FeatureOrigin::Builtin, "rgb"),
+        Err(ExemplarError::FeatureChannels { channels: 3, .. })
     ));
     // A struct literal with a wrong data length is rejected, not sampled.
     let broken = Texture {
@@ -500,7 +502,7 @@ fn pebbles_are_deterministic_across_seeds_and_threads() {
 
 #[test]
 fn pebble_feature_map_follows_stones() {
-    let layout = pebbles::generate(256, 5);
+    let layout = pebbles::pebbles_with_masks(256, 5);
     let f = &layout.exemplar.feature.map.data;
     let stones = layout
         .stone
