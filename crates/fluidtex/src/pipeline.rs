@@ -23,7 +23,9 @@ use crate::io::{InputGuard, IoError};
 use crate::mesh::{TriMesh, ValidationReport};
 use crate::methods::{FrameContext, Method, MethodError, PreviousFrame, SOURCE_OUTSIDE, SOURCE_UNCOVERED};
 use crate::surface::SurfaceIndex;
+use crate::render::{self, Camera};
 use crate::texture::Texture;
+use glam::Vec3;
 
 /// How an atlas channel is written.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -230,6 +232,9 @@ pub fn run(
         }
     }
     let total = frames.len();
+    // Previews are taken every n frames counted from the sequence's first
+    // frame, so a resumed run writes the same previews.
+    let first_frame = source.frames().first().copied().unwrap_or(0);
     let mut done = 0;
     for (k, &number) in frames.iter().enumerate() {
         observer(Event::Start { number, index: k, total });
@@ -288,7 +293,7 @@ pub fn run(
             method_stats: std::mem::take(&mut result.stats),
             ..Default::default()
         };
-        write_frame(job, &guard, number, &mesh, &atlas, method, &result)?;
+        write_frame(job, &guard, first_frame, number, &mesh, &atlas, method, &result)?;
         lap("write", &mut seconds);
         stats.stage_order = seconds.iter().map(|(n, _)| n.clone()).collect();
         stats.seconds = seconds.into_iter().collect();
@@ -380,6 +385,7 @@ pub fn patch_colour(source: u32) -> [f32; 3] {
 fn write_frame(
     job: &Job,
     guard: &InputGuard,
+    first_frame: i32,
     number: i32,
     mesh: &TriMesh,
     atlas: &Atlas,
@@ -428,14 +434,34 @@ fn write_frame(
         let png = colour_png.as_ref().map(|(_, b)| b.as_slice());
         crate::io::gltf::write_glb(&path, &uv.positions, &uv.uvs, Some(&normals), &uv.triangles, png)?;
     }
-    if job.outputs.debug
-        && let Some(source) = &result.source
-    {
+    let patches = result.source.as_ref().map(|source| {
         let mut colours = Texture::filled(atlas.width, atlas.height, 3, 0.0);
         for (t, &s) in source.iter().enumerate() {
             colours.data[t * 3..t * 3 + 3].copy_from_slice(&patch_colour(s));
         }
-        write_channel(guard, &dir.join(format!("patches.{tag}.png")), &colours, ChannelFormat::Png8)?;
+        atlas.dilate(&mut colours, job.atlas.gutter.max(1) * 2);
+        colours
+    });
+    if job.outputs.preview_every > 0
+        && (number - first_frame).rem_euclid(job.outputs.preview_every as i32) == 0
+        && let (Some(colour), Some((lo, hi))) = (result.channels.first(), mesh.bounding_box())
+    {
+        let size = job.outputs.preview_size.clamp(16, 8192);
+        let camera = Camera::framing(lo, hi, Vec3::new(-0.45, -0.8, -0.4), size, size);
+        let gb = render::rasterize(&uv.positions, &uv.triangles, &camera);
+        let background = [0.12, 0.12, 0.14];
+        let lit = render::shade_lit(&gb, &uv.triangles, &normals, &uv.uvs, colour, &camera, background);
+        let mut views = vec![lit];
+        if let Some(p) = &patches {
+            views.push(render::shade_lit(&gb, &uv.triangles, &normals, &uv.uvs, p, &camera, background));
+        }
+        let sheet = render::side_by_side(&views.iter().collect::<Vec<_>>(), 8, background);
+        write_channel(guard, &dir.join(format!("preview.{tag}.png")), &sheet, ChannelFormat::Png8)?;
+    }
+    if job.outputs.debug
+        && let (Some(source), Some(colours)) = (&result.source, &patches)
+    {
+        write_channel(guard, &dir.join(format!("patches.{tag}.png")), colours, ChannelFormat::Png8)?;
         let ids: Vec<f32> = source
             .iter()
             .map(|&s| if s == SOURCE_OUTSIDE { -1.0 } else { s as f32 })

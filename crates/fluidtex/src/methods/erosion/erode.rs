@@ -9,10 +9,8 @@
 //! with D(u, v) = max(0, 1 − ‖(0.5, 0.5) − (u, v)‖ / 0.5): texels with low
 //! feature values, far from the patch centre or on distorted parts of the
 //! patch go first. The denominator is a constant of the feature map, computed
-//! once per exemplar by [`max_norm`]. The equation is implemented as written
+//! once per exemplar by [`crate::exemplar::FeatureMap::erosion_normaliser`]. The equation is implemented as written
 //! (the authors' public code replaced it by a pre-baked image sequence).
-
-use crate::texture::{Texture, Wrap};
 
 /// D(u, v) of Sec. 5.2: 1 at the patch centre, falling linearly to 0 at
 /// distance 0.5 in uv.
@@ -20,28 +18,6 @@ use crate::texture::{Texture, Wrap};
 pub fn centre_falloff(u: f32, v: f32) -> f32 {
     let (du, dv) = (u - 0.5, v - 0.5);
     (1.0 - (du * du + dv * dv).sqrt() / 0.5).max(0.0)
-}
-
-/// max over the feature map of sqrt(F_m(s,t) + D(s,t)), taken at texel
-/// centres of the feature map over one tile [0,1]² (where D is defined).
-/// The maximum of a bilinear interpolant of texel values lies at texel
-/// centres for F_m, and D peaks at the centre: evaluating at texel centres
-/// and at (0.5, 0.5) itself gives the exact maximum of the continuous map
-/// up to the sub-texel variation of D.
-pub fn max_norm(feature: &Texture) -> f32 {
-    let (w, h) = (feature.width, feature.height);
-    let mut best = 0.0f32;
-    let mut probe = [0.0f32];
-    feature.sample_bilinear(0.5, 0.5, Wrap::Repeat, &mut probe);
-    best = best.max((probe[0] + 1.0).max(0.0).sqrt());
-    for y in 0..h {
-        for x in 0..w {
-            let (u, v) = ((x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32);
-            let f = feature.texel(x, y)[0];
-            best = best.max((f + centre_falloff(u, v)).max(0.0).sqrt());
-        }
-    }
-    best
 }
 
 /// The erosion decision with its constants bound.
@@ -54,7 +30,7 @@ pub struct ErosionTest {
 }
 
 impl ErosionTest {
-    /// `max_norm` from [`max_norm`] (must be > 0), ε ∈ (0, 1) by default 0.1.
+    /// `max_norm` from [`crate::exemplar::FeatureMap::erosion_normaliser`] (must be > 0), ε ∈ (0, 1) by default 0.1.
     pub fn new(max_norm: f32, epsilon: f32) -> ErosionTest {
         ErosionTest {
             inv_max_norm: if max_norm > 0.0 { 1.0 / max_norm } else { 0.0 },
@@ -140,18 +116,5 @@ mod tests {
         assert!((t.lhs(0.44, 0.8, 0.5) as f64 - lhs).abs() < 1e-6);
         assert!(t.eroded(0.44, 0.8, 0.5, w_star - 1e-4));
         assert!(!t.eroded(0.44, 0.8, 0.5, w_star + 1e-4));
-    }
-
-    #[test]
-    fn max_norm_of_constant_and_peaked_maps() {
-        // Constant F = c: the maximum is at the centre, sqrt(c + 1).
-        let flat = Texture::filled(16, 16, 1, 0.3);
-        assert!((max_norm(&flat) - 1.3f32.sqrt()).abs() < 1e-6);
-        // A single bright texel in a corner, where D = 0: sqrt(1) vs centre
-        // sqrt(0 + 1): equal; make it exceed with F = 1 near the centre.
-        let mut peak = Texture::filled(16, 16, 1, 0.0);
-        peak.texel_mut(8, 8)[0] = 1.0; // centre (8.5/16, 8.5/16), D ≈ 0.94
-        let d = centre_falloff(8.5 / 16.0, 8.5 / 16.0);
-        assert!((max_norm(&peak) - (1.0 + d).sqrt()).abs() < 1e-6);
     }
 }

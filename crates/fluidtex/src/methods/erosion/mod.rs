@@ -152,7 +152,7 @@ fn rotation_for(seed: u64, random: bool, id: u32) -> f32 {
 impl Erosion {
     pub fn new(params: ErosionParams, exemplar: Arc<Exemplar>, seed: u64) -> Result<Erosion, MethodError> {
         params.validate()?;
-        let test = ErosionTest::new(erode::max_norm(&exemplar.feature.map), params.epsilon);
+        let test = ErosionTest::new(exemplar.feature.erosion_normaliser(), params.epsilon);
         Ok(Erosion {
             params,
             exemplar,
