@@ -3,10 +3,16 @@
 //! - [`lscm`] — least-squares conformal maps (Lévy et al. 2002), the one
 //!   solver used both for patch flattening (DESIGN §1 "Flattening") and for
 //!   atlas charts.
+//! - [`charts`] — segmentation of a mesh into disc-like charts.
+//! - [`flatten`] — LSCM per chart, injectivity check, splitting of folds.
+//! - [`pack`] — packing flattened charts into a texel rectangle.
 //!
 //! All solves run in `f64`; inputs and outputs are `f32` geometry.
 
+pub mod charts;
+pub mod flatten;
 pub mod lscm;
+pub mod pack;
 
 pub use lscm::{DEGENERATE_RATIO, is_degenerate, lscm};
 

@@ -1,0 +1,371 @@
+//! Flattening of atlas charts: LSCM per chart, a check that the map is
+//! injective, and splitting of charts whose map folds.
+//!
+//! LSCM preserves orientation triangle by triangle but is not guaranteed to
+//! be injective: a flipped triangle, a vertex whose one-ring wraps around
+//! twice, or a boundary that crosses itself all make two surface points share
+//! a texel. A map of a disc is injective exactly when every triangle keeps its
+//! orientation, every interior vertex's angles sum to 2π (one turn), every
+//! boundary vertex's to less than 2π, and the boundary polygon is simple
+//! (a locally injective map of a disc with a simple boundary is globally
+//! injective). [`is_injective`] checks these four conditions; a chart that
+//! fails them is split ([`super::charts::split`]) and each piece flattened
+//! again, down to single triangles if need be (always injective).
+//!
+//! Output coordinates follow the image convention (x right, y down) and are
+//! scaled so that each chart's uv area equals its 3-D area, which gives every
+//! chart the same mean texel density once packed.
+
+use glam::{DVec2, Vec2, Vec3};
+
+use super::charts::{ChartParams, split};
+use super::{is_degenerate, lscm};
+
+/// One flattened chart.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FlatChart {
+    /// Input triangles of the chart, ascending.
+    pub triangles: Vec<u32>,
+    /// Input vertex of each chart vertex, in first-use order over `triangles`.
+    pub vertices: Vec<u32>,
+    /// The chart's triangles in chart-vertex indices, input corner order.
+    pub local_triangles: Vec<[u32; 3]>,
+    /// Chart-vertex coordinates in world units, image orientation (x right,
+    /// y down): a triangle counter-clockwise around its normal has negative
+    /// signed area here, so the texture is not mirrored when seen from the
+    /// side the normal points to. A degenerate triangle (a chart of its own)
+    /// collapses to the point (0, 0): it has no area to texture.
+    pub uv: Vec<Vec2>,
+}
+
+/// Flattens chart `chart` (ascending input triangle indices) of the mesh
+/// `(positions, triangles)`, splitting it until every piece maps injectively.
+/// Returns the pieces in a deterministic order.
+pub fn flatten_chart(
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+    chart: &[u32],
+    params: &ChartParams,
+) -> Vec<FlatChart> {
+    let mut out = Vec::new();
+    flatten_into(positions, triangles, chart.to_vec(), params, &mut out);
+    out
+}
+
+fn flatten_into(
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+    chart: Vec<u32>,
+    params: &ChartParams,
+    out: &mut Vec<FlatChart>,
+) {
+    let (vertices, local_triangles) = local_mesh(triangles, &chart);
+    let local_pos: Vec<Vec3> = vertices.iter().map(|&v| positions[v as usize]).collect();
+
+    if let [t] = local_triangles[..] {
+        let [a, b, c] = t.map(|v| local_pos[v as usize]);
+        if is_degenerate(a, b, c) {
+            out.push(FlatChart {
+                uv: vec![Vec2::ZERO; local_pos.len()],
+                triangles: chart,
+                vertices,
+                local_triangles,
+            });
+            return;
+        }
+    }
+
+    if let Ok(uv) = lscm(&local_pos, &local_triangles)
+        && is_injective(&uv, &local_triangles)
+    {
+        out.push(FlatChart {
+            uv: normalised_image_uv(&local_pos, &local_triangles, &uv),
+            triangles: chart,
+            vertices,
+            local_triangles,
+        });
+        return;
+    }
+
+    let pieces = split(&local_pos, &local_triangles, params).charts;
+    if pieces.len() < 2 {
+        // Cannot happen for two or more triangles (split halves the size
+        // cap); a lone non-degenerate triangle always flattens above.
+        for t in chart {
+            flatten_into(positions, triangles, vec![t], params, out);
+        }
+        return;
+    }
+    for piece in pieces {
+        let global: Vec<u32> = piece.iter().map(|&l| chart[l as usize]).collect();
+        flatten_into(positions, triangles, global, params, out);
+    }
+}
+
+/// Chart vertices in first-use order and the chart's triangles in them.
+fn local_mesh(triangles: &[[u32; 3]], chart: &[u32]) -> (Vec<u32>, Vec<[u32; 3]>) {
+    let mut vertices: Vec<u32> = Vec::new();
+    let mut local_tris = Vec::with_capacity(chart.len());
+    // Charts are small; a sorted lookup keeps this O(k log k) without a
+    // mesh-sized scratch array per chart.
+    let mut sorted: Vec<(u32, u32)> = Vec::new();
+    for &t in chart {
+        let mut out = [0u32; 3];
+        for (k, &v) in triangles[t as usize].iter().enumerate() {
+            out[k] = match sorted.binary_search_by_key(&v, |&(g, _)| g) {
+                Ok(i) => sorted[i].1,
+                Err(i) => {
+                    let l = vertices.len() as u32;
+                    vertices.push(v);
+                    sorted.insert(i, (v, l));
+                    l
+                }
+            };
+        }
+        local_tris.push(out);
+    }
+    (vertices, local_tris)
+}
+
+/// LSCM uv → image orientation (y = −v), scaled to the 3-D area.
+fn normalised_image_uv(pos: &[Vec3], tris: &[[u32; 3]], uv: &[Vec2]) -> Vec<Vec2> {
+    let (mut area3, mut area2) = (0.0f64, 0.0f64);
+    for t in tris {
+        let [a, b, c] = t.map(|v| pos[v as usize].as_dvec3());
+        area3 += 0.5 * (b - a).cross(c - a).length();
+        let [p, q, r] = t.map(|v| uv[v as usize].as_dvec2());
+        area2 += 0.5 * (q - p).perp_dot(r - p);
+    }
+    let scale = if area2 > 0.0 {
+        (area3 / area2).sqrt()
+    } else {
+        1.0
+    };
+    uv.iter()
+        .map(|p| (DVec2::new(p.x as f64, -(p.y as f64)) * scale).as_vec2())
+        .collect()
+}
+
+/// True when the piecewise-linear map `uv` (orientation as LSCM returns it:
+/// counter-clockwise triangles positive) of the disc `tris` is injective;
+/// see the module doc for the four conditions.
+pub fn is_injective(uv: &[Vec2], tris: &[[u32; 3]]) -> bool {
+    use std::f64::consts::TAU;
+    let p: Vec<DVec2> = uv.iter().map(|q| q.as_dvec2()).collect();
+    let mut angle_sum = vec![0.0f64; p.len()];
+    let mut edges: Vec<(u32, u32, u32, u32)> = Vec::with_capacity(tris.len() * 3);
+    for t in tris {
+        let [a, b, c] = t.map(|v| p[v as usize]);
+        if (b - a).perp_dot(c - a) <= 0.0 {
+            return false;
+        }
+        for k in 0..3 {
+            let (o, n1, n2) = (
+                t[k] as usize,
+                t[(k + 1) % 3] as usize,
+                t[(k + 2) % 3] as usize,
+            );
+            let (e1, e2) = (p[n1] - p[o], p[n2] - p[o]);
+            angle_sum[o] += e1.perp_dot(e2).atan2(e1.dot(e2));
+            let (u, v) = (t[k], t[(k + 1) % 3]);
+            edges.push((u.min(v), u.max(v), u, v));
+        }
+    }
+    edges.sort_unstable();
+    let mut boundary: Vec<(u32, u32)> = Vec::new();
+    let mut on_boundary = vec![false; p.len()];
+    let mut i = 0;
+    while i < edges.len() {
+        let mut j = i + 1;
+        while j < edges.len() && edges[j].0 == edges[i].0 && edges[j].1 == edges[i].1 {
+            j += 1;
+        }
+        match j - i {
+            1 => {
+                boundary.push((edges[i].2, edges[i].3));
+                on_boundary[edges[i].0 as usize] = true;
+                on_boundary[edges[i].1 as usize] = true;
+            }
+            2 => {}
+            _ => return false,
+        }
+        i = j;
+    }
+    let used: Vec<bool> = {
+        let mut u = vec![false; p.len()];
+        for t in tris {
+            for &v in t {
+                u[v as usize] = true;
+            }
+        }
+        u
+    };
+    for v in 0..p.len() {
+        if !used[v] {
+            continue;
+        }
+        // Interior sums are whole turns (2π k); anything near 4π wraps.
+        let limit = if on_boundary[v] {
+            TAU - 1e-9
+        } else {
+            TAU + 1.0
+        };
+        if angle_sum[v] >= limit {
+            return false;
+        }
+    }
+    boundary_is_simple(&p, &boundary)
+}
+
+/// No two boundary edges without a common vertex touch or cross. Uniform
+/// grid over the boundary's bounding box, about one edge per cell.
+fn boundary_is_simple(p: &[DVec2], edges: &[(u32, u32)]) -> bool {
+    let m = edges.len();
+    if m < 4 {
+        return true;
+    }
+    let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+    for &(a, b) in edges {
+        for v in [a, b] {
+            lo = lo.min(p[v as usize]);
+            hi = hi.max(p[v as usize]);
+        }
+    }
+    let ext = (hi - lo).max(DVec2::splat(1e-300));
+    let cells = (m as f64).sqrt().ceil().max(1.0);
+    let n = DVec2::new(
+        (cells * ext.x / ext.max_element()).ceil().max(1.0),
+        (cells * ext.y / ext.max_element()).ceil().max(1.0),
+    );
+    let cell_of = |q: DVec2| -> (i64, i64) {
+        let c = (q - lo) / ext * n;
+        (
+            (c.x.floor() as i64).clamp(0, n.x as i64 - 1),
+            (c.y.floor() as i64).clamp(0, n.y as i64 - 1),
+        )
+    };
+    let mut entries: Vec<(i64, u32)> = Vec::new();
+    for (e, &(a, b)) in edges.iter().enumerate() {
+        let (ca, cb) = (cell_of(p[a as usize]), cell_of(p[b as usize]));
+        for cy in ca.1.min(cb.1)..=ca.1.max(cb.1) {
+            for cx in ca.0.min(cb.0)..=ca.0.max(cb.0) {
+                entries.push((cy * n.x as i64 + cx, e as u32));
+            }
+        }
+    }
+    entries.sort_unstable();
+    let mut i = 0;
+    while i < entries.len() {
+        let mut j = i + 1;
+        while j < entries.len() && entries[j].0 == entries[i].0 {
+            j += 1;
+        }
+        for x in i..j {
+            for y in x + 1..j {
+                let (e, f) = (edges[entries[x].1 as usize], edges[entries[y].1 as usize]);
+                if e.0 == f.0 || e.0 == f.1 || e.1 == f.0 || e.1 == f.1 {
+                    continue;
+                }
+                if segments_touch(
+                    p[e.0 as usize],
+                    p[e.1 as usize],
+                    p[f.0 as usize],
+                    p[f.1 as usize],
+                ) {
+                    return false;
+                }
+            }
+        }
+        i = j;
+    }
+    true
+}
+
+/// Closed segments ab and cd share a point.
+fn segments_touch(a: DVec2, b: DVec2, c: DVec2, d: DVec2) -> bool {
+    let o = |p: DVec2, q: DVec2, r: DVec2| (q - p).perp_dot(r - p);
+    let (o1, o2, o3, o4) = (o(a, b, c), o(a, b, d), o(c, d, a), o(c, d, b));
+    if o1 == 0.0 && o2 == 0.0 {
+        // Collinear: overlap of the projections on the longer axis.
+        let axis = if (b - a).x.abs() >= (b - a).y.abs() {
+            0
+        } else {
+            1
+        };
+        let (a0, a1) = (a[axis].min(b[axis]), a[axis].max(b[axis]));
+        let (c0, c1) = (c[axis].min(d[axis]), c[axis].max(d[axis]));
+        return a0 <= c1 && c0 <= a1;
+    }
+    o1 * o2 <= 0.0 && o3 * o4 <= 0.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn square() -> (Vec<Vec2>, Vec<[u32; 3]>) {
+        (
+            vec![
+                Vec2::new(0.0, 0.0),
+                Vec2::new(1.0, 0.0),
+                Vec2::new(1.0, 1.0),
+                Vec2::new(0.0, 1.0),
+                Vec2::new(0.5, 0.5),
+            ],
+            vec![[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]],
+        )
+    }
+
+    #[test]
+    fn a_convex_fan_is_injective() {
+        let (uv, tris) = square();
+        assert!(is_injective(&uv, &tris));
+    }
+
+    #[test]
+    fn a_flipped_triangle_is_caught() {
+        let (mut uv, tris) = square();
+        uv[4] = Vec2::new(1.5, 0.5); // centre pushed outside: triangle 1 flips
+        assert!(!is_injective(&uv, &tris));
+    }
+
+    #[test]
+    fn a_double_cover_is_caught() {
+        // Eight triangles around a centre, each spanning 90°: every triangle
+        // is positive but the one-ring turns twice (angle sum 4π).
+        let mut uv = vec![Vec2::ZERO];
+        for k in 0..8 {
+            let a = k as f32 * std::f32::consts::FRAC_PI_2;
+            uv.push(Vec2::new(a.cos(), a.sin()));
+        }
+        let tris: Vec<[u32; 3]> = (0..8).map(|k| [0, 1 + k, 1 + (k + 1) % 8]).collect();
+        assert!(!is_injective(&uv, &tris));
+    }
+
+    #[test]
+    fn a_self_crossing_boundary_is_caught() {
+        // A strip of 8 quads bent round so that its two ends overlap, every
+        // triangle positive and every vertex angle sum below 2π.
+        let mut uv = Vec::new();
+        for i in 0..=8 {
+            let a = i as f32 * std::f32::consts::TAU / 7.0;
+            uv.push(Vec2::new(a.cos(), a.sin()) * 1.0);
+            uv.push(Vec2::new(a.cos(), a.sin()) * 2.0);
+        }
+        let mut tris = Vec::new();
+        for i in 0..8u32 {
+            let (a, b, c, d) = (2 * i, 2 * i + 1, 2 * i + 2, 2 * i + 3);
+            tris.push([a, b, d]);
+            tris.push([a, d, c]);
+        }
+        let positive = tris.iter().all(|t| {
+            let [a, b, c] = t.map(|v| uv[v as usize]);
+            (b - a).perp_dot(c - a) > 0.0
+        });
+        assert!(positive, "the fixture must pass the orientation test");
+        assert!(!is_injective(&uv, &tris));
+        // The same strip bent less (6 of 7 sectors) is fine.
+        let short: Vec<[u32; 3]> = tris[..12].to_vec();
+        assert!(is_injective(&uv, &short));
+    }
+}

@@ -1,0 +1,602 @@
+//! Packing flattened charts into a W×H texel rectangle with a gutter.
+//!
+//! **Method: skyline ("horizon") packing of chart profiles, with a scale
+//! search.** Each chart is first turned so that its minimum-area bounding
+//! rectangle is axis-aligned (rotating calipers over its convex hull,
+//! Toussaint 1983). At a trial scale s (texels per world unit) each chart
+//! becomes, per column of texels, the interval of rows its footprint
+//! touches (`lo..hi`, plus a small margin for fixed-point snapping), so it
+//! covers every texel the rasterizer can claim and the chart's geometry. Charts, largest first, drop onto a skyline (per
+//! atlas column, the first free row): a chart placed at column offset x
+//! lands at `y = max_i(sky[x+i] − lo[i])`, so its lower outline nests into
+//! the upper outline of what lies below, and the skyline then rises to the
+//! chart's upper outline dilated by the gutter. Each of the four quarter
+//! turns and every column offset is tried; the lowest resulting bottom edge
+//! wins (ties: smaller quarter turn, then smaller x). The scale is then
+//! searched (secant steps on `used height ∝ s²`, bracketed by bisection) for
+//! the largest s whose packing fits the atlas height.
+//!
+//! **Why our own packer.** etagere and guillotiere allocate *rectangles*
+//! (shelves, guillotine cuts) for dynamic atlases such as glyph caches;
+//! rectangle-pack packs rectangles too. Chart outlines are blobs: their
+//! bounding rectangles waste 20–40% of their area, and the issue's ≥ 60%
+//! texel fill at 1024² (gutter included) is out of reach with rectangles.
+//! Profile nesting keeps most of that space, and needs a per-column skyline
+//! no rectangle allocator exposes.
+//!
+//! **Gutter.** With gutter G, two texels of different charts are at least
+//! G + 1 apart in x or y (G free texels between them): the skyline rises to
+//! `hi + G` over the chart's columns widened by G on both sides. A margin of
+//! ⌈G/2⌉ texels is kept free along the atlas border so dilation has room and
+//! wrap-around filtering does not bleed.
+
+use glam::{DVec2, Vec2};
+use rayon::prelude::*;
+use thiserror::Error;
+
+use super::flatten::FlatChart;
+
+/// Packing parameters (validated by the atlas, see [`crate::atlas::AtlasParams`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PackParams {
+    /// Atlas width in texels.
+    pub width: u32,
+    /// Atlas height in texels.
+    pub height: u32,
+    /// Free texels between charts (G).
+    pub gutter: u32,
+    /// Try the four quarter turns of every chart (else only its
+    /// minimum-area-rectangle orientation).
+    pub allow_rotation: bool,
+}
+
+/// Why charts could not be packed.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum PackError {
+    #[error(
+        "{charts} charts do not fit a {width}x{height} atlas with gutter {gutter} even at one texel each"
+    )]
+    TooManyCharts {
+        charts: usize,
+        width: u32,
+        height: u32,
+        gutter: u32,
+    },
+}
+
+/// Result of packing: texel coordinates of every chart vertex.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Packing {
+    /// Texels per world unit.
+    pub scale: f64,
+    /// Per chart, per chart vertex: texel coordinates (x right, y down, in
+    /// `[0, width] × [0, height]`; texel (x, y) has its centre at +0.5).
+    pub texel_coords: Vec<Vec<DVec2>>,
+    /// Rows used (the lowest chart's bottom edge plus the margin).
+    pub used_height: u32,
+    /// Packing attempts made by the scale search.
+    pub attempts: u32,
+}
+
+/// Margin (texels) by which profiles are widened to cover fixed-point
+/// snapping (1/512 texel) and rounding.
+const SNAP_MARGIN: f64 = 0.01;
+
+/// Relative width of the scale bracket at which the search stops.
+const SCALE_TOLERANCE: f64 = 0.01;
+const MAX_ATTEMPTS: u32 = 12;
+
+/// The packing grid is at most this many cells wide: larger atlases pack
+/// cells of `⌈W / MAX_GRID⌉²` texels, which bounds the packing cost
+/// independently of the atlas size (at 6144², 3×3-texel cells lose about one
+/// texel per chart side).
+const MAX_GRID: u32 = 2048;
+
+/// A chart turned to its minimum-area rectangle, origin at its box corner,
+/// in world units.
+struct Prepared {
+    uv: Vec<DVec2>,
+    tris: Vec<[u32; 3]>,
+    size: DVec2,
+    area: f64,
+}
+
+/// A chart's outline at one scale and quarter turn, in grid cells.
+struct Profile {
+    /// Cell rows `lo[i]..hi[i]` of cell column i may hold texels (lo ≥ hi:
+    /// none).
+    lo: Vec<i32>,
+    hi: Vec<i32>,
+    /// `hi` dilated by the gutter in x and y; index j is column j − gutter.
+    top: Vec<i32>,
+    /// Lowest occupied cell row + 1.
+    bottom: i32,
+    /// Height of the chart's box in cells.
+    rows: i32,
+}
+
+/// The packing grid: cell size and, in cells, gutter, margin and extent.
+#[derive(Clone, Copy, Debug)]
+struct Grid {
+    cell: u32,
+    gutter: i32,
+    margin: i32,
+    cols: i32,
+    rows: i32,
+}
+
+impl Grid {
+    fn new(params: &PackParams) -> Grid {
+        let cell = params.width.max(params.height).div_ceil(MAX_GRID).max(1);
+        let margin_texels = params.gutter.div_ceil(2);
+        Grid {
+            cell,
+            gutter: params.gutter.div_ceil(cell) as i32,
+            margin: margin_texels.div_ceil(cell) as i32,
+            cols: (params.width / cell) as i32,
+            rows: (params.height / cell) as i32,
+        }
+    }
+}
+
+/// Packs `charts` into the atlas; see the module doc.
+pub fn pack(charts: &[FlatChart], params: &PackParams) -> Result<Packing, PackError> {
+    let too_many = PackError::TooManyCharts {
+        charts: charts.len(),
+        width: params.width,
+        height: params.height,
+        gutter: params.gutter,
+    };
+    if charts.is_empty() {
+        return Ok(Packing {
+            scale: 1.0,
+            texel_coords: Vec::new(),
+            used_height: 0,
+            attempts: 0,
+        });
+    }
+    let grid = Grid::new(params);
+    let avail_w = grid.cols - 2 * grid.margin;
+    let avail_h = grid.rows - 2 * grid.margin;
+    if avail_w < 1 || avail_h < 1 {
+        return Err(too_many);
+    }
+    let prepared: Vec<Prepared> = charts.par_iter().map(prepare).collect();
+    // Largest first (by longer side), index on ties: independent of scale.
+    let mut order: Vec<usize> = (0..prepared.len()).collect();
+    order.sort_by(|&a, &b| {
+        let (sa, sb) = (
+            prepared[a].size.max_element(),
+            prepared[b].size.max_element(),
+        );
+        sb.total_cmp(&sa).then(a.cmp(&b))
+    });
+    let largest = prepared
+        .iter()
+        .map(|p| p.size.max_element())
+        .fold(0.0, f64::max);
+    let total_area: f64 = prepared.iter().map(|p| p.area).sum();
+    let usable = avail_w as f64 * avail_h as f64 * (grid.cell as f64).powi(2);
+    // First guess: 70% of the usable area filled.
+    let mut s = if total_area > 0.0 {
+        (0.7 * usable / total_area).sqrt()
+    } else {
+        1.0 / largest.max(f64::MIN_POSITIVE)
+    };
+
+    let (mut lo, mut hi) = (0.0f64, f64::INFINITY);
+    let mut best: Option<(f64, Vec<Placed>, i32)> = None;
+    let mut attempts = 0;
+    while attempts < MAX_ATTEMPTS {
+        attempts += 1;
+        let fill_next =
+            |bottom: i32| s * (avail_h as f64 / (bottom - grid.margin).max(1) as f64).sqrt();
+        let next = match pack_at(&prepared, &order, s, params.allow_rotation, grid) {
+            Some((placed, bottom)) if bottom <= grid.margin + avail_h => {
+                lo = s;
+                let n = fill_next(bottom);
+                best = Some((s, placed, bottom));
+                n
+            }
+            Some((_, bottom)) => {
+                hi = s;
+                fill_next(bottom) * 0.995
+            }
+            None => {
+                hi = s;
+                s * 0.5
+            }
+        };
+        if hi.is_finite() && lo > 0.0 && hi / lo - 1.0 < SCALE_TOLERANCE {
+            break;
+        }
+        s = if next > lo && next < hi {
+            next
+        } else if lo > 0.0 && hi.is_finite() {
+            (lo * hi).sqrt()
+        } else if lo > 0.0 {
+            lo * 1.25
+        } else {
+            next.min(0.5 * hi)
+        };
+        if best.is_none() && s * largest < 1e-3 {
+            break;
+        }
+    }
+    match best {
+        Some((scale, placed, bottom)) => {
+            Ok(finish(&prepared, scale, &placed, bottom, grid, attempts))
+        }
+        None => {
+            // Every chart at a size below one texel still overflowing means
+            // there are too many charts; otherwise shrink until it fits.
+            let tiny = 1e-3 / largest.max(f64::MIN_POSITIVE);
+            match pack_at(&prepared, &order, tiny, params.allow_rotation, grid) {
+                Some((placed, bottom)) if bottom <= grid.margin + avail_h => {
+                    Ok(finish(&prepared, tiny, &placed, bottom, grid, attempts + 1))
+                }
+                _ => Err(too_many),
+            }
+        }
+    }
+}
+
+/// Chart box at scale `s`, in texels, rounded up to whole cells so that
+/// half turns map cell columns onto cell columns.
+fn box_texels(p: &Prepared, s: f64, cell: u32) -> DVec2 {
+    let c = cell as f64;
+    let cells = |len: f64| ((len * s / c).ceil()).max(1.0) * c;
+    DVec2::new(cells(p.size.x), cells(p.size.y))
+}
+
+fn finish(
+    prepared: &[Prepared],
+    scale: f64,
+    placed: &[Placed],
+    bottom: i32,
+    grid: Grid,
+    attempts: u32,
+) -> Packing {
+    let c = grid.cell as f64;
+    let texel_coords = prepared
+        .iter()
+        .zip(placed)
+        .map(|(p, pl)| {
+            let bx = box_texels(p, scale, grid.cell);
+            let offset = DVec2::new(pl.x as f64 * c, pl.y as f64 * c);
+            p.uv.iter()
+                .map(|&q| turn(q * scale, bx, pl.quarter) + offset)
+                .collect()
+        })
+        .collect();
+    Packing {
+        scale,
+        texel_coords,
+        used_height: ((bottom + grid.margin).max(0) as u32) * grid.cell,
+        attempts,
+    }
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Placed {
+    quarter: u8,
+    x: i32,
+    y: i32,
+}
+
+/// Quarter turn `q` (counter-clockwise in a y-up frame, so orientation is
+/// kept) of a point of the box `[0, size.x] × [0, size.y]`, mapped back into
+/// the turned box's positive quadrant.
+fn turn(p: DVec2, size: DVec2, q: u8) -> DVec2 {
+    match q & 3 {
+        0 => p,
+        1 => DVec2::new(size.y - p.y, p.x),
+        2 => DVec2::new(size.x - p.x, size.y - p.y),
+        _ => DVec2::new(p.y, size.x - p.x),
+    }
+}
+
+/// Packs at scale `s`; `None` when some chart is wider than the atlas in
+/// every orientation. Returns placements (by chart index, in cells) and the
+/// lowest bottom edge (cells).
+fn pack_at(
+    prepared: &[Prepared],
+    order: &[usize],
+    s: f64,
+    rotate: bool,
+    grid: Grid,
+) -> Option<(Vec<Placed>, i32)> {
+    let profiles: Vec<Vec<Profile>> = prepared
+        .par_iter()
+        .map(|p| {
+            let p0 = profile(p, s, 0, grid);
+            if !rotate {
+                return vec![p0];
+            }
+            let p1 = profile(p, s, 1, grid);
+            let (p2, p3) = (half_turn(&p0, grid.gutter), half_turn(&p1, grid.gutter));
+            vec![p0, p1, p2, p3]
+        })
+        .collect();
+    let (g, margin, width) = (grid.gutter, grid.margin, grid.cols);
+    let mut sky = vec![margin; width as usize];
+    let mut placed = vec![
+        Placed {
+            quarter: 0,
+            x: 0,
+            y: 0
+        };
+        prepared.len()
+    ];
+    let mut bottom = margin;
+    for &c in order {
+        // (score, quarter, x, y)
+        let mut best: Option<(i32, usize, i32, i32)> = None;
+        for (q, prof) in profiles[c].iter().enumerate() {
+            let bw = prof.lo.len() as i32;
+            for x in margin..=width - margin - bw {
+                let bound = best.map_or(i32::MAX, |b| b.0) - prof.bottom;
+                let mut y = margin;
+                for (i, (&lo, &hi)) in prof.lo.iter().zip(&prof.hi).enumerate() {
+                    if lo < hi {
+                        y = y.max(sky[(x + i as i32) as usize] - lo);
+                        if y >= bound {
+                            break;
+                        }
+                    }
+                }
+                if y < bound {
+                    best = Some((y + prof.bottom, q, x, y));
+                }
+            }
+        }
+        let (score, q, x, y) = best?;
+        let prof = &profiles[c][q];
+        for (j, &t) in prof.top.iter().enumerate() {
+            let col = x - g + j as i32;
+            if (0..width).contains(&col) && t > i32::MIN {
+                let s = &mut sky[col as usize];
+                *s = (*s).max(y + t);
+            }
+        }
+        placed[c] = Placed {
+            quarter: q as u8,
+            x,
+            y,
+        };
+        bottom = bottom.max(score);
+    }
+    Some((placed, bottom))
+}
+
+/// `⌊x⌋` for |x| < 2³¹ without a libm call (no SSE4.1 rounding baseline).
+#[inline]
+fn floor_i(x: f64) -> i64 {
+    let t = x as i64;
+    if (t as f64) > x { t - 1 } else { t }
+}
+
+#[inline]
+fn ceil_i(x: f64) -> i64 {
+    -floor_i(-x)
+}
+
+/// Outline of chart `p` at scale `s` after quarter turn `q` (0 or 1), in
+/// cells: the interval of cell column I covers every cell row that the
+/// chart's continuous footprint over the strip `[I·c, (I+1)·c]` touches
+/// (widened by [`SNAP_MARGIN`]). Covering the footprint, not only texel
+/// centres, keeps charts apart geometrically too: a sliver between two
+/// texel centres must not reach into a neighbour, where it would be
+/// rendered with the neighbour's texels.
+fn profile(p: &Prepared, s: f64, q: u8, grid: Grid) -> Profile {
+    let c = grid.cell as i64;
+    let cf = c as f64;
+    let bx = box_texels(p, s, grid.cell);
+    let turned = if q & 1 == 1 {
+        DVec2::new(bx.y, bx.x)
+    } else {
+        bx
+    };
+    let cols = (turned.x / cf).round() as usize;
+    let rows = (turned.y / cf).round() as i32;
+    let mut lo = vec![i32::MAX; cols];
+    let mut hi = vec![i32::MIN; cols];
+    let pts: Vec<DVec2> = p.uv.iter().map(|&v| turn(v * s, bx, q)).collect();
+    let m = SNAP_MARGIN;
+    let last_row = rows as i64 * c - 1;
+    for t in &p.tris {
+        let v = t.map(|k| pts[k as usize]);
+        let xmin = v[0].x.min(v[1].x).min(v[2].x);
+        let xmax = v[0].x.max(v[1].x).max(v[2].x);
+        let c0 = (floor_i(xmin - m) / c).max(0);
+        let c1 = (floor_i(xmax + m) / c).min(cols as i64 - 1);
+        for cell in c0..=c1 {
+            // The strip of this cell, clipped to the triangle's x-range.
+            let x0 = (cell as f64 * cf - m).max(xmin);
+            let x1 = (cell as f64 * cf + cf + m).min(xmax);
+            if x0 > x1 {
+                continue;
+            }
+            let (mut ylo, mut yhi) = (f64::INFINITY, f64::NEG_INFINITY);
+            for k in 0..3 {
+                let (a, b) = (v[k], v[(k + 1) % 3]);
+                if a.x >= x0 && a.x <= x1 {
+                    ylo = ylo.min(a.y);
+                    yhi = yhi.max(a.y);
+                }
+                for x in [x0, x1] {
+                    if (a.x - x) * (b.x - x) < 0.0 {
+                        let y = a.y + (x - a.x) / (b.x - a.x) * (b.y - a.y);
+                        ylo = ylo.min(y);
+                        yhi = yhi.max(y);
+                    }
+                }
+            }
+            if ylo > yhi {
+                continue;
+            }
+            let r0 = floor_i(ylo - m).max(0);
+            let r1 = (ceil_i(yhi + m) - 1).clamp(r0, last_row.max(r0));
+            let i = cell as usize;
+            lo[i] = lo[i].min((r0 / c) as i32);
+            hi[i] = hi[i].max((r1 / c) as i32 + 1);
+        }
+    }
+    if lo.iter().zip(&hi).all(|(l, h)| l >= h) {
+        // Nothing recorded (cannot happen for a chart with a triangle):
+        // reserve one cell so the chart still gets a place of its own.
+        lo[0] = 0;
+        hi[0] = 1;
+    }
+    finish_profile(lo, hi, rows, grid.gutter)
+}
+
+/// Adds the gutter-dilated top outline and the bottom.
+fn finish_profile(lo: Vec<i32>, hi: Vec<i32>, rows: i32, gutter: i32) -> Profile {
+    let g = gutter as usize;
+    let mut top = vec![i32::MIN; lo.len() + 2 * g];
+    let mut bottom = 1;
+    for (i, (&l, &h)) in lo.iter().zip(&hi).enumerate() {
+        if l < h {
+            bottom = bottom.max(h);
+            for t in &mut top[i..=i + 2 * g] {
+                *t = (*t).max(h + gutter);
+            }
+        }
+    }
+    Profile {
+        lo,
+        hi,
+        top,
+        bottom,
+        rows,
+    }
+}
+
+/// The profile of the half-turned chart: the box is whole cells, so cell
+/// column i becomes column n−1−i and rows flip within the box.
+fn half_turn(p: &Profile, gutter: i32) -> Profile {
+    let rows = p.rows;
+    let n = p.lo.len();
+    let mut lo = vec![i32::MAX; n];
+    let mut hi = vec![i32::MIN; n];
+    for i in 0..n {
+        let (l, h) = (p.lo[n - 1 - i], p.hi[n - 1 - i]);
+        if l < h {
+            lo[i] = rows - h;
+            hi[i] = rows - l;
+        }
+    }
+    finish_profile(lo, hi, rows, gutter)
+}
+
+/// Turns a chart to its minimum-area bounding rectangle, longer side along
+/// x, origin at the rectangle's corner.
+fn prepare(chart: &FlatChart) -> Prepared {
+    let pts: Vec<DVec2> = chart.uv.iter().map(|p| p.as_dvec2()).collect();
+    let used = used_points(&pts, &chart.local_triangles);
+    let hull = convex_hull(&used);
+    // Rotating calipers, brute force over hull edges (hulls are small).
+    let mut best_dir = DVec2::X;
+    let mut best_area = f64::INFINITY;
+    for i in 0..hull.len() {
+        let e = hull[(i + 1) % hull.len()] - hull[i];
+        let len = e.length();
+        if len <= 0.0 {
+            continue;
+        }
+        let d = e / len;
+        let (mut a0, mut a1, mut b0, mut b1) = (
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        );
+        for p in &hull {
+            let (a, b) = (p.dot(d), d.perp_dot(*p));
+            a0 = a0.min(a);
+            a1 = a1.max(a);
+            b0 = b0.min(b);
+            b1 = b1.max(b);
+        }
+        let area = (a1 - a0) * (b1 - b0);
+        if area < best_area {
+            best_area = area;
+            best_dir = if a1 - a0 >= b1 - b0 { d } else { d.perp() };
+        }
+    }
+    // Rotation taking best_dir to +x (a proper rotation keeps orientation).
+    let rot = |p: DVec2| DVec2::new(p.dot(best_dir), best_dir.perp_dot(p));
+    let mut uv: Vec<DVec2> = pts.iter().map(|&p| rot(p)).collect();
+    let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+    for &p in &used {
+        lo = lo.min(rot(p));
+        hi = hi.max(rot(p));
+    }
+    if !lo.is_finite() {
+        lo = DVec2::ZERO;
+        hi = DVec2::ZERO;
+    }
+    for p in &mut uv {
+        *p -= lo;
+    }
+    let area = chart
+        .local_triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|v| uv[v as usize]);
+            0.5 * (b - a).perp_dot(c - a).abs()
+        })
+        .sum();
+    Prepared {
+        uv,
+        tris: chart.local_triangles.clone(),
+        size: hi - lo,
+        area,
+    }
+}
+
+fn used_points(pts: &[DVec2], tris: &[[u32; 3]]) -> Vec<DVec2> {
+    let mut idx: Vec<u32> = tris.iter().flatten().copied().collect();
+    idx.sort_unstable();
+    idx.dedup();
+    idx.into_iter().map(|i| pts[i as usize]).collect()
+}
+
+/// Andrew's monotone chain; counter-clockwise, no collinear points.
+fn convex_hull(points: &[DVec2]) -> Vec<DVec2> {
+    let mut p = points.to_vec();
+    p.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+    p.dedup();
+    if p.len() < 3 {
+        return p;
+    }
+    let mut hull: Vec<DVec2> = Vec::with_capacity(2 * p.len());
+    for pass in 0..2 {
+        let start = hull.len();
+        let iter: Box<dyn Iterator<Item = &DVec2>> = if pass == 0 {
+            Box::new(p.iter())
+        } else {
+            Box::new(p.iter().rev())
+        };
+        for &q in iter {
+            while hull.len() >= start + 2 {
+                let (a, b) = (hull[hull.len() - 2], hull[hull.len() - 1]);
+                if (b - a).perp_dot(q - a) <= 0.0 {
+                    hull.pop();
+                } else {
+                    break;
+                }
+            }
+            hull.push(q);
+        }
+        hull.pop();
+    }
+    hull
+}
+
+/// Converts packed texel coordinates to `f32` normalised uv (u = x / W,
+/// v = y / H, v = 0 at the top row).
+pub fn normalised(texel: DVec2, width: u32, height: u32) -> Vec2 {
+    DVec2::new(texel.x / width as f64, texel.y / height as f64).as_vec2()
+}
