@@ -78,7 +78,7 @@ pub struct SceneParams {
     /// of the water column (particle count grows as N³, triangles as N²).
     /// Allowed 8–2048 (dam-break: 8–200).
     pub resolution: u32,
-    /// Frames per second [24]; frame F is at t = (F − first)/fps.
+    /// Frames per second (default 24); frame F is at t = (F − first)/fps.
     pub fps: f64,
     /// First frame (inclusive).
     pub first: i32,
