@@ -62,7 +62,7 @@ pub fn relax(
     let step = |x: DVec3, nrm: DVec3, slope: f64| -> DVec3 {
         // A slope this small means the normal is nearly tangent to the level
         // set (or φ is flat): no trustworthy step.
-        if !(slope.abs() > 0.05) {
+        if slope.is_nan() || slope.abs() <= 0.05 {
             return x;
         }
         let f = motion.phi(x, t);

@@ -35,7 +35,10 @@ fn scene(name: &str) -> analytic::AnalyticScene {
     analytic::by_name(name, small(name)).expect("analytic scene")
 }
 
-fn bits(m: &TriMesh) -> (Vec<[u32; 3]>, Vec<[u32; 3]>, Vec<[u32; 3]>) {
+/// Positions, triangles and velocities as raw bits.
+type MeshBits = (Vec<[u32; 3]>, Vec<[u32; 3]>, Vec<[u32; 3]>);
+
+fn bits(m: &TriMesh) -> MeshBits {
     let b = |v: &Vec3| [v.x.to_bits(), v.y.to_bits(), v.z.to_bits()];
     (
         m.positions.iter().map(b).collect(),
@@ -184,17 +187,29 @@ fn enright_returns_to_the_starting_sphere_at_t_equals_t() {
         (area / sphere_area - 1.0).abs() < 0.02,
         "{area} vs {sphere_area}"
     );
-    let volume: f32 = (0..end.triangle_count())
-        .map(|t| {
-            let [a, b, d] = end.corners(t);
-            (a - c).dot((b - c).cross(d - c)) / 6.0
-        })
-        .sum();
+    let volume = |m: &TriMesh| -> f32 {
+        (0..m.triangle_count())
+            .map(|t| {
+                let [a, b, d] = m.corners(t);
+                (a - c).dot((b - c).cross(d - c)) / 6.0
+            })
+            .sum()
+    };
     let sphere_volume = 4.0 / 3.0 * std::f32::consts::PI * r.powi(3);
+    let v_end = volume(&end);
     assert!(
-        (volume / sphere_volume - 1.0).abs() < 0.03,
-        "{volume} vs {sphere_volume}"
+        (v_end / sphere_volume - 1.0).abs() < 0.03,
+        "{v_end} vs {sphere_volume}"
     );
+    // The field is divergence-free: while the grid still resolves the shape
+    // (t = 0.25 s), the deformed surface encloses the same volume.
+    let early = s.frame(6).expect("frame 6");
+    let v_early = volume(&early);
+    assert!(
+        (v_early / sphere_volume - 1.0).abs() < 0.03,
+        "{v_early} vs {sphere_volume}"
+    );
+    assert!(deviation(&early) > 0.01, "frame 6 must be deformed");
     // Control: half way through, the shape is far from the sphere.
     let mid = s.frame(36).expect("frame 36");
     assert!(deviation(&mid) > 0.1, "{}", deviation(&mid));
