@@ -56,7 +56,8 @@ pub struct Config {
 impl Config {
     /// Reads a TOML config; relative paths become relative to its folder.
     pub fn load(path: &Path) -> Result<Config> {
-        let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read the config", path.display()))?;
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("{}: cannot read the config", path.display()))?;
         let mut config: Config = toml::from_str(&text).map_err(|e| {
             let msg = e.message().to_string();
             let line = e
@@ -76,7 +77,10 @@ impl Config {
         {
             *m = base.join(&*m).to_string_lossy().into_owned();
         }
-        for p in [&mut config.out, &mut config.exemplar, &mut config.feature].into_iter().flatten() {
+        for p in [&mut config.out, &mut config.exemplar, &mut config.feature]
+            .into_iter()
+            .flatten()
+        {
             rebase(p);
         }
         for p in config.channels.values_mut() {
@@ -191,15 +195,33 @@ impl RunFlags {
         macro_rules! set {
             ($($field:ident),*) => { $( if let Some(v) = &self.$field { config.$field = Some(v.clone()); } )* };
         }
-        set!(mesh, frames, out, method, atlas, gutter, fps, seed, exemplar, feature, feature_method);
+        set!(
+            mesh,
+            frames,
+            out,
+            method,
+            atlas,
+            gutter,
+            fps,
+            seed,
+            exemplar,
+            feature,
+            feature_method
+        );
         for spec in &self.channels {
             let Some((name, path)) = spec.split_once('=') else {
                 bail!("--channel {spec}: expected NAME=IMAGE, e.g. displacement=disp.exr");
             };
-            if name.is_empty() || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
+            if name.is_empty()
+                || !name
+                    .chars()
+                    .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+            {
                 bail!("--channel {spec}: the name must be letters, digits, '_' or '-'");
             }
-            config.channels.insert(name.to_string(), PathBuf::from(path));
+            config
+                .channels
+                .insert(name.to_string(), PathBuf::from(path));
         }
         if let Some(v) = &self.velocity {
             let [a, b, c] = v.as_slice() else {
@@ -272,9 +294,17 @@ mod tests {
         let mut c = Config::load(&path).expect("valid config");
         assert_eq!(c.atlas, Some(2048));
         assert_eq!(c.exemplar, Some(dir.path().join("tex/lava.png")));
-        assert_eq!(c.mesh.as_deref(), Some(dir.path().join("sim/fluid.$F4.ply").to_str().expect("utf8")));
+        assert_eq!(
+            c.mesh.as_deref(),
+            Some(dir.path().join("sim/fluid.$F4.ply").to_str().expect("utf8"))
+        );
         assert_eq!(c.channels["displacement"], dir.path().join("tex/disp.exr"));
-        let flags = RunFlags { atlas: Some(512), epsilon: Some(0.05), placement: Some("global".into()), ..Default::default() };
+        let flags = RunFlags {
+            atlas: Some(512),
+            epsilon: Some(0.05),
+            placement: Some("global".into()),
+            ..Default::default()
+        };
         flags.apply(&mut c).expect("valid flags");
         assert_eq!(c.atlas, Some(512));
         assert_eq!(c.erosion.epsilon, 0.05);
@@ -288,17 +318,29 @@ mod tests {
         let path = dir.path().join("bad.toml");
         std::fs::write(&path, "atlas = 1024\n[erosion]\nradus = 0.5\n").expect("write");
         let err = Config::load(&path).expect_err("typo must fail").to_string();
-        assert!(err.contains("bad.toml: line 3") && err.contains("radus"), "{err}");
+        assert!(
+            err.contains("bad.toml: line 3") && err.contains("radus"),
+            "{err}"
+        );
         let mut c = Config::default();
-        let bad = RunFlags { channels: vec!["nodelimiter".into()], ..Default::default() };
+        let bad = RunFlags {
+            channels: vec!["nodelimiter".into()],
+            ..Default::default()
+        };
         assert!(bad.apply(&mut c).is_err());
-        let bad = RunFlags { placement: Some("everywhere".into()), ..Default::default() };
+        let bad = RunFlags {
+            placement: Some("everywhere".into()),
+            ..Default::default()
+        };
         assert!(bad.apply(&mut c).is_err());
     }
 
     #[test]
     fn fingerprint_tracks_settings_but_not_the_output_folder() {
-        let a = Config { atlas: Some(1024), ..Default::default() };
+        let a = Config {
+            atlas: Some(1024),
+            ..Default::default()
+        };
         let mut b = a.clone();
         b.out = Some("elsewhere".into());
         assert_eq!(a.fingerprint(), b.fingerprint());

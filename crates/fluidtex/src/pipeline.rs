@@ -21,9 +21,11 @@ use crate::atlas::{Atlas, AtlasError, AtlasParams};
 use crate::io::image::{ExrOptions, ExrSample, PngDepth, PngOptions};
 use crate::io::{InputGuard, IoError};
 use crate::mesh::{TriMesh, ValidationReport};
-use crate::methods::{FrameContext, Method, MethodError, PreviousFrame, SOURCE_OUTSIDE, SOURCE_UNCOVERED};
-use crate::surface::SurfaceIndex;
+use crate::methods::{
+    FrameContext, Method, MethodError, PreviousFrame, SOURCE_OUTSIDE, SOURCE_UNCOVERED,
+};
 use crate::render::{self, Camera};
+use crate::surface::SurfaceIndex;
 use crate::texture::Texture;
 use glam::Vec3;
 
@@ -68,8 +70,14 @@ impl From<crate::exemplar::SampleFormat> for ChannelFormat {
 /// The output channels of an exemplar: `color`, then its extra channels by
 /// name, each written in the format it was read in.
 pub fn exemplar_channels(e: &crate::exemplar::Exemplar) -> Vec<ChannelSpec> {
-    let mut specs = vec![ChannelSpec { name: "color".into(), format: e.colour_format.into() }];
-    specs.extend(e.channels.iter().map(|c| ChannelSpec { name: c.name.clone(), format: c.format.into() }));
+    let mut specs = vec![ChannelSpec {
+        name: "color".into(),
+        format: e.colour_format.into(),
+    }];
+    specs.extend(e.channels.iter().map(|c| ChannelSpec {
+        name: c.name.clone(),
+        format: c.format.into(),
+    }));
     specs
 }
 
@@ -167,7 +175,11 @@ pub struct FrameStats {
 /// Progress reports for front ends.
 pub enum Event<'a> {
     /// Starting frame `number`, the `index`-th of `total` to process.
-    Start { number: i32, index: usize, total: usize },
+    Start {
+        number: i32,
+        index: usize,
+        total: usize,
+    },
     /// Frame finished.
     Done { stats: &'a FrameStats },
     /// Something the user should know that did not stop the run.
@@ -237,7 +249,11 @@ pub fn run(
     let first_frame = source.frames().first().copied().unwrap_or(0);
     let mut done = 0;
     for (k, &number) in frames.iter().enumerate() {
-        observer(Event::Start { number, index: k, total });
+        observer(Event::Start {
+            number,
+            index: k,
+            total,
+        });
         let mut seconds: Vec<(String, f64)> = Vec::new();
         let mut lap = {
             let mut last = Instant::now();
@@ -255,19 +271,28 @@ pub fn run(
             )));
         }
         if method.needs_velocity() && !mesh.is_empty() && mesh.velocity().is_none() {
-            return Err(MethodError::MissingVelocity { frame: number, method: method.name() }.into());
+            return Err(MethodError::MissingVelocity {
+                frame: number,
+                method: method.name(),
+            }
+            .into());
         }
         lap("read", &mut seconds);
         let index = SurfaceIndex::new(&mesh);
         lap("bvh", &mut seconds);
-        let atlas = Atlas::build(&mesh, &job.atlas).map_err(|source| PipelineError::Atlas { frame: number, source })?;
+        let atlas = Atlas::build(&mesh, &job.atlas).map_err(|source| PipelineError::Atlas {
+            frame: number,
+            source,
+        })?;
         lap("atlas", &mut seconds);
         let ctx = FrameContext {
             number,
             dt: 1.0 / job.fps,
             mesh: &mesh,
             index: &index,
-            previous: previous.as_ref().map(|(m, i)| PreviousFrame { mesh: m, index: i }),
+            previous: previous
+                .as_ref()
+                .map(|(m, i)| PreviousFrame { mesh: m, index: i }),
             atlas: &atlas,
         };
         let mut result = method.step(&ctx)?;
@@ -277,7 +302,12 @@ pub fn run(
         lap("method", &mut seconds);
         seconds.pop(); // the method's own stages replace this lap
         for channel in &mut result.channels {
-            atlas.dilate(channel, job.atlas.gutter.max(1) * 2);
+            atlas
+                .dilate(channel, job.atlas.gutter.max(1) * 2)
+                .map_err(|source| PipelineError::Atlas {
+                    frame: number,
+                    source,
+                })?;
         }
         lap("dilate", &mut seconds);
 
@@ -293,7 +323,16 @@ pub fn run(
             method_stats: std::mem::take(&mut result.stats),
             ..Default::default()
         };
-        write_frame(job, &guard, first_frame, number, &mesh, &atlas, method, &result)?;
+        write_frame(
+            job,
+            &guard,
+            first_frame,
+            number,
+            &mesh,
+            &atlas,
+            method,
+            &result,
+        )?;
         lap("write", &mut seconds);
         stats.stage_order = seconds.iter().map(|(n, _)| n.clone()).collect();
         stats.seconds = seconds.into_iter().collect();
@@ -301,7 +340,12 @@ pub fn run(
             path: job.out_dir.clone(),
             message: e.to_string(),
         })?;
-        write_file(&guard, &job.out_dir.join(format!("stats.{}.json", frame_tag(number))), &json)?;
+        write_file(
+            &guard,
+            &job.out_dir
+                .join(format!("stats.{}.json", frame_tag(number))),
+            &json,
+        )?;
         save_state(job, &guard, method, number)?;
         observer(Event::Done { stats: &stats });
         done += 1;
@@ -330,8 +374,9 @@ fn read_state(dir: &Path) -> Result<Option<SavedState>, PipelineError> {
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
         Err(e) => return Err(PipelineError::Resume(format!("{}: {e}", path.display()))),
     };
-    let saved: SavedState = postcard::from_bytes(&bytes)
-        .map_err(|e| PipelineError::Resume(format!("{}: damaged state file ({e})", path.display())))?;
+    let saved: SavedState = postcard::from_bytes(&bytes).map_err(|e| {
+        PipelineError::Resume(format!("{}: damaged state file ({e})", path.display()))
+    })?;
     if saved.version != STATE_VERSION {
         return Err(PipelineError::Resume(format!(
             "{}: state version {} is not {STATE_VERSION}",
@@ -422,26 +467,48 @@ fn write_frame(
         let obj = dir.join(format!("mesh.{tag}.obj"));
         guard.check(&obj)?;
         guard.check(&crate::io::obj_write::mtl_path(&obj))?;
-        let material = colour_png.as_ref().map(|(file, _)| crate::io::obj_write::ObjMaterial {
-            name: "fluidtex".to_string(),
-            map_kd: file.clone(),
-        });
-        crate::io::obj_write::write_obj(&obj, &uv.positions, &uv.uvs, Some(&normals), &uv.triangles, material.as_ref())?;
+        let material = colour_png
+            .as_ref()
+            .map(|(file, _)| crate::io::obj_write::ObjMaterial {
+                name: "fluidtex".to_string(),
+                map_kd: file.clone(),
+            });
+        crate::io::obj_write::write_obj(
+            &obj,
+            &uv.positions,
+            &uv.uvs,
+            Some(&normals),
+            &uv.triangles,
+            material.as_ref(),
+        )?;
     }
     if job.outputs.glb {
         let path = dir.join(format!("mesh.{tag}.glb"));
         guard.check(&path)?;
         let png = colour_png.as_ref().map(|(_, b)| b.as_slice());
-        crate::io::gltf::write_glb(&path, &uv.positions, &uv.uvs, Some(&normals), &uv.triangles, png)?;
+        crate::io::gltf::write_glb(
+            &path,
+            &uv.positions,
+            &uv.uvs,
+            Some(&normals),
+            &uv.triangles,
+            png,
+        )?;
     }
     let patches = result.source.as_ref().map(|source| {
         let mut colours = Texture::filled(atlas.width, atlas.height, 3, 0.0);
         for (t, &s) in source.iter().enumerate() {
             colours.data[t * 3..t * 3 + 3].copy_from_slice(&patch_colour(s));
         }
-        atlas.dilate(&mut colours, job.atlas.gutter.max(1) * 2);
-        colours
+        atlas
+            .dilate(&mut colours, job.atlas.gutter.max(1) * 2)
+            .map(|()| colours)
+            .map_err(|source| PipelineError::Atlas {
+                frame: number,
+                source,
+            })
     });
+    let patches = patches.transpose()?;
     if job.outputs.preview_every > 0
         && (number - first_frame).rem_euclid(job.outputs.preview_every as i32) == 0
         && let (Some(colour), Some((lo, hi))) = (result.channels.first(), mesh.bounding_box())
@@ -450,24 +517,60 @@ fn write_frame(
         let camera = Camera::framing(lo, hi, Vec3::new(-0.45, -0.8, -0.4), size, size);
         let gb = render::rasterize(&uv.positions, &uv.triangles, &camera);
         let background = [0.12, 0.12, 0.14];
-        let lit = render::shade_lit(&gb, &uv.triangles, &normals, &uv.uvs, colour, &camera, background);
+        let lit = render::shade_lit(
+            &gb,
+            &uv.triangles,
+            &normals,
+            &uv.uvs,
+            colour,
+            &camera,
+            background,
+        );
         let mut views = vec![lit];
         if let Some(p) = &patches {
-            views.push(render::shade_lit(&gb, &uv.triangles, &normals, &uv.uvs, p, &camera, background));
+            views.push(render::shade_lit(
+                &gb,
+                &uv.triangles,
+                &normals,
+                &uv.uvs,
+                p,
+                &camera,
+                background,
+            ));
         }
         let sheet = render::side_by_side(&views.iter().collect::<Vec<_>>(), 8, background);
-        write_channel(guard, &dir.join(format!("preview.{tag}.png")), &sheet, ChannelFormat::Png8)?;
+        write_channel(
+            guard,
+            &dir.join(format!("preview.{tag}.png")),
+            &sheet,
+            ChannelFormat::Png8,
+        )?;
     }
     if job.outputs.debug
         && let (Some(source), Some(colours)) = (&result.source, &patches)
     {
-        write_channel(guard, &dir.join(format!("patches.{tag}.png")), colours, ChannelFormat::Png8)?;
+        write_channel(
+            guard,
+            &dir.join(format!("patches.{tag}.png")),
+            colours,
+            ChannelFormat::Png8,
+        )?;
         let ids: Vec<f32> = source
             .iter()
             .map(|&s| if s == SOURCE_OUTSIDE { -1.0 } else { s as f32 })
             .collect();
-        let ids = Texture { width: atlas.width, height: atlas.height, channels: 1, data: ids };
-        write_channel(guard, &dir.join(format!("source.{tag}.exr")), &ids, ChannelFormat::Exr)?;
+        let ids = Texture {
+            width: atlas.width,
+            height: atlas.height,
+            channels: 1,
+            data: ids,
+        };
+        write_channel(
+            guard,
+            &dir.join(format!("source.{tag}.exr")),
+            &ids,
+            ChannelFormat::Exr,
+        )?;
     }
     Ok(())
 }
@@ -497,15 +600,23 @@ fn write_channel(
         ChannelFormat::Png16 => PngDepth::Sixteen,
         ChannelFormat::Exr => {
             guard.check(path)?;
-            let options = ExrOptions { sample: ExrSample::F32, ..Default::default() };
+            let options = ExrOptions {
+                sample: ExrSample::F32,
+                ..Default::default()
+            };
             crate::io::image::write_exr(path, texture, &options)?;
             return Ok(None);
         }
     };
-    let options = PngOptions { depth, ..Default::default() };
-    let bytes = crate::io::image::encode_png(texture, &options).map_err(|message| PipelineError::Output {
-        path: path.to_path_buf(),
-        message,
+    let options = PngOptions {
+        depth,
+        ..Default::default()
+    };
+    let bytes = crate::io::image::encode_png(texture, &options).map_err(|message| {
+        PipelineError::Output {
+            path: path.to_path_buf(),
+            message,
+        }
     })?;
     write_file(guard, path, &bytes)?;
     Ok(Some(bytes))
@@ -521,7 +632,11 @@ impl SequenceSource {
     /// Opens `pattern` over `range` (`A-B` or `A`), or over every frame
     /// found on disk when `range` is `None`. Every frame's file is checked
     /// up front, so a missing frame fails the run before any work.
-    pub fn open(pattern: &str, range: Option<&str>, options: crate::io::ReadOptions) -> Result<SequenceSource, PipelineError> {
+    pub fn open(
+        pattern: &str,
+        range: Option<&str>,
+        options: crate::io::ReadOptions,
+    ) -> Result<SequenceSource, PipelineError> {
         use crate::io::{FramePattern, FrameRange, Sequence};
         let pattern = FramePattern::parse(pattern)?;
         let range = match range {
@@ -541,7 +656,10 @@ impl SequenceSource {
         };
         let sequence = Sequence::new(pattern, range, options);
         sequence.check_present()?;
-        Ok(SequenceSource { frames: range.frames().collect(), sequence })
+        Ok(SequenceSource {
+            frames: range.frames().collect(),
+            sequence,
+        })
     }
 }
 
@@ -556,7 +674,10 @@ impl FrameSource for SequenceSource {
     }
 
     fn input_paths(&self) -> Vec<PathBuf> {
-        self.frames.iter().map(|&f| self.sequence.pattern().path(f)).collect()
+        self.frames
+            .iter()
+            .map(|&f| self.sequence.pattern().path(f))
+            .collect()
     }
 }
 
@@ -569,7 +690,10 @@ pub struct SceneSource {
 impl SceneSource {
     pub fn new(scene: Box<dyn crate::scenes::Scene>) -> SceneSource {
         let info = scene.info();
-        SceneSource { frames: (info.first..=info.last).collect(), scene }
+        SceneSource {
+            frames: (info.first..=info.last).collect(),
+            scene,
+        }
     }
 }
 
@@ -579,7 +703,10 @@ impl FrameSource for SceneSource {
     }
 
     fn read(&mut self, f: i32) -> Result<(TriMesh, ValidationReport), PipelineError> {
-        let mut mesh = self.scene.frame(f).map_err(|e| PipelineError::Source(e.to_string()))?;
+        let mut mesh = self
+            .scene
+            .frame(f)
+            .map_err(|e| PipelineError::Source(e.to_string()))?;
         let report = crate::mesh::validate(&mut mesh)
             .map_err(|e| PipelineError::Source(format!("scene frame {f}: {e}")))?;
         Ok((mesh, report))

@@ -70,7 +70,10 @@ pub fn bench(a: &BenchArgs) -> Result<()> {
         bail!("--frames {}: need at least 2", a.frames);
     }
     if let Some(n) = a.threads {
-        rayon::ThreadPoolBuilder::new().num_threads(n).build_global().context("cannot size the thread pool")?;
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()
+            .context("cannot size the thread pool")?;
     }
     // Calibrate the scene resolution to the requested triangle count: the
     // count grows with the square of the resolution for surface meshes.
@@ -78,11 +81,22 @@ pub fn bench(a: &BenchArgs) -> Result<()> {
     let first = probe.first;
     let mut s = scenes::by_name(&a.scene, Some(probe))?;
     let t0 = s.frame(first)?.triangle_count().max(1);
-    let resolution = ((probe.resolution as f64) * (a.triangles as f64 / t0 as f64).sqrt()).round().clamp(8.0, 2048.0) as u32;
+    let resolution = ((probe.resolution as f64) * (a.triangles as f64 / t0 as f64).sqrt())
+        .round()
+        .clamp(8.0, 2048.0) as u32;
     let last = first + a.frames as i32 - 1;
-    let params = scene_params(&a.scene, Some(&format!("{first}-{last}")), Some(resolution), None, None)?;
+    let params = scene_params(
+        &a.scene,
+        Some(&format!("{first}-{last}")),
+        Some(resolution),
+        None,
+        None,
+    )?;
     let mut scene = scenes::by_name(&a.scene, Some(params))?;
-    eprintln!("generating {} frames of {} at resolution {resolution} ...", a.frames, a.scene);
+    eprintln!(
+        "generating {} frames of {} at resolution {resolution} ...",
+        a.frames, a.scene
+    );
     let mut frames = Vec::new();
     for f in first..=last {
         let mut mesh = scene.frame(f)?;
@@ -119,10 +133,20 @@ pub fn bench(a: &BenchArgs) -> Result<()> {
     };
     let mut method = build_method(&config)?;
     let job = build_job(&config, out, false)?;
-    let mut rows: Vec<(i32, BTreeMap<String, f64>, Vec<String>, BTreeMap<String, serde_json::Value>)> = Vec::new();
+    let mut rows: Vec<(
+        i32,
+        BTreeMap<String, f64>,
+        Vec<String>,
+        BTreeMap<String, serde_json::Value>,
+    )> = Vec::new();
     let mut observer = |e: Event<'_>| {
         if let Event::Done { stats } = e {
-            rows.push((stats.frame, stats.seconds.clone(), stats.stage_order.clone(), stats.method_stats.clone()));
+            rows.push((
+                stats.frame,
+                stats.seconds.clone(),
+                stats.stage_order.clone(),
+                stats.method_stats.clone(),
+            ));
         }
     };
     let mut source = Memory { frames };
@@ -133,7 +157,9 @@ pub fn bench(a: &BenchArgs) -> Result<()> {
         "{} on {} ({tris} triangles), atlas {}², {} frames, {threads} threads",
         a.method, a.scene, a.atlas, a.frames
     );
-    let Some((_, _, order, _)) = rows.last() else { bail!("no frame was processed") };
+    let Some((_, _, order, _)) = rows.last() else {
+        bail!("no frame was processed")
+    };
     let order = order.clone();
     print!("{:<8}", "frame");
     for s in &order {
@@ -152,8 +178,16 @@ pub fn bench(a: &BenchArgs) -> Result<()> {
                 *sums.entry(s.clone()).or_default() += v;
             }
         }
-        let get = |key: &str| ms.get(key).map(|v| v.to_string()).unwrap_or_else(|| "-".into());
-        println!("{total:>10.3}{:>9}{:>9}", get("patches_alive"), get("patches_created"));
+        let get = |key: &str| {
+            ms.get(key)
+                .map(|v| v.to_string())
+                .unwrap_or_else(|| "-".into())
+        };
+        println!(
+            "{total:>10.3}{:>9}{:>9}",
+            get("patches_alive"),
+            get("patches_created")
+        );
     }
     let n = (rows.len() - 1).max(1) as f64;
     print!("{:<8}", "mean*");
@@ -164,6 +198,8 @@ pub fn bench(a: &BenchArgs) -> Result<()> {
         print!("{v:>10.3}");
     }
     println!("{total:>10.3}");
-    println!("(* frames after the first; 'read' copies pre-generated meshes and is left out of the total)");
+    println!(
+        "(* frames after the first; 'read' copies pre-generated meshes and is left out of the total)"
+    );
     Ok(())
 }

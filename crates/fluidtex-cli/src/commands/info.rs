@@ -21,17 +21,32 @@ pub fn info(a: &InfoArgs) -> Result<()> {
     let options = super::run::read_options(a.velocity.as_deref())?;
     let mut source = SequenceSource::open(&a.pattern, a.frames.as_deref(), options)?;
     let frames = source.frames();
-    println!("sequence {}: {} frames ({}-{})", a.pattern, frames.len(), frames.first().unwrap_or(&0), frames.last().unwrap_or(&0));
-    println!("{:>6} {:>9} {:>9} {:>8}  {:<34} {:<24} attributes", "frame", "vertices", "triangles", "dropped", "bounding box", "|velocity| min..max");
+    println!(
+        "sequence {}: {} frames ({}-{})",
+        a.pattern,
+        frames.len(),
+        frames.first().unwrap_or(&0),
+        frames.last().unwrap_or(&0)
+    );
+    println!(
+        "{:>6} {:>9} {:>9} {:>8}  {:<34} {:<24} attributes",
+        "frame", "vertices", "triangles", "dropped", "bounding box", "|velocity| min..max"
+    );
     for f in frames {
         let (mesh, report) = source.read(f).with_context(|| format!("frame {f}"))?;
         let bbox = match mesh.bounding_box() {
-            Some((lo, hi)) => format!("({:.3},{:.3},{:.3})-({:.3},{:.3},{:.3})", lo.x, lo.y, lo.z, hi.x, hi.y, hi.z),
+            Some((lo, hi)) => format!(
+                "({:.3},{:.3},{:.3})-({:.3},{:.3},{:.3})",
+                lo.x, lo.y, lo.z, hi.x, hi.y, hi.z
+            ),
             None => "empty".to_string(),
         };
         let speed = match mesh.velocity() {
             Some(v) if !v.is_empty() => {
-                let (lo, hi) = v.iter().map(|v| v.length()).fold((f32::MAX, 0.0f32), |(lo, hi), s| (lo.min(s), hi.max(s)));
+                let (lo, hi) = v
+                    .iter()
+                    .map(|v| v.length())
+                    .fold((f32::MAX, 0.0f32), |(lo, hi), s| (lo.min(s), hi.max(s)));
                 format!("{lo:.4}..{hi:.4}")
             }
             Some(_) => "-".to_string(),
@@ -59,4 +74,3 @@ pub fn info(a: &InfoArgs) -> Result<()> {
     }
     Ok(())
 }
-

@@ -47,14 +47,23 @@ pub fn run(a: &RunArgs) -> Result<()> {
         .mesh
         .clone()
         .context("no mesh sequence: give --mesh PATTERN (or `mesh = ...` in the config)")?;
-    let out = config.out.clone().context("no output folder: give --out DIR")?;
+    let out = config
+        .out
+        .clone()
+        .context("no output folder: give --out DIR")?;
     let options = read_options(config.velocity.as_ref().map(|v| v.as_slice()))?;
     let mut source = SequenceSource::open(&pattern, config.frames.as_deref(), options)?;
     execute(&config, out, &mut source, a.resume, a.quiet)
 }
 
 /// Runs the configured method over `source` into `out` with a progress bar.
-pub fn execute(config: &Config, out: PathBuf, source: &mut dyn FrameSource, resume: bool, quiet: bool) -> Result<()> {
+pub fn execute(
+    config: &Config,
+    out: PathBuf,
+    source: &mut dyn FrameSource,
+    resume: bool,
+    quiet: bool,
+) -> Result<()> {
     let mut method = build_method(config)?;
     let job = build_job(config, out.clone(), resume)?;
     let total = source.frames().len() as u64;
@@ -79,7 +88,11 @@ pub fn execute(config: &Config, out: PathBuf, source: &mut dyn FrameSource, resu
         if let Some(f) = summary.resumed_after {
             eprintln!("resumed after frame {f}");
         }
-        let per = if summary.frames_done > 0 { summary.seconds / summary.frames_done as f64 } else { 0.0 };
+        let per = if summary.frames_done > 0 {
+            summary.seconds / summary.frames_done as f64
+        } else {
+            0.0
+        };
         eprintln!(
             "{}: {} frames in {:.1} s ({per:.2} s/frame) -> {}",
             method.name(),
@@ -110,14 +123,28 @@ pub fn build_exemplar(config: &Config) -> Result<Exemplar> {
         Some("distance") => FeatureMethod::DistanceTransform,
         Some(other) => bail!("feature method {other}: expected auto, luminance or distance"),
     };
-    let channels: Vec<(String, PathBuf)> = config.channels.iter().map(|(k, v)| (k.clone(), v.clone())).collect();
+    let channels: Vec<(String, PathBuf)> = config
+        .channels
+        .iter()
+        .map(|(k, v)| (k.clone(), v.clone()))
+        .collect();
     match &config.exemplar {
-        Some(path) => Ok(Exemplar::load(path, &channels, config.feature.as_deref(), method)?),
+        Some(path) => Ok(Exemplar::load(
+            path,
+            &channels,
+            config.feature.as_deref(),
+            method,
+        )?),
         None => {
             if !channels.is_empty() || config.feature.is_some() {
-                bail!("--channel and --feature need --exemplar (the built-in pebbles carry their own)");
+                bail!(
+                    "--channel and --feature need --exemplar (the built-in pebbles carry their own)"
+                );
             }
-            Ok(builtin_pebbles(BUILTIN_EXEMPLAR_SIZE, config.seed.unwrap_or(0)))
+            Ok(builtin_pebbles(
+                BUILTIN_EXEMPLAR_SIZE,
+                config.seed.unwrap_or(0),
+            ))
         }
     }
 }
@@ -127,7 +154,11 @@ pub fn build_method(config: &Config) -> Result<Box<dyn Method>> {
     let seed = config.seed.unwrap_or(0);
     let name = config.method.as_deref().unwrap_or("erosion");
     Ok(match name {
-        "erosion" => Box::new(Erosion::new(config.erosion.clone(), Arc::new(build_exemplar(config)?), seed)?),
+        "erosion" => Box::new(Erosion::new(
+            config.erosion.clone(),
+            Arc::new(build_exemplar(config)?),
+            seed,
+        )?),
         "atlas-check" => Box::new(AtlasCheck::new(config.atlas_check.clone())?),
         other => bail!("unknown method {other}; available: {}", METHODS.join(", ")),
     })
@@ -143,7 +174,11 @@ pub fn build_job(config: &Config, out: PathBuf, resume: bool) -> Result<Job> {
     if !(fps.is_finite() && fps > 0.0 && fps <= 10_000.0) {
         bail!("--fps {fps}: must be a number in (0, 10000]");
     }
-    let mut atlas = AtlasParams { width: size, height: size, ..Default::default() };
+    let mut atlas = AtlasParams {
+        width: size,
+        height: size,
+        ..Default::default()
+    };
     if let Some(g) = config.gutter {
         if g > 64 {
             bail!("--gutter {g}: allowed 0 to 64 texels");

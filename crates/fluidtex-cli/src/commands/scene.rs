@@ -42,7 +42,13 @@ pub struct SceneArgs {
 }
 
 /// The scene parameters `a` asks for, on top of the scene's defaults.
-pub fn scene_params(name: &str, frames: Option<&str>, resolution: Option<u32>, seed: Option<u64>, fps: Option<f64>) -> Result<SceneParams> {
+pub fn scene_params(
+    name: &str,
+    frames: Option<&str>,
+    resolution: Option<u32>,
+    seed: Option<u64>,
+    fps: Option<f64>,
+) -> Result<SceneParams> {
     let mut p = scenes::default_params(name)?;
     if let Some(r) = frames {
         let range: fluidtex::io::FrameRange = r.parse()?;
@@ -77,19 +83,30 @@ pub fn scene(a: &SceneArgs) -> Result<()> {
     let out = a.out.clone().context("no output folder: give --out DIR")?;
     let params = scene_params(name, a.frames.as_deref(), a.resolution, a.seed, a.fps)?;
     let mut scene = scenes::by_name(name, Some(params))?;
-    std::fs::create_dir_all(&out).with_context(|| format!("{}: cannot create the folder", out.display()))?;
+    std::fs::create_dir_all(&out)
+        .with_context(|| format!("{}: cannot create the folder", out.display()))?;
     let info = scene.info();
     let json = serde_json::to_vec_pretty(&info)?;
     let guard = InputGuard::default();
-    guard.write_atomic(&out.join("scene.json"), |w| std::io::Write::write_all(w, &json))?;
-    let encoding = if a.ascii { PlyEncoding::Ascii } else { PlyEncoding::BinaryLittleEndian };
+    guard.write_atomic(&out.join("scene.json"), |w| {
+        std::io::Write::write_all(w, &json)
+    })?;
+    let encoding = if a.ascii {
+        PlyEncoding::Ascii
+    } else {
+        PlyEncoding::BinaryLittleEndian
+    };
     let progress = Progress::new((info.last - info.first + 1) as u64, name, a.quiet);
     let mut triangles = 0usize;
     for f in info.first..=info.last {
         progress.set_message(format!("frame {f}"));
         let mesh = scene.frame(f)?;
         triangles = triangles.max(mesh.triangle_count());
-        write_ply(&out.join(format!("fluid.{}.ply", frame_tag(f))), &mesh, encoding)?;
+        write_ply(
+            &out.join(format!("fluid.{}.ply", frame_tag(f))),
+            &mesh,
+            encoding,
+        )?;
         progress.inc();
     }
     progress.finish();

@@ -8,7 +8,10 @@
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::{ChannelFormat, ChannelSpec, FrameContext, FrameResult, Method, MethodError, SOURCE_OUTSIDE, StageClock, check_range};
+use super::{
+    ChannelFormat, ChannelSpec, FrameContext, FrameResult, Method, MethodError, SOURCE_OUTSIDE,
+    StageClock, check_range,
+};
 use crate::texture::Texture;
 
 /// Parameters of the checker.
@@ -24,7 +27,10 @@ pub struct AtlasCheckParams {
 
 impl Default for AtlasCheckParams {
     fn default() -> Self {
-        AtlasCheckParams { cell: None, cells_per_diagonal: 24.0 }
+        AtlasCheckParams {
+            cell: None,
+            cells_per_diagonal: 24.0,
+        }
     }
 }
 
@@ -39,8 +45,17 @@ impl AtlasCheck {
         if let Some(c) = params.cell {
             check_range("cell", c, f32::MIN_POSITIVE, f32::MAX, "> 0")?;
         }
-        check_range("cells_per_diagonal", params.cells_per_diagonal, 1.0, 1e6, "[1, 1e6]")?;
-        Ok(AtlasCheck { cell: params.cell, params })
+        check_range(
+            "cells_per_diagonal",
+            params.cells_per_diagonal,
+            1.0,
+            1e6,
+            "[1, 1e6]",
+        )?;
+        Ok(AtlasCheck {
+            cell: params.cell,
+            params,
+        })
     }
 }
 
@@ -51,7 +66,12 @@ pub fn checker(p: glam::Vec3, cell: f32) -> [f32; 3] {
     let parity = (c.x as i64 + c.y as i64 + c.z as i64).rem_euclid(2);
     let base = if parity == 0 { 0.9 } else { 0.25 };
     let tint = |k: f32| 0.08 * ((k * 0.37).sin());
-    [base + tint(c.x), base + tint(c.y + 1.0), base + tint(c.z + 2.0)].map(|v| v.clamp(0.0, 1.0))
+    [
+        base + tint(c.x),
+        base + tint(c.y + 1.0),
+        base + tint(c.z + 2.0),
+    ]
+    .map(|v| v.clamp(0.0, 1.0))
 }
 
 impl Method for AtlasCheck {
@@ -64,7 +84,10 @@ impl Method for AtlasCheck {
     }
 
     fn channel_specs(&self) -> Vec<ChannelSpec> {
-        vec![ChannelSpec { name: "color".into(), format: ChannelFormat::Png8 }]
+        vec![ChannelSpec {
+            name: "color".into(),
+            format: ChannelFormat::Png8,
+        }]
     }
 
     fn step(&mut self, ctx: &FrameContext<'_>) -> Result<FrameResult, MethodError> {
@@ -73,7 +96,8 @@ impl Method for AtlasCheck {
         let atlas = ctx.atlas;
         if self.cell.is_none() && !mesh.is_empty() {
             let (lo, hi) = mesh.bounding_box().unwrap_or_default();
-            self.cell = Some((lo.distance(hi) / self.params.cells_per_diagonal).max(f32::MIN_POSITIVE));
+            self.cell =
+                Some((lo.distance(hi) / self.params.cells_per_diagonal).max(f32::MIN_POSITIVE));
         }
         let cell = self.cell.unwrap_or(1.0);
         let w = atlas.width as usize;

@@ -188,11 +188,19 @@ impl FillContext<'_> {
     /// Locates `x` (on fluid triangle with unit normal `n`) in patch `i`
     /// among the listed patch triangles; returns the patch uv and weight.
     #[inline]
-    pub fn locate(&self, i: u32, tris: impl Iterator<Item = u32>, x: Vec3, n: Vec3) -> Option<(Vec2, f32)> {
+    pub fn locate(
+        &self,
+        i: u32,
+        tris: impl Iterator<Item = u32>,
+        x: Vec3,
+        n: Vec3,
+    ) -> Option<(Vec2, f32)> {
         let frames = &self.frames[i as usize];
         let mut best: Option<(u32, [f32; 3], f32)> = None;
         for j in tris {
-            let Some(frame) = frames[j as usize] else { continue };
+            let Some(frame) = frames[j as usize] else {
+                continue;
+            };
             if frame.normal.dot(n) <= 0.0 {
                 continue;
             }
@@ -211,8 +219,12 @@ impl FillContext<'_> {
         let b = b.map(|v| v / s);
         let patch = &self.patches[i as usize];
         let t = patch.triangles[j as usize];
-        let uv = patch.rest[t[0] as usize] * b[0] + patch.rest[t[1] as usize] * b[1] + patch.rest[t[2] as usize] * b[2];
-        let w = patch.weight[t[0] as usize] * b[0] + patch.weight[t[1] as usize] * b[1] + patch.weight[t[2] as usize] * b[2];
+        let uv = patch.rest[t[0] as usize] * b[0]
+            + patch.rest[t[1] as usize] * b[1]
+            + patch.rest[t[2] as usize] * b[2];
+        let w = patch.weight[t[0] as usize] * b[0]
+            + patch.weight[t[1] as usize] * b[1]
+            + patch.weight[t[2] as usize] * b[2];
         Some((uv, w))
     }
 
@@ -294,9 +306,16 @@ impl FillBuffers {
 
 /// Fills every chart texel of `atlas` (parallel by bands) and returns the
 /// texels no patch covered, in texel order.
-pub fn fill(ctx: &FillContext<'_>, atlas: &Atlas, candidates: &Candidates, out: &mut FillBuffers) -> Vec<Uncovered> {
+pub fn fill(
+    ctx: &FillContext<'_>,
+    atlas: &Atlas,
+    candidates: &Candidates,
+    out: &mut FillBuffers,
+) -> Vec<Uncovered> {
     let bands = atlas.bands();
-    let Some(first) = bands.first() else { return Vec::new() };
+    let Some(first) = bands.first() else {
+        return Vec::new();
+    };
     let band_rows = (first.y1 - first.y0) as usize;
     let w = atlas.width as usize;
     let c = out.channels;
@@ -321,13 +340,21 @@ pub fn fill(ctx: &FillContext<'_>, atlas: &Atlas, candidates: &Candidates, out: 
                     let p = a * bary[0] + b * bary[1] + cc * bary[2];
                     match ctx.resolve(list, p, n) {
                         Some(hit) => {
-                            ctx.exemplar.sample_all(hit.uv.x, hit.uv.y, &mut values[t * c..(t + 1) * c]);
+                            ctx.exemplar.sample_all(
+                                hit.uv.x,
+                                hit.uv.y,
+                                &mut values[t * c..(t + 1) * c],
+                            );
                             source[t] = ctx.patches[hit.patch as usize].id + 1;
                             uvs[t] = hit.uv;
                         }
                         None => {
                             source[t] = UNCOVERED;
-                            missing.push(Uncovered { texel: (base + t) as u32, triangle: f, bary });
+                            missing.push(Uncovered {
+                                texel: (base + t) as u32,
+                                triangle: f,
+                                bary,
+                            });
                         }
                     }
                 }

@@ -94,11 +94,23 @@ impl ErosionParams {
         if let Some(r) = self.radius {
             check_range("radius", r, f32::MIN_POSITIVE, f32::MAX, "> 0")?;
         }
-        check_range("radius_fraction", self.radius_fraction, 1e-4, 1.0, "[0.0001, 1]")?;
+        check_range(
+            "radius_fraction",
+            self.radius_fraction,
+            1e-4,
+            1.0,
+            "[0.0001, 1]",
+        )?;
         if let Some(s) = self.exemplar_size {
             check_range("exemplar_size", s, f32::MIN_POSITIVE, f32::MAX, "> 0")?;
         }
-        check_range("exemplar_scale", self.exemplar_scale, 0.1, 100.0, "[0.1, 100]")?;
+        check_range(
+            "exemplar_scale",
+            self.exemplar_scale,
+            0.1,
+            100.0,
+            "[0.1, 100]",
+        )?;
         check_range("delta_max", self.delta_max, 1.0001, 1000.0, "(1, 1000]")?;
         check_range("epsilon", self.epsilon, 0.0, 0.9999, "[0, 1)")?;
         check_range("far_fraction", self.far_fraction, 1e-3, 10.0, "[0.001, 10]")?;
@@ -133,7 +145,9 @@ pub struct Erosion {
 /// finaliser), so every patch and frame has its own reproducible RNG stream
 /// independent of processing order.
 pub(crate) fn mix(seed: u64, stream: u64, index: u64) -> u64 {
-    let mut z = seed ^ stream.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ index.wrapping_mul(0xD1B5_4A32_D192_ED03);
+    let mut z = seed
+        ^ stream.wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        ^ index.wrapping_mul(0xD1B5_4A32_D192_ED03);
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^ (z >> 31)
@@ -150,7 +164,11 @@ fn rotation_for(seed: u64, random: bool, id: u32) -> f32 {
 }
 
 impl Erosion {
-    pub fn new(params: ErosionParams, exemplar: Arc<Exemplar>, seed: u64) -> Result<Erosion, MethodError> {
+    pub fn new(
+        params: ErosionParams,
+        exemplar: Arc<Exemplar>,
+        seed: u64,
+    ) -> Result<Erosion, MethodError> {
         params.validate()?;
         let test = ErosionTest::new(exemplar.feature.erosion_normaliser(), params.epsilon);
         Ok(Erosion {
@@ -204,16 +222,22 @@ impl Method for Erosion {
             clock.lap("advection");
         } else {
             if mesh.velocity().is_none() {
-                return Err(MethodError::MissingVelocity { frame: ctx.number, method: "erosion" });
+                return Err(MethodError::MissingVelocity {
+                    frame: ctx.number,
+                    method: "erosion",
+                });
             }
             let radius = *self.state.radius.get_or_insert_with(|| {
                 let (lo, hi) = mesh.bounding_box().unwrap_or_default();
-                self.params.radius.unwrap_or(self.params.radius_fraction * lo.distance(hi))
+                self.params
+                    .radius
+                    .unwrap_or(self.params.radius_fraction * lo.distance(hi))
             });
-            let exemplar_size = *self
-                .state
-                .exemplar_size
-                .get_or_insert(self.params.exemplar_size.unwrap_or(self.params.exemplar_scale * radius));
+            let exemplar_size = *self.state.exemplar_size.get_or_insert(
+                self.params
+                    .exemplar_size
+                    .unwrap_or(self.params.exemplar_scale * radius),
+            );
             let shape = self.shape(radius, exemplar_size);
 
             // 1. Advection and projection (Sec. 4).
@@ -228,8 +252,16 @@ impl Method for Erosion {
                 })?;
                 let cv = mesh.velocity().unwrap_or(&[]);
                 let flow = FlowInterval {
-                    from: FlowFrame { mesh: prev.mesh, index: prev.index, velocity: pv },
-                    to: Some(FlowFrame { mesh, index: ctx.index, velocity: cv }),
+                    from: FlowFrame {
+                        mesh: prev.mesh,
+                        index: prev.index,
+                        velocity: pv,
+                    },
+                    to: Some(FlowFrame {
+                        mesh,
+                        index: ctx.index,
+                        velocity: cv,
+                    }),
                     dt: ctx.dt,
                     substeps: self.params.substeps,
                     search_hint: radius,
@@ -249,7 +281,11 @@ impl Method for Erosion {
 
             let topology = Topology::new(mesh.vertex_count(), &mesh.triangles);
             let normals = mesh.vertex_normals();
-            let surface = FrameSurface { mesh, topology: &topology, vertex_normals: &normals };
+            let surface = FrameSurface {
+                mesh,
+                topology: &topology,
+                vertex_normals: &normals,
+            };
 
             // Initial distribution (frame 0, or a surface that reappears).
             if self.state.patches.is_empty() {
@@ -262,7 +298,13 @@ impl Method for Erosion {
                     .enumerate()
                     .filter_map(|(k, s)| {
                         let id = first + k as u32;
-                        Patch::create(id, &surface, s.location, &shape, rotation_for(seed, random, id))
+                        Patch::create(
+                            id,
+                            &surface,
+                            s.location,
+                            &shape,
+                            rotation_for(seed, random, id),
+                        )
                     })
                     .collect();
                 self.state.next_id += samples.len() as u32;
@@ -272,11 +314,17 @@ impl Method for Erosion {
             clock.lap("creation");
 
             // 2. Weights (Eqs. 1-3).
-            self.state.patches.par_iter_mut().for_each(|p| p.update_weights(&shape));
+            self.state
+                .patches
+                .par_iter_mut()
+                .for_each(|p| p.update_weights(&shape));
             clock.lap("weights");
 
             // 3. Lapped fill.
-            let tolerance = LocateTolerance { min_bary: -0.05, max_plane_distance: 0.125 * radius };
+            let tolerance = LocateTolerance {
+                min_bary: -0.05,
+                max_plane_distance: 0.125 * radius,
+            };
             let frames = fill::patch_frames(&self.state.patches);
             let candidates = Candidates::build(
                 mesh.triangle_count(),
@@ -398,7 +446,12 @@ fn split_channels(out: &FillBuffers, exemplar: &Exemplar) -> Vec<Texture> {
                 .flat_map_iter(|texel| texel[offset..offset + k].iter().copied())
                 .collect();
             offset += k;
-            Texture { width: out.width, height: out.height, channels: k, data }
+            Texture {
+                width: out.width,
+                height: out.height,
+                channels: k,
+                data,
+            }
         })
         .collect()
 }

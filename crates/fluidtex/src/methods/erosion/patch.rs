@@ -84,7 +84,11 @@ impl Patch {
         let n_p = {
             let n = at.interpolate(&mesh.triangles, surface.vertex_normals);
             let n = n.normalize_or_zero();
-            if n == Vec3::ZERO { mesh.triangle_normal(seed as usize) } else { n }
+            if n == Vec3::ZERO {
+                mesh.triangle_normal(seed as usize)
+            } else {
+                n
+            }
         };
         // Flood fill over edge neighbours: this is the connected component of
         // the seed among the triangles within r that face n_p.
@@ -117,7 +121,11 @@ impl Patch {
             .triangles
             .iter()
             .map(|t| {
-                let (a, b, c) = (flat[t[0] as usize], flat[t[1] as usize], flat[t[2] as usize]);
+                let (a, b, c) = (
+                    flat[t[0] as usize],
+                    flat[t[1] as usize],
+                    flat[t[2] as usize],
+                );
                 (b - a).perp_dot(c - a) as f64
             })
             .sum();
@@ -131,7 +139,9 @@ impl Patch {
             1.0 / shape.exemplar_size
         };
         let [ia, ib, ic] = sub.triangles[seed_local];
-        let p_flat = flat[ia as usize] * at.bary[0] + flat[ib as usize] * at.bary[1] + flat[ic as usize] * at.bary[2];
+        let p_flat = flat[ia as usize] * at.bary[0]
+            + flat[ib as usize] * at.bary[1]
+            + flat[ic as usize] * at.bary[2];
         let (sin, cos) = rotation.sin_cos();
         let rest: Vec<Vec2> = flat
             .iter()
@@ -164,7 +174,12 @@ impl Patch {
     /// frame's surface and removes vertices that end farther than
     /// `shape.far_distance` from it, with their triangles (Sec. 4). Returns
     /// false when nothing is left (the patch is then deleted).
-    pub fn advect(&mut self, flow: &FlowInterval<'_>, next: &SurfaceIndex, shape: &PatchShape) -> bool {
+    pub fn advect(
+        &mut self,
+        flow: &FlowInterval<'_>,
+        next: &SurfaceIndex,
+        shape: &PatchShape,
+    ) -> bool {
         let mut keep = vec![true; self.positions.len()];
         for (i, x) in self.positions.iter_mut().enumerate() {
             let moved = flow.advect(*x);
@@ -176,7 +191,8 @@ impl Patch {
         if keep.iter().all(|&k| k) {
             return !self.triangles.is_empty();
         }
-        self.triangles.retain(|t| t.iter().all(|&v| keep[v as usize]));
+        self.triangles
+            .retain(|t| t.iter().all(|&v| keep[v as usize]));
         self.compact();
         !self.triangles.is_empty()
     }
@@ -198,9 +214,15 @@ impl Patch {
             }
         }
         let pick = |i: &usize| used[*i];
-        self.positions = (0..used.len()).filter(pick).map(|i| self.positions[i]).collect();
+        self.positions = (0..used.len())
+            .filter(pick)
+            .map(|i| self.positions[i])
+            .collect();
         self.rest = (0..used.len()).filter(pick).map(|i| self.rest[i]).collect();
-        self.pinned = (0..used.len()).filter(pick).map(|i| self.pinned[i]).collect();
+        self.pinned = (0..used.len())
+            .filter(pick)
+            .map(|i| self.pinned[i])
+            .collect();
         for t in &mut self.triangles {
             *t = t.map(|v| remap[v as usize]);
         }
@@ -228,8 +250,16 @@ impl Patch {
         let topology = Topology::new(n, &self.triangles);
         self.weight = (0..n)
             .map(|v| {
-                let q_v = if count[v] > 0 { sum[v] / count[v] as f64 } else { 0.0 };
-                let b_v = if self.pinned[v] || !topology.is_boundary_vertex(v as u32) { 1.0 } else { 0.0 };
+                let q_v = if count[v] > 0 {
+                    sum[v] / count[v] as f64
+                } else {
+                    0.0
+                };
+                let b_v = if self.pinned[v] || !topology.is_boundary_vertex(v as u32) {
+                    1.0
+                } else {
+                    0.0
+                };
                 (q_v * b_v) as f32
             })
             .collect();
@@ -245,7 +275,14 @@ fn flatten(positions: &[Vec3], triangles: &[[u32; 3]], normal: Vec3) -> Vec<Vec2
     {
         return uv;
     }
-    let n = if normal.length_squared() > 0.0 { normal.normalize() } else { Vec3::Z };
+    let n = if normal.length_squared() > 0.0 {
+        normal.normalize()
+    } else {
+        Vec3::Z
+    };
     let (a, b) = n.any_orthonormal_pair();
-    positions.iter().map(|&q| Vec2::new(q.dot(a), q.dot(b))).collect()
+    positions
+        .iter()
+        .map(|&q| Vec2::new(q.dot(a), q.dot(b)))
+        .collect()
 }

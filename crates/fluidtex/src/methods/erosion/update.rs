@@ -125,8 +125,14 @@ pub fn cover(
             .enumerate()
             .filter_map(|(k, &s)| {
                 let id = first_id + k as u32;
-                Patch::create(id, inputs.surface, point(&uncovered[s]), &inputs.shape, (inputs.rotation)(id))
-                    .map(|p| (p, s))
+                Patch::create(
+                    id,
+                    inputs.surface,
+                    point(&uncovered[s]),
+                    &inputs.shape,
+                    (inputs.rotation)(id),
+                )
+                .map(|p| (p, s))
             })
             .collect();
         *next_id += seeds.len() as u32;
@@ -145,8 +151,13 @@ pub fn cover(
                 test: template.test,
                 tolerance: template.tolerance,
             };
-            let candidates = Candidates::build(mesh.triangles.len(), inputs.index, one, 0, inputs.margin);
-            let mut touched: Vec<u32> = by_triangle.keys().copied().filter(|&f| !candidates.of(f).is_empty()).collect();
+            let candidates =
+                Candidates::build(mesh.triangles.len(), inputs.index, one, 0, inputs.margin);
+            let mut touched: Vec<u32> = by_triangle
+                .keys()
+                .copied()
+                .filter(|&f| !candidates.of(f).is_empty())
+                .collect();
             touched.sort_unstable();
             for f in touched {
                 let list = candidates.of(f);
@@ -167,8 +178,16 @@ pub fn cover(
             }
             if !covered[seed] {
                 // See the module doc: the creating texel is the patch centre.
-                let hit = Hit { patch: 0, uv: Vec2::splat(0.5) };
-                out.write(uncovered[seed].texel as usize, hit, patch.id, template.exemplar);
+                let hit = Hit {
+                    patch: 0,
+                    uv: Vec2::splat(0.5),
+                };
+                out.write(
+                    uncovered[seed].texel as usize,
+                    hit,
+                    patch.id,
+                    template.exemplar,
+                );
                 covered[seed] = true;
                 stats.forced += 1;
             }
