@@ -146,6 +146,8 @@ pub fn split(positions: &[Vec3], triangles: &[[u32; 3]], params: &ChartParams) -
 #[derive(Clone, Copy, Debug)]
 struct ChartState {
     normal_sum: DVec3,
+    /// `normal_sum` normalised, kept up to date by `assign`.
+    mean_normal: Vec3,
     count: u32,
     seed_point: Vec3,
 }
@@ -223,11 +225,9 @@ impl<'a> Grower<'a> {
         self.next_unassigned = 0;
     }
 
+    #[inline]
     fn mean_normal(&self, c: u32) -> Vec3 {
-        self.charts[c as usize]
-            .normal_sum
-            .normalize_or_zero()
-            .as_vec3()
+        self.charts[c as usize].mean_normal
     }
 
     fn cost(&self, t: u32, c: u32) -> f32 {
@@ -241,6 +241,7 @@ impl<'a> Grower<'a> {
         let c = self.charts.len() as u32;
         self.charts.push(ChartState {
             normal_sum: DVec3::ZERO,
+            mean_normal: Vec3::ZERO,
             count: 0,
             seed_point: self.centroid[seed as usize],
         });
@@ -251,6 +252,7 @@ impl<'a> Grower<'a> {
         self.chart_of[t as usize] = c;
         let s = &mut self.charts[c as usize];
         s.normal_sum += (self.normal[t as usize] * self.area[t as usize]).as_dvec3();
+        s.mean_normal = s.normal_sum.normalize_or_zero().as_vec3();
         s.count += 1;
         for k in 0..3 {
             for &nb in self.topo.edge_neighbours(t, k) {
@@ -436,6 +438,7 @@ impl<'a> Grower<'a> {
                     let sa = self.charts[a as usize];
                     let sb = &mut self.charts[b as usize];
                     sb.normal_sum += sa.normal_sum;
+                    sb.mean_normal = sb.normal_sum.normalize_or_zero().as_vec3();
                     sb.count += sa.count;
                     self.charts[a as usize].count = 0;
                     self.charts[a as usize].normal_sum = DVec3::ZERO;

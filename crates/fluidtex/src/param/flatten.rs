@@ -16,6 +16,8 @@
 //! scaled so that each chart's uv area equals its 3-D area, which gives every
 //! chart the same mean texel density once packed.
 
+use std::collections::HashMap;
+
 use glam::{DVec2, Vec2, Vec3};
 
 use super::charts::{ChartParams, split};
@@ -104,26 +106,21 @@ fn flatten_into(
 
 /// Chart vertices in first-use order and the chart's triangles in them.
 fn local_mesh(triangles: &[[u32; 3]], chart: &[u32]) -> (Vec<u32>, Vec<[u32; 3]>) {
-    let mut vertices: Vec<u32> = Vec::new();
-    let mut local_tris = Vec::with_capacity(chart.len());
-    // Charts are small; a sorted lookup keeps this O(k log k) without a
-    // mesh-sized scratch array per chart.
-    let mut sorted: Vec<(u32, u32)> = Vec::new();
-    for &t in chart {
-        let mut out = [0u32; 3];
-        for (k, &v) in triangles[t as usize].iter().enumerate() {
-            out[k] = match sorted.binary_search_by_key(&v, |&(g, _)| g) {
-                Ok(i) => sorted[i].1,
-                Err(i) => {
-                    let l = vertices.len() as u32;
+    // A map sized by the chart, not a mesh-sized scratch array per chart;
+    // only looked up, so its iteration order never matters.
+    let mut index: HashMap<u32, u32> = HashMap::with_capacity(chart.len());
+    let mut vertices: Vec<u32> = Vec::with_capacity(chart.len() / 2 + 2);
+    let local_tris = chart
+        .iter()
+        .map(|&t| {
+            triangles[t as usize].map(|v| {
+                *index.entry(v).or_insert_with(|| {
                     vertices.push(v);
-                    sorted.insert(i, (v, l));
-                    l
-                }
-            };
-        }
-        local_tris.push(out);
-    }
+                    (vertices.len() - 1) as u32
+                })
+            })
+        })
+        .collect();
     (vertices, local_tris)
 }
 
