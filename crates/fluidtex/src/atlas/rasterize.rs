@@ -10,7 +10,7 @@
 //! — a half-open half-plane of directions, so of the two triangles sharing
 //! an edge (which traverse it in opposite directions) exactly one owns it,
 //! and a vertex in the middle of a fan is owned by exactly one triangle of
-//! the fan. This is the top-left rule of Direct3D, mirrored.
+//! the fan (the same argument as the top-left rule of GPU rasterizers).
 //!
 //! Chart triangles are negatively oriented in texel coordinates (see
 //! [`crate::param::flatten::FlatChart::uv`]); a triangle that snapping made

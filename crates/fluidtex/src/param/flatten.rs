@@ -313,6 +313,78 @@ mod tests {
         )
     }
 
+    /// A helicoid strip of `turns` turns with a small pitch: nearly a flat
+    /// annulus covered `turns` times, so any flat map of it overlaps itself.
+    fn helicoid(turns: f32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+        let (nu, nt) = (4u32, (40.0 * turns) as u32);
+        let mut pos = Vec::new();
+        for j in 0..=nt {
+            let th = std::f32::consts::TAU * turns * j as f32 / nt as f32;
+            for i in 0..=nu {
+                let r = 1.0 + i as f32 / nu as f32;
+                pos.push(Vec3::new(r * th.cos(), r * th.sin(), 0.05 * th));
+            }
+        }
+        let mut tris = Vec::new();
+        for j in 0..nt {
+            for i in 0..nu {
+                let a = j * (nu + 1) + i;
+                let b = a + nu + 1;
+                tris.push([a, a + 1, b + 1]);
+                tris.push([a, b + 1, b]);
+            }
+        }
+        (pos, tris)
+    }
+
+    #[test]
+    fn a_folding_chart_is_split_into_injective_pieces() {
+        let (pos, tris) = helicoid(2.0);
+        // Control: the whole strip's LSCM map does overlap itself.
+        let whole = lscm(&pos, &tris).expect("a valid disc");
+        assert!(!is_injective(&whole, &tris));
+
+        let chart: Vec<u32> = (0..tris.len() as u32).collect();
+        let pieces = flatten_chart(&pos, &tris, &chart, &ChartParams::default());
+        assert!(pieces.len() >= 2);
+        let mut all: Vec<u32> = pieces.iter().flat_map(|p| p.triangles.clone()).collect();
+        all.sort_unstable();
+        assert_eq!(all, chart, "pieces must partition the chart");
+        for p in &pieces {
+            // Back to LSCM orientation (y up) for the check.
+            let up: Vec<Vec2> = p.uv.iter().map(|q| Vec2::new(q.x, -q.y)).collect();
+            assert!(is_injective(&up, &p.local_triangles));
+            for (k, &t) in p.triangles.iter().enumerate() {
+                assert_eq!(
+                    p.local_triangles[k].map(|v| p.vertices[v as usize]),
+                    tris[t as usize]
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn a_flat_chart_stays_whole_with_its_area() {
+        let (pos, tris) = helicoid(0.5);
+        let chart: Vec<u32> = (0..tris.len() as u32).collect();
+        let pieces = flatten_chart(&pos, &tris, &chart, &ChartParams::default());
+        assert_eq!(pieces.len(), 1);
+        let p = &pieces[0];
+        let (mut a2, mut a3) = (0.0f64, 0.0f64);
+        for (k, t) in p.local_triangles.iter().enumerate() {
+            let [a, b, c] = t.map(|v| p.uv[v as usize].as_dvec2());
+            let signed = 0.5 * (b - a).perp_dot(c - a);
+            assert!(signed < 0.0, "triangle {k} not in image orientation");
+            a2 -= signed;
+            let [x, y, z] = tris[p.triangles[k] as usize].map(|v| pos[v as usize].as_dvec3());
+            a3 += 0.5 * (y - x).cross(z - x).length();
+        }
+        assert!(
+            (a2 / a3 - 1.0).abs() < 1e-5,
+            "uv area {a2} vs 3-D area {a3}"
+        );
+    }
+
     #[test]
     fn a_convex_fan_is_injective() {
         let (uv, tris) = square();

@@ -621,3 +621,89 @@ fn convex_hull(points: &[DVec2]) -> Vec<DVec2> {
 pub fn normalised(texel: DVec2, width: u32, height: u32) -> Vec2 {
     DVec2::new(texel.x / width as f64, texel.y / height as f64).as_vec2()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::atlas::fixtures::liquid_blob;
+    use crate::mesh::Topology;
+    use crate::param::charts::{ChartParams, segment};
+    use crate::param::flatten::flatten_chart;
+
+    fn charts() -> Vec<FlatChart> {
+        let mesh = liquid_blob(3000, 4);
+        let topo = Topology::new(mesh.positions.len(), &mesh.triangles);
+        let params = ChartParams::default();
+        let seg = segment(&mesh.positions, &mesh.triangles, &topo, &params);
+        seg.charts
+            .iter()
+            .flat_map(|c| flatten_chart(&mesh.positions, &mesh.triangles, c, &params))
+            .collect()
+    }
+
+    #[test]
+    fn derived_half_turns_equal_direct_outlines() {
+        for cell in [1, 3] {
+            let grid = Grid {
+                cell,
+                gutter: 2,
+                margin: 1,
+                cols: 4096,
+                rows: 4096,
+            };
+            for chart in charts() {
+                let p = prepare(&chart);
+                for q in [0u8, 1] {
+                    let derived = half_turn(&profile(&p, 37.0, q, grid), grid.gutter);
+                    let direct = profile(&p, 37.0, q + 2, grid);
+                    assert_eq!((&derived.lo, &derived.hi), (&direct.lo, &direct.hi));
+                    assert_eq!(derived.top, direct.top);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn turns_keep_orientation_and_stay_in_the_box() {
+        let size = DVec2::new(5.0, 2.0);
+        let (a, b, c) = (
+            DVec2::new(1.0, 0.5),
+            DVec2::new(4.0, 0.5),
+            DVec2::new(2.0, 1.5),
+        );
+        let area = |a: DVec2, b: DVec2, c: DVec2| (b - a).perp_dot(c - a);
+        for q in 0..4 {
+            let [ta, tb, tc] = [a, b, c].map(|p| turn(p, size, q));
+            assert_eq!(area(ta, tb, tc), area(a, b, c), "quarter {q}");
+            let turned = if q % 2 == 1 {
+                DVec2::new(size.y, size.x)
+            } else {
+                size
+            };
+            for p in [ta, tb, tc] {
+                assert!(p.x >= 0.0 && p.y >= 0.0 && p.x <= turned.x && p.y <= turned.y);
+            }
+        }
+    }
+
+    #[test]
+    fn minimum_rectangle_of_a_rotated_rectangle_is_axis_aligned() {
+        // A 4x1 rectangle turned by 30°, as two triangles.
+        let (s, c) = (30f32.to_radians().sin(), 30f32.to_radians().cos());
+        let rot = |x: f32, y: f32| glam::Vec2::new(c * x - s * y, s * x + c * y);
+        let chart = FlatChart {
+            triangles: vec![0, 1],
+            vertices: vec![0, 1, 2, 3],
+            local_triangles: vec![[0, 2, 1], [0, 3, 2]],
+            uv: vec![rot(0.0, 0.0), rot(4.0, 0.0), rot(4.0, 1.0), rot(0.0, 1.0)],
+        };
+        let p = prepare(&chart);
+        assert!(
+            (p.size - DVec2::new(4.0, 1.0)).abs().max_element() < 1e-5,
+            "{}",
+            p.size
+        );
+        assert!((p.area - 4.0).abs() < 1e-5);
+        assert_eq!(p.boundary.len(), 4);
+    }
+}
