@@ -58,14 +58,14 @@ pub const MAX_SIDE: u32 = 16384;
 /// Atlas parameters. Validated once by [`Atlas::build`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct AtlasParams {
-    /// Atlas width W in texels, 1..=16384 [4096].
+    /// Atlas width W in texels, 1..=16384. Default: 4096.
     pub width: u32,
-    /// Atlas height H in texels, 1..=16384 [4096].
+    /// Atlas height H in texels, 1..=16384. Default: 4096.
     pub height: u32,
-    /// Free texels G between charts, 0..=64 [4]. Dilation radius up to G/2
+    /// Free texels G between charts, 0..=64. Default: 4. Dilation radius up to G/2
     /// keeps each chart's border texels its own at every bilinear lookup.
     pub gutter: u32,
-    /// Try the four quarter turns of each chart when packing [true].
+    /// Try the four quarter turns of each chart when packing. Default: true.
     pub allow_rotation: bool,
     /// Chart segmentation (cone angle, size cap, merging; see [`ChartParams`]).
     pub charts: ChartParams,

@@ -62,19 +62,19 @@ const NONE: u32 = u32::MAX;
 #[derive(Clone, Debug, PartialEq)]
 pub struct ChartParams {
     /// Largest angle between a triangle's normal and its chart's mean normal
-    /// (θ_max, degrees, in (0, 90]) [60]. Smaller gives flatter charts (less
+    /// (θ_max, degrees, in (0, 90]). Default: 60. Smaller gives flatter charts (less
     /// area distortion) but more of them (more gutter waste).
     pub max_cone_angle_deg: f32,
-    /// Size cap of a chart, in triangles (≥ 1) [4096]. Bounds the LSCM
+    /// Size cap of a chart, in triangles (≥ 1). Default: 4096. Bounds the LSCM
     /// solve per chart and its area distortion on gently curved surfaces.
     pub max_chart_triangles: u32,
     /// Charts with fewer triangles are merged into a neighbour when the
-    /// union stays a disc within the cone [64]. 0 disables merging.
+    /// union stays a disc within the cone. Default: 64. 0 disables merging.
     pub min_chart_triangles: u32,
-    /// Seed relocation + simultaneous regrowth passes (step 2) [1].
+    /// Seed relocation + simultaneous regrowth passes (step 2). Default: 1.
     pub relax_iterations: u32,
     /// Weight λ of the squared seed distance in the growth cost
-    /// (dimensionless, ≥ 0) [0.5].
+    /// (dimensionless, ≥ 0). Default: 0.5.
     pub compactness: f32,
 }
 

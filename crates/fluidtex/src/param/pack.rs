@@ -1,34 +1,40 @@
 //! Packing flattened charts into a W×H texel rectangle with a gutter.
 //!
-//! **Method: skyline ("horizon") packing of chart profiles, with a scale
+//! **Method: skyline ("horizon") packing of chart outlines, with a scale
 //! search.** Each chart is first turned so that its minimum-area bounding
 //! rectangle is axis-aligned (rotating calipers over its convex hull,
 //! Toussaint 1983). At a trial scale s (texels per world unit) each chart
-//! becomes, per column of texels, the interval of rows its footprint
-//! touches (`lo..hi`, plus a small margin for fixed-point snapping), so it
-//! covers every texel the rasterizer can claim and the chart's geometry. Charts, largest first, drop onto a skyline (per
-//! atlas column, the first free row): a chart placed at column offset x
-//! lands at `y = max_i(sky[x+i] − lo[i])`, so its lower outline nests into
-//! the upper outline of what lies below, and the skyline then rises to the
-//! chart's upper outline dilated by the gutter. Each of the four quarter
-//! turns and every column offset is tried; the lowest resulting bottom edge
-//! wins (ties: smaller quarter turn, then smaller x). The scale is then
-//! searched (secant steps on `used height ∝ s²`, bracketed by bisection) for
+//! becomes, per column, the interval of rows its footprint touches
+//! (`lo..hi`, widened by a small margin for fixed-point snapping), so the
+//! outline covers both every texel the rasterizer can claim and the chart's
+//! geometry. Charts, largest first, drop onto a skyline (per atlas column,
+//! the first free row): a chart placed at column offset x lands at
+//! `y = max_i(sky[x+i] − lo[i])`, so its lower outline nests into the upper
+//! outline of what lies below, and the skyline then rises to the chart's
+//! upper outline dilated by the gutter. Each of the four quarter turns and
+//! every column offset is tried; the lowest resulting bottom edge wins
+//! (ties: smaller quarter turn, then smaller x). The scale is then searched
+//! (secant steps on `used height ∝ s²`, bracketed by bisection, to 1%) for
 //! the largest s whose packing fits the atlas height.
+//!
+//! Atlases wider than 2048 texels pack on a grid of c×c-texel cells
+//! (c = ⌈W / 2048⌉, 3 at 6144²), outlines rounded out to whole cells, so
+//! the packing cost does not grow with the atlas.
 //!
 //! **Why our own packer.** etagere and guillotiere allocate *rectangles*
 //! (shelves, guillotine cuts) for dynamic atlases such as glyph caches;
-//! rectangle-pack packs rectangles too. Chart outlines are blobs: their
-//! bounding rectangles waste 20–40% of their area, and the issue's ≥ 60%
-//! texel fill at 1024² (gutter included) is out of reach with rectangles.
-//! Profile nesting keeps most of that space, and needs a per-column skyline
-//! no rectangle allocator exposes.
+//! rectangle-pack packs rectangles too. Chart outlines are blobs: on the
+//! liquid-like test surface their minimum-area rectangles are 27% empty,
+//! so rectangle packing plus the gutter would land near the 60%
+//! fill floor at 1024², where nesting outlines reaches 67%. A per-column
+//! skyline is what nesting needs, and no rectangle allocator exposes one.
 //!
-//! **Gutter.** With gutter G, two texels of different charts are at least
-//! G + 1 apart in x or y (G free texels between them): the skyline rises to
-//! `hi + G` over the chart's columns widened by G on both sides. A margin of
-//! ⌈G/2⌉ texels is kept free along the atlas border so dilation has room and
-//! wrap-around filtering does not bleed.
+//! **Gutter.** With gutter G, the footprints of two charts are at least G
+//! texels apart in x or y, so at least G texels free of any chart lie
+//! between their texels: the skyline rises to `hi + G` over the chart's
+//! columns widened by G on both sides (G rounded up to whole cells). A
+//! margin of ⌈G/2⌉ texels is kept free along the atlas border so dilation
+//! has room and wrap-around filtering does not bleed.
 
 use glam::{DVec2, Vec2};
 use rayon::prelude::*;
