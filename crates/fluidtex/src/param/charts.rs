@@ -2,9 +2,10 @@
 //! LSCM can flatten with little distortion.
 //!
 //! **Method.** Region growing with a normal-cone bound, in the family of
-//! Sander et al. 2003 ("Multi-chart geometry images", §3: grow charts from
-//! seeds with a priority queue, relocate seeds, regrow) and Lévy et al. 2002
-//! §4 (charts flat enough to flatten conformally):
+//! Sander et al. 2003 ("Multi-chart geometry images": grow charts from seeds
+//! with a priority queue, relocate the seeds to chart centres, regrow) and
+//! of the segmentation of Lévy et al. 2002 (charts grown in parallel from
+//! seeds restarted at their centroids, small charts merged):
 //!
 //! 1. **Greedy pass.** The lowest-index unassigned triangle seeds a chart,
 //!    which grows through a priority queue of edge-adjacent candidates until
@@ -27,18 +28,20 @@
 //! [`ChartParams::compactness`]. The normal term grows charts along flat
 //! directions first; the distance term keeps flat regions round.
 //!
-//! **Acceptance.** t joins c only if `n_t·N_c ≥ cos θ_max` with the mean
-//! normal at that moment (the mean drifts a little as the chart grows on,
-//! so the final spread can exceed θ_max slightly; a chart within 90° of one
-//! direction is a height field over a plane, which LSCM rarely folds, and
-//! folds are caught by [`super::flatten`] anyway), the chart is below its
-//! size cap, and the chart stays a
-//! topological disc: t must share one or two edges with c, each a boundary
-//! edge of c (one chart triangle on it), and when it shares one edge its
-//! third vertex must not already be in c. Adding an ear or filling a notch
-//! keeps a disc a disc; anything else would close a loop (an annulus, a
-//! handle, or a closed sphere), which no planar map can flatten without a
-//! cut. A sphere therefore always yields several charts, and fluid meshes
+//! **Acceptance.** t joins c only if
+//! - `n_t·N_c ≥ cos θ_max` with the mean normal at that moment (the mean
+//!   drifts a little as the chart grows on, so the final spread can exceed
+//!   θ_max slightly; a chart within 90° of one direction is a height field
+//!   over a plane, which LSCM rarely folds, and [`super::flatten`] catches
+//!   the folds that remain),
+//! - the chart is below its size cap, and
+//! - the chart stays a topological disc: t must share one or two edges with
+//!   c, each a boundary edge of c (one chart triangle on it), and when it
+//!   shares one edge its third vertex must not already be in c.
+//!
+//! Adding an ear or filling a notch keeps a disc a disc; anything else would
+//! close a loop (an annulus, a handle, or a closed sphere), which no planar
+//! map can flatten without a cut. A sphere therefore always yields several charts, and fluid meshes
 //! with non-manifold edges still give manifold charts.
 //!
 //! Degenerate triangles ([`crate::param::is_degenerate`]) never join a chart:

@@ -15,7 +15,9 @@
 //! every column offset is tried; the lowest resulting bottom edge wins
 //! (ties: smaller quarter turn, then smaller x). The scale is then searched
 //! (secant steps on `used height ∝ s²`, bracketed by bisection, to 1%) for
-//! the largest s whose packing fits the atlas height.
+//! the largest s whose packing fits the atlas height. Dropping charts
+//! against a "horizon" is the packing idea of Lévy et al. 2002; here the
+//! horizon is per texel column and every offset and quarter turn is tried.
 //!
 //! Atlases wider than 2048 texels pack on a grid of c×c-texel cells
 //! (c = ⌈W / 2048⌉, 3 at 6144²), outlines rounded out to whole cells, so
