@@ -205,9 +205,13 @@ pub struct Band {
 /// Wall-clock time of each stage of [`Atlas::build`].
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct AtlasTimings {
+    /// Topology and chart segmentation.
     pub segmentation: Duration,
+    /// LSCM of every chart, injectivity checks and splits.
     pub lscm: Duration,
+    /// Outlines, skyline packing and the scale search.
     pub packing: Duration,
+    /// uv mesh assembly and span rasterization.
     pub rasterization: Duration,
 }
 
