@@ -32,21 +32,30 @@ pub(crate) struct RowRuns {
 }
 
 impl RowRuns {
-    pub(crate) fn new(bands: &[Band], height: u32) -> RowRuns {
+    /// Marks each band's span texels in a bit mask (one row of `W/64` words
+    /// per texel row) and reads the runs back from it, band by band in
+    /// parallel: linear in spans and texel rows, no sorting.
+    pub(crate) fn new(bands: &[Band], width: u32, height: u32) -> RowRuns {
+        let words = (width as usize).div_ceil(64);
         let per_band: Vec<Vec<(u32, [u32; 2])>> = bands
             .par_iter()
             .map(|b| {
-                let mut s: Vec<(u32, [u32; 2])> =
-                    b.spans.iter().map(|s| (s.y, [s.x0, s.x1])).collect();
-                s.sort_unstable();
-                let mut merged: Vec<(u32, [u32; 2])> = Vec::with_capacity(s.len());
-                for (y, r) in s {
-                    match merged.last_mut() {
-                        Some((ly, lr)) if *ly == y && lr[1] >= r[0] => lr[1] = lr[1].max(r[1]),
-                        _ => merged.push((y, r)),
+                let mut bits = vec![0u64; words * (b.y1 - b.y0) as usize];
+                for s in &b.spans {
+                    let row = &mut bits[(s.y - b.y0) as usize * words..][..words];
+                    set_bits(row, s.x0 as usize, s.x1 as usize);
+                }
+                let mut runs = Vec::new();
+                for (r, row) in bits.chunks_exact(words).enumerate() {
+                    let y = b.y0 + r as u32;
+                    let mut x = 0usize;
+                    while let Some(start) = next_bit(row, x, true) {
+                        let end = next_bit(row, start, false).unwrap_or(width as usize);
+                        runs.push((y, [start as u32, end as u32]));
+                        x = end;
                     }
                 }
-                merged
+                runs
             })
             .collect();
         let mut start = vec![0u32; height as usize + 1];
@@ -72,7 +81,7 @@ pub(crate) fn dilate(bands: &[Band], width: u32, height: u32, texture: &mut Text
     if radius == 0 || bands.is_empty() {
         return;
     }
-    let rows = RowRuns::new(bands, height);
+    let rows = RowRuns::new(bands, width, height);
     let channels = texture.channels;
     let band_len = BAND_HEIGHT as usize * width as usize * channels;
     for (g, group) in bands.chunks(GROUP).enumerate() {
@@ -102,6 +111,42 @@ pub(crate) fn dilate(bands: &[Band], width: u32, height: u32, texture: &mut Text
                     chunk[d..d + channels].copy_from_slice(&vals[k * channels..(k + 1) * channels]);
                 }
             });
+    }
+}
+
+/// Sets bits `x0..x1` of a row mask.
+fn set_bits(row: &mut [u64], x0: usize, x1: usize) {
+    let mut x = x0;
+    while x < x1 {
+        let (w, b) = (x / 64, x % 64);
+        let n = (64 - b).min(x1 - x);
+        let mask = if n == 64 {
+            u64::MAX
+        } else {
+            ((1u64 << n) - 1) << b
+        };
+        row[w] |= mask;
+        x += n;
+    }
+}
+
+/// First position ≥ `from` whose bit equals `value`, if any.
+fn next_bit(row: &[u64], from: usize, value: bool) -> Option<usize> {
+    let mut w = from / 64;
+    if w >= row.len() {
+        return None;
+    }
+    let flip = if value { 0 } else { u64::MAX };
+    let mut word = (row[w] ^ flip) & (u64::MAX << (from % 64));
+    loop {
+        if word != 0 {
+            return Some(w * 64 + word.trailing_zeros() as usize);
+        }
+        w += 1;
+        if w >= row.len() {
+            return None;
+        }
+        word = row[w] ^ flip;
     }
 }
 

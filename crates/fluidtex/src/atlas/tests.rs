@@ -526,3 +526,37 @@ fn degenerate_triangles_get_a_place_but_no_texels() {
             .all(|s| s.triangle != 2)
     );
 }
+
+#[test]
+fn messy_fluid_mesh_still_gives_a_valid_atlas() {
+    // What surface reconstruction produces now and then: a duplicated
+    // triangle, a non-manifold fin on an edge, a bow-tie (two triangles
+    // sharing one vertex), a zero-area sliver, and an unused NaN vertex.
+    let mut mesh = liquid_blob(2000, 9);
+    let t0 = mesh.triangles[0];
+    mesh.triangles.push(t0);
+    let [a, b, _] = mesh.triangles[10];
+    let fin = mesh.positions.len() as u32;
+    let pa = mesh.positions[a as usize];
+    mesh.positions.push(pa * 1.3 + Vec3::new(0.0, 0.05, 0.0));
+    mesh.triangles.push([b, a, fin]);
+    let base = mesh.positions.len() as u32;
+    mesh.positions.extend([
+        Vec3::new(3.0, 0.0, 0.0),
+        Vec3::new(3.5, 0.0, 0.0),
+        Vec3::new(3.0, 0.5, 0.0),
+        Vec3::new(2.5, 0.0, 0.0),
+        Vec3::new(3.0, -0.5, 0.0),
+        Vec3::new(4.0, 0.0, 0.0),
+        Vec3::new(f32::NAN, 0.0, 0.0),
+    ]);
+    mesh.triangles.push([base, base + 1, base + 2]);
+    mesh.triangles.push([base, base + 3, base + 4]);
+    mesh.triangles.push([base, base + 1, base + 5]); // collinear
+    let atlas = build(&mesh, 256);
+    assert_valid(&mesh, &atlas, 4);
+    let stats = atlas.stretch_stats(&mesh).expect("same mesh");
+    assert_eq!(stats.overlapping_texels, 0);
+    assert_eq!(stats.zero_area_triangles, 1);
+    assert!(atlas.uv_mesh.uvs.iter().all(|uv| uv.is_finite()));
+}

@@ -16,6 +16,8 @@
 //! scaled so that each chart's uv area equals its 3-D area, which gives every
 //! chart the same mean texel density once packed.
 
+use std::collections::HashMap;
+
 use glam::{DVec2, Vec2, Vec3};
 
 use super::charts::{ChartParams, split};
@@ -104,26 +106,21 @@ fn flatten_into(
 
 /// Chart vertices in first-use order and the chart's triangles in them.
 fn local_mesh(triangles: &[[u32; 3]], chart: &[u32]) -> (Vec<u32>, Vec<[u32; 3]>) {
-    let mut vertices: Vec<u32> = Vec::new();
-    let mut local_tris = Vec::with_capacity(chart.len());
-    // Charts are small; a sorted lookup keeps this O(k log k) without a
-    // mesh-sized scratch array per chart.
-    let mut sorted: Vec<(u32, u32)> = Vec::new();
-    for &t in chart {
-        let mut out = [0u32; 3];
-        for (k, &v) in triangles[t as usize].iter().enumerate() {
-            out[k] = match sorted.binary_search_by_key(&v, |&(g, _)| g) {
-                Ok(i) => sorted[i].1,
-                Err(i) => {
-                    let l = vertices.len() as u32;
+    // A map sized by the chart, not a mesh-sized scratch array per chart;
+    // only looked up, so its iteration order never matters.
+    let mut index: HashMap<u32, u32> = HashMap::with_capacity(chart.len());
+    let mut vertices: Vec<u32> = Vec::with_capacity(chart.len() / 2 + 2);
+    let local_tris = chart
+        .iter()
+        .map(|&t| {
+            triangles[t as usize].map(|v| {
+                *index.entry(v).or_insert_with(|| {
                     vertices.push(v);
-                    sorted.insert(i, (v, l));
-                    l
-                }
-            };
-        }
-        local_tris.push(out);
-    }
+                    (vertices.len() - 1) as u32
+                })
+            })
+        })
+        .collect();
     (vertices, local_tris)
 }
 
@@ -314,6 +311,78 @@ mod tests {
             ],
             vec![[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]],
         )
+    }
+
+    /// A helicoid strip of `turns` turns with a small pitch: nearly a flat
+    /// annulus covered `turns` times, so any flat map of it overlaps itself.
+    fn helicoid(turns: f32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+        let (nu, nt) = (4u32, (40.0 * turns) as u32);
+        let mut pos = Vec::new();
+        for j in 0..=nt {
+            let th = std::f32::consts::TAU * turns * j as f32 / nt as f32;
+            for i in 0..=nu {
+                let r = 1.0 + i as f32 / nu as f32;
+                pos.push(Vec3::new(r * th.cos(), r * th.sin(), 0.05 * th));
+            }
+        }
+        let mut tris = Vec::new();
+        for j in 0..nt {
+            for i in 0..nu {
+                let a = j * (nu + 1) + i;
+                let b = a + nu + 1;
+                tris.push([a, a + 1, b + 1]);
+                tris.push([a, b + 1, b]);
+            }
+        }
+        (pos, tris)
+    }
+
+    #[test]
+    fn a_folding_chart_is_split_into_injective_pieces() {
+        let (pos, tris) = helicoid(2.0);
+        // Control: the whole strip's LSCM map does overlap itself.
+        let whole = lscm(&pos, &tris).expect("a valid disc");
+        assert!(!is_injective(&whole, &tris));
+
+        let chart: Vec<u32> = (0..tris.len() as u32).collect();
+        let pieces = flatten_chart(&pos, &tris, &chart, &ChartParams::default());
+        assert!(pieces.len() >= 2);
+        let mut all: Vec<u32> = pieces.iter().flat_map(|p| p.triangles.clone()).collect();
+        all.sort_unstable();
+        assert_eq!(all, chart, "pieces must partition the chart");
+        for p in &pieces {
+            // Back to LSCM orientation (y up) for the check.
+            let up: Vec<Vec2> = p.uv.iter().map(|q| Vec2::new(q.x, -q.y)).collect();
+            assert!(is_injective(&up, &p.local_triangles));
+            for (k, &t) in p.triangles.iter().enumerate() {
+                assert_eq!(
+                    p.local_triangles[k].map(|v| p.vertices[v as usize]),
+                    tris[t as usize]
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn a_flat_chart_stays_whole_with_its_area() {
+        let (pos, tris) = helicoid(0.5);
+        let chart: Vec<u32> = (0..tris.len() as u32).collect();
+        let pieces = flatten_chart(&pos, &tris, &chart, &ChartParams::default());
+        assert_eq!(pieces.len(), 1);
+        let p = &pieces[0];
+        let (mut a2, mut a3) = (0.0f64, 0.0f64);
+        for (k, t) in p.local_triangles.iter().enumerate() {
+            let [a, b, c] = t.map(|v| p.uv[v as usize].as_dvec2());
+            let signed = 0.5 * (b - a).perp_dot(c - a);
+            assert!(signed < 0.0, "triangle {k} not in image orientation");
+            a2 -= signed;
+            let [x, y, z] = tris[p.triangles[k] as usize].map(|v| pos[v as usize].as_dvec3());
+            a3 += 0.5 * (y - x).cross(z - x).length();
+        }
+        assert!(
+            (a2 / a3 - 1.0).abs() < 1e-5,
+            "uv area {a2} vs 3-D area {a3}"
+        );
     }
 
     #[test]

@@ -6,19 +6,22 @@
 //! least-squares sense, with two vertices pinned to remove the similarity
 //! (translation, rotation, scale) that leaves the energy unchanged.
 //!
-//! **Energy** (Lévy et al. 2002, §3.2, Eqs. 3–6). On a triangle T with area
+//! **Energy** (Lévy et al. 2002, section "Least Squares Conformal Maps":
+//! conformality in a triangle, then its least-squares sum). On a triangle T with area
 //! A_T, the map is conformal when it satisfies the Cauchy–Riemann equations
 //! in a local orthonormal frame (x, y) of T:
 //! `∂u/∂x − ∂v/∂y = 0` and `∂u/∂y + ∂v/∂x = 0`. With the linear basis
 //! functions φ_j of the corners, `∇φ_j = rot90(p_{j+2} − p_{j+1}) / (2 A_T)`
 //! = (a_j, b_j), both residuals are the real and imaginary parts of
 //! `Σ_j (a_j + i b_j) z_j` with `z_j = u_j + i v_j`, and the energy
-//! `C = Σ_T A_T |Σ_j (a_j + i b_j) z_j|²` is the paper's `‖M U‖²` (Eq. 8).
+//! `C = Σ_T A_T |Σ_j (a_j + i b_j) z_j|²` is the paper's criterion written as
+//! `‖M U‖²` with one complex row of M per triangle.
 //! As written, the equations select the orientation-preserving solution: a
 //! triangle counter-clockwise seen from the side its normal points to stays
 //! counter-clockwise in (u, v).
 //!
-//! **Solve.** Pinned unknowns move to the right-hand side (Eq. 10) and the
+//! **Solve.** Pinned unknowns move to the right-hand side (as in the paper,
+//! which pins two vertices to remove the similarity) and the
 //! over-determined system is solved through its normal equations
 //! `M_fᴴ M_f z_f = −M_fᴴ M_p z_p`, assembled per triangle in complex `f64`:
 //! one complex unknown per free vertex, the same quadratic form as the real
@@ -233,8 +236,8 @@ fn choose_pins(points: &[DVec3]) -> (usize, usize) {
 
 /// Per-triangle complex coefficients of the corners in the residual
 /// `√A_T (r₁ + i r₂) = Σ_j w_j z_j`, z_j = u_j + i v_j: with
-/// `∇φ_j = (a_j, b_j)`, `w_j = √A_T (a_j + i b_j)` (Lévy et al. 2002, Eq. 6,
-/// up to the paper's normalisation of the local frame).
+/// `∇φ_j = (a_j, b_j)`, `w_j = √A_T (a_j + i b_j)` (the paper's per-triangle
+/// coefficients, up to its normalisation of the local frame).
 fn corner_weights(p: [DVec3; 3]) -> [c64; 3] {
     let e1 = p[1] - p[0];
     let e2 = p[2] - p[0];

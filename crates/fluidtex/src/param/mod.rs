@@ -1,6 +1,6 @@
 //! Surface parameterization: flattening triangle meshes to the plane.
 //!
-//! - [`lscm`] — least-squares conformal maps (Lévy et al. 2002), the one
+//! - [`mod@lscm`] — least-squares conformal maps (Lévy et al. 2002), the one
 //!   solver used both for patch flattening (DESIGN §1 "Flattening") and for
 //!   atlas charts.
 //! - [`charts`] — segmentation of a mesh into disc-like charts.
