@@ -62,7 +62,7 @@ impl Config {
             let msg = e.message().to_string();
             let line = e
                 .span()
-                .map(|s| text[..s.start.min(text.len())].lines().count().max(1))
+                .map(|s| text[..s.start.min(text.len())].matches('\n').count() + 1)
                 .unwrap_or(0);
             anyhow::anyhow!("{}: line {line}: {msg}", path.display())
         })?;
