@@ -90,11 +90,13 @@ impl Config {
     }
 
     /// A stable text that changes whenever a setting that affects the
-    /// output changes (used to refuse resuming a different run).
+    /// texture changes (used to refuse resuming a different run). The
+    /// output folder and the frame range are left out: resuming with a
+    /// later last frame extends a run.
     pub fn fingerprint(&self) -> String {
         let mut c = self.clone();
         c.out = None;
-        c.outputs.preview_every = 0;
+        c.frames = None;
         let json = serde_json::to_string(&c).unwrap_or_default();
         // FNV-1a, 64 bit: stable across platforms and versions, unlike std's hasher.
         let mut h: u64 = 0xcbf2_9ce4_8422_2325;
@@ -343,6 +345,7 @@ mod tests {
         };
         let mut b = a.clone();
         b.out = Some("elsewhere".into());
+        b.frames = Some("0-100".into());
         assert_eq!(a.fingerprint(), b.fingerprint());
         b.erosion.epsilon = 0.2;
         assert_ne!(a.fingerprint(), b.fingerprint());
