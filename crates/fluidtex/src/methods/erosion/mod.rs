@@ -19,6 +19,9 @@ pub mod fill;
 pub mod patch;
 pub mod update;
 
+#[cfg(test)]
+mod tests;
+
 use std::sync::Arc;
 
 use rand::SeedableRng;

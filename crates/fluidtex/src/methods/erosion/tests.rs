@@ -1,0 +1,505 @@
+//! Tests of the erosion method as a whole: patch construction, weights,
+//! the lapped fill against a brute-force reference, coverage, deletion,
+//! stillness, thread independence and state round trips.
+
+use std::sync::Arc;
+
+use glam::{Vec2, Vec3};
+
+use super::distortion::distortion;
+use super::fill::{LocateTolerance, TriFrame};
+use super::patch::{FrameSurface, Patch, PatchShape};
+use super::*;
+use crate::atlas::{Atlas, AtlasParams};
+use crate::exemplar::{Exemplar, builtin_pebbles};
+use crate::mesh::{Topology, TriMesh};
+use crate::methods::{
+    FrameContext, FrameResult, Method, PreviousFrame, SOURCE_OUTSIDE, SOURCE_UNCOVERED,
+};
+use crate::surface::{SurfaceIndex, SurfacePoint};
+
+/// A flat n×n grid of unit cells in z = 0, centred on the origin.
+fn grid(n: usize, cell: f32) -> TriMesh {
+    let mut positions = Vec::new();
+    let half = n as f32 * cell / 2.0;
+    for j in 0..=n {
+        for i in 0..=n {
+            positions.push(Vec3::new(
+                i as f32 * cell - half,
+                j as f32 * cell - half,
+                0.0,
+            ));
+        }
+    }
+    let w = (n + 1) as u32;
+    let mut triangles = Vec::new();
+    for j in 0..n as u32 {
+        for i in 0..n as u32 {
+            let a = j * w + i;
+            triangles.push([a, a + 1, a + w + 1]);
+            triangles.push([a, a + w + 1, a + w]);
+        }
+    }
+    let v = vec![Vec3::ZERO; positions.len()];
+    TriMesh::new(positions, triangles).with_velocity(v)
+}
+
+fn shape(radius: f32) -> PatchShape {
+    PatchShape {
+        radius,
+        exemplar_size: 2.6 * radius,
+        delta_max: 3.0,
+        far_distance: radius / 4.0,
+        centre_radius: radius / 4.0,
+    }
+}
+
+fn create_on(mesh: &TriMesh, at: SurfacePoint, shape: &PatchShape, rotation: f32) -> Patch {
+    let topology = Topology::new(mesh.vertex_count(), &mesh.triangles);
+    let normals = mesh.vertex_normals();
+    let surface = FrameSurface {
+        mesh,
+        topology: &topology,
+        vertex_normals: &normals,
+    };
+    Patch::create(0, &surface, at, shape, rotation).expect("valid triangle")
+}
+
+#[test]
+fn a_flat_patch_is_isometric_centred_and_unmirrored() {
+    let mesh = grid(20, 0.1);
+    let s = shape(0.5);
+    // A point inside a triangle near the middle.
+    let at = SurfacePoint::new(421, [0.2, 0.3, 0.5]);
+    let p = at.position(&mesh);
+    for rotation in [0.0f32, 1.3, 4.0] {
+        let patch = create_on(&mesh, at, &s, rotation);
+        // LSCM of a flat disc + the similarity is an isometry: δ = 1.
+        for t in &patch.triangles {
+            let rest = t.map(|v| patch.rest[v as usize] * s.exemplar_size);
+            let q = t.map(|v| patch.positions[v as usize]);
+            let d = distortion(rest, q).delta;
+            assert!((d - 1.0).abs() < 1e-3, "δ = {d}");
+        }
+        // The centre p maps to (0.5, 0.5).
+        let seed = patch
+            .triangles
+            .iter()
+            .find(|t| {
+                let q = t.map(|v| patch.positions[v as usize]);
+                crate::surface::closest_point_on_triangle(p, q[0], q[1], q[2]).distance(p) < 1e-6
+            })
+            .expect("the seed triangle is in the patch");
+        let frame = TriFrame::new(
+            patch.positions[seed[0] as usize],
+            patch.positions[seed[1] as usize],
+            patch.positions[seed[2] as usize],
+        )
+        .expect("non-degenerate");
+        let (b, _) = frame.locate(p);
+        let uv: Vec2 = (0..3).map(|k| patch.rest[seed[k] as usize] * b[k]).sum();
+        assert!(uv.distance(Vec2::splat(0.5)) < 1e-5, "{uv}");
+        // Unmirrored: +x then +y on the surface (seen from +z) turns
+        // clockwise in (u, v) with v pointing down, i.e. negative signed area.
+        let signed: f32 = patch
+            .triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|v| patch.rest[v as usize]);
+                (b - a).perp_dot(c - a)
+            })
+            .sum();
+        assert!(signed < 0.0);
+    }
+}
+
+#[test]
+fn patch_takes_the_connected_facing_triangles_within_r() {
+    // Sheet A (z = 0, up), sheet B (z = 0.05, up, disconnected), sheet C
+    // (z = -0.05, facing down). A patch created on A holds A's triangles
+    // within r and nothing of B or C.
+    let a = grid(10, 0.1);
+    let mut mesh = a.clone();
+    for (dz, flip) in [(0.05f32, false), (-0.05, true)] {
+        let off = mesh.positions.len() as u32;
+        mesh.positions
+            .extend(a.positions.iter().map(|p| *p + Vec3::Z * dz));
+        mesh.triangles.extend(a.triangles.iter().map(|t| {
+            let t = t.map(|v| v + off);
+            if flip { [t[0], t[2], t[1]] } else { t }
+        }));
+    }
+    mesh = mesh.with_velocity(vec![Vec3::ZERO; 3 * a.positions.len()]);
+    let r = 0.25;
+    let at = SurfacePoint::new(110, [1.0 / 3.0; 3]);
+    let p = at.position(&mesh);
+    let patch = create_on(&mesh, at, &shape(r), 0.0);
+    assert!(patch.positions.iter().all(|q| q.z == 0.0), "only sheet A");
+    let within: usize = (0..a.triangles.len())
+        .filter(|&t| {
+            let [x, y, z] = a.corners(t);
+            crate::surface::closest_point_on_triangle(p, x, y, z).distance(p) <= r
+        })
+        .count();
+    assert_eq!(patch.triangles.len(), within);
+}
+
+#[test]
+fn weights_follow_eqs_1_to_3_on_a_hand_built_patch() {
+    // 3×3 vertices, 8 triangles, rest = positions (S = 1). Vertex 4 is the
+    // only interior vertex; vertex 0 is pinned (as if near p).
+    let mut mesh = grid(2, 1.0);
+    let s = PatchShape {
+        radius: 1.0,
+        exemplar_size: 1.0,
+        delta_max: 3.0,
+        far_distance: 0.25,
+        centre_radius: 0.0,
+    };
+    let rest: Vec<Vec2> = mesh.positions.iter().map(|p| p.truncate()).collect();
+    // Stretch vertex 8 (corner) along x by 1: only triangles using it deform.
+    mesh.positions[8].x += 1.0;
+    let mut patch = Patch {
+        id: 0,
+        positions: mesh.positions.clone(),
+        rest: rest.clone(),
+        triangles: mesh.triangles.clone(),
+        pinned: (0..9).map(|v| v == 0).collect(),
+        weight: Vec::new(),
+    };
+    patch.update_weights(&s);
+    let q_t: Vec<f64> = mesh
+        .triangles
+        .iter()
+        .map(|t| {
+            let d = distortion(
+                t.map(|v| rest[v as usize]),
+                t.map(|v| mesh.positions[v as usize]),
+            )
+            .delta;
+            ((3.0 - d) / 2.0).max(0.0)
+        })
+        .collect();
+    for v in 0..9u32 {
+        let around: Vec<f64> = mesh
+            .triangles
+            .iter()
+            .enumerate()
+            .filter(|(_, t)| t.contains(&v))
+            .map(|(k, _)| q_t[k])
+            .collect();
+        let q_v = around.iter().sum::<f64>() / around.len() as f64;
+        let b_v = if v == 4 || v == 0 { 1.0 } else { 0.0 };
+        assert!(
+            ((patch.weight[v as usize] as f64) - q_v * b_v).abs() < 1e-6,
+            "vertex {v}"
+        );
+    }
+    // The stretched corner triangles really lost quality; the others not.
+    assert!(q_t.iter().filter(|&&q| q < 0.999).count() >= 1);
+    assert!(patch.weight[4] < 1.0 && patch.weight[4] > 0.0);
+    assert_eq!(patch.weight[1], 0.0);
+}
+
+/// Frames of a small scene with an atlas each.
+struct Clip {
+    meshes: Vec<TriMesh>,
+    indices: Vec<SurfaceIndex>,
+    atlases: Vec<Atlas>,
+}
+
+fn clip(name: &str, resolution: u32, frames: i32, atlas: u32) -> Clip {
+    let mut params = crate::scenes::default_params(name).expect("scene");
+    params.resolution = resolution;
+    params.last = params.first + frames - 1;
+    let mut scene = crate::scenes::by_name(name, Some(params)).expect("scene");
+    let meshes: Vec<TriMesh> = (params.first..=params.last)
+        .map(|f| scene.frame(f).expect("frame"))
+        .collect();
+    let indices = meshes.iter().map(SurfaceIndex::new).collect();
+    let atlases = meshes
+        .iter()
+        .map(|m| Atlas::build(m, &AtlasParams::square(atlas)).expect("atlas"))
+        .collect();
+    Clip {
+        meshes,
+        indices,
+        atlases,
+    }
+}
+
+fn exemplar() -> Arc<Exemplar> {
+    Arc::new(builtin_pebbles(64, 1))
+}
+
+fn step_all(method: &mut Erosion, clip: &Clip) -> Vec<FrameResult> {
+    (0..clip.meshes.len())
+        .map(|k| {
+            let ctx = FrameContext {
+                number: k as i32,
+                dt: 1.0 / 24.0,
+                mesh: &clip.meshes[k],
+                index: &clip.indices[k],
+                previous: (k > 0).then(|| PreviousFrame {
+                    mesh: &clip.meshes[k - 1],
+                    index: &clip.indices[k - 1],
+                }),
+                atlas: &clip.atlases[k],
+            };
+            method.step(&ctx).expect("step")
+        })
+        .collect()
+}
+
+fn sources(r: &FrameResult) -> &[u32] {
+    r.source.as_deref().expect("erosion records sources")
+}
+
+#[test]
+fn lapped_fill_matches_a_brute_force_reference() {
+    let c = clip("differential-rotation", 12, 4, 96);
+    let ex = exemplar();
+    let mut method = Erosion::new(ErosionParams::default(), Arc::clone(&ex), 7).expect("params");
+    let results = step_all(&mut method, &c);
+    let last = results.last().expect("frames");
+    assert_eq!(last.stats["forced_texels"], 0);
+    let k = c.meshes.len() - 1;
+    let (mesh, atlas) = (&c.meshes[k], &c.atlases[k]);
+    let patches = &method.state().patches;
+    let radius = method.state().radius.expect("resolved");
+    let tolerance = LocateTolerance {
+        min_bary: -0.05,
+        max_plane_distance: 0.125 * radius,
+    };
+    let test = ErosionTest::new(ex.feature.erosion_normaliser(), 0.1);
+    let source = sources(last);
+    let uv = last.uv.as_deref().expect("uv");
+    let mut checked = 0;
+    for band in atlas.bands() {
+        for span in &band.spans {
+            let [a, b, cc] = mesh.corners(span.triangle as usize);
+            let n = (b - a).cross(cc - a).normalize();
+            for (x, bary) in atlas.span_barycentrics(span) {
+                let t = (span.y * atlas.width + x) as usize;
+                let p = a * bary[0] + b * bary[1] + cc * bary[2];
+                // Every patch, oldest first, every triangle: the first that
+                // contains p and keeps its texel there.
+                let mut want = None;
+                'patches: for patch in patches {
+                    let mut best: Option<(f32, [f32; 3], usize)> = None;
+                    for (j, tri) in patch.triangles.iter().enumerate() {
+                        let q = tri.map(|v| patch.positions[v as usize]);
+                        let Some(f) = TriFrame::new(q[0], q[1], q[2]) else {
+                            continue;
+                        };
+                        if (q[1] - q[0]).cross(q[2] - q[0]).dot(n) <= 0.0 {
+                            continue;
+                        }
+                        let (bb, plane) = f.locate(p);
+                        let m = bb[0].min(bb[1]).min(bb[2]);
+                        if plane.abs() <= tolerance.max_plane_distance
+                            && m >= tolerance.min_bary
+                            && best.is_none_or(|(bm, _, _)| m > bm)
+                        {
+                            best = Some((m, bb, j));
+                        }
+                    }
+                    if let Some((_, bb, j)) = best {
+                        let bb = bb.map(|v| v.max(0.0));
+                        let sum: f32 = bb.iter().sum();
+                        let tri = patch.triangles[j];
+                        let puv: Vec2 = (0..3)
+                            .map(|i| patch.rest[tri[i] as usize] * (bb[i] / sum))
+                            .sum();
+                        let w: f32 = (0..3)
+                            .map(|i| patch.weight[tri[i] as usize] * (bb[i] / sum))
+                            .sum();
+                        if !test.eroded(ex.feature.sample(puv.x, puv.y), puv.x, puv.y, w) {
+                            want = Some((patch.id + 1, puv));
+                            break 'patches;
+                        }
+                    }
+                }
+                let (id, puv) = want.expect("no uncovered texel");
+                assert_eq!(source[t], id, "texel {t}");
+                assert!(uv[t].distance(puv) < 1e-5, "texel {t}: {} vs {puv}", uv[t]);
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked > 3000, "only {checked} texels checked");
+}
+
+#[test]
+fn every_chart_texel_has_one_source_and_the_exemplar_value_there() {
+    let c = clip("differential-rotation", 12, 3, 96);
+    let ex = exemplar();
+    let mut method = Erosion::new(ErosionParams::default(), Arc::clone(&ex), 3).expect("params");
+    for (k, r) in step_all(&mut method, &c).iter().enumerate() {
+        let source = sources(r);
+        let uv = r.uv.as_deref().expect("uv");
+        let map = c.atlases[k].triangle_map();
+        let mut out = vec![0.0; ex.total_channels()];
+        for t in 0..source.len() {
+            // Chart texels have a patch, the others are outside.
+            assert_eq!(map[t] == u32::MAX, source[t] == SOURCE_OUTSIDE, "texel {t}");
+            if source[t] == SOURCE_OUTSIDE {
+                continue;
+            }
+            assert_ne!(source[t], SOURCE_UNCOVERED, "frame {k} texel {t} uncovered");
+            ex.sample_all(uv[t].x, uv[t].y, &mut out);
+            assert_eq!(
+                &r.channels[0].data[t * 3..t * 3 + 3],
+                &out[..3],
+                "frame {k} texel {t}"
+            );
+        }
+        assert_eq!(r.stats["uncovered_texels"], 0);
+        // Unused patches are gone: every alive patch is some texel's source.
+        let used: std::collections::BTreeSet<u32> = source
+            .iter()
+            .copied()
+            .filter(|&s| s != SOURCE_OUTSIDE)
+            .collect();
+        let alive: std::collections::BTreeSet<u32> =
+            method.state().patches.iter().map(|p| p.id + 1).collect();
+        if k + 1 == c.meshes.len() {
+            assert_eq!(used, alive);
+        }
+    }
+}
+
+#[test]
+fn a_fluid_at_rest_gives_bit_identical_frames() {
+    // Same mesh every frame, zero velocity.
+    let mut c = clip("rigid-rotation", 12, 1, 96);
+    let mesh = c.meshes[0]
+        .clone()
+        .with_velocity(vec![Vec3::ZERO; c.meshes[0].vertex_count()]);
+    c.meshes = vec![mesh.clone(), mesh.clone(), mesh.clone(), mesh];
+    c.indices = c.meshes.iter().map(SurfaceIndex::new).collect();
+    let atlas = c.atlases.pop().expect("one atlas");
+    c.atlases = vec![atlas.clone(), atlas.clone(), atlas.clone(), atlas];
+    let mut method = Erosion::new(ErosionParams::default(), exemplar(), 5).expect("params");
+    let r = step_all(&mut method, &c);
+    for k in 1..r.len() {
+        assert_eq!(r[k].channels, r[0].channels, "frame {k} changed");
+        assert_eq!(r[k].source, r[0].source);
+        assert_eq!(r[k].stats["patches_created"], 0);
+    }
+}
+
+#[test]
+fn one_and_two_threads_give_identical_results() {
+    let c = clip("differential-rotation", 12, 3, 96);
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("pool");
+        pool.install(|| {
+            let mut m = Erosion::new(ErosionParams::default(), exemplar(), 11).expect("params");
+            let r = step_all(&mut m, &c);
+            (
+                r.into_iter()
+                    .map(|r| (r.channels, r.source))
+                    .collect::<Vec<_>>(),
+                m.state().clone(),
+            )
+        })
+    };
+    let (a, sa) = run(1);
+    let (b, sb) = run(2);
+    assert!(a == b, "outputs differ between 1 and 2 threads");
+    assert!(sa == sb, "patch states differ");
+}
+
+#[test]
+fn saved_state_continues_exactly() {
+    let c = clip("differential-rotation", 12, 3, 96);
+    let mut whole = Erosion::new(ErosionParams::default(), exemplar(), 2).expect("params");
+    let all = step_all(&mut whole, &c);
+    // Frames 0-1, save, restore into a fresh method, then frame 2.
+    let mut first = Erosion::new(ErosionParams::default(), exemplar(), 2).expect("params");
+    let part = Clip {
+        meshes: c.meshes[..2].to_vec(),
+        indices: c.meshes[..2].iter().map(SurfaceIndex::new).collect(),
+        atlases: c.atlases[..2].to_vec(),
+    };
+    step_all(&mut first, &part);
+    let bytes = first.save_state().expect("save");
+    let mut resumed = Erosion::new(ErosionParams::default(), exemplar(), 2).expect("params");
+    resumed.load_state(&bytes).expect("load");
+    let ctx = FrameContext {
+        number: 2,
+        dt: 1.0 / 24.0,
+        mesh: &c.meshes[2],
+        index: &c.indices[2],
+        previous: Some(PreviousFrame {
+            mesh: &c.meshes[1],
+            index: &c.indices[1],
+        }),
+        atlas: &c.atlases[2],
+    };
+    let r = resumed.step(&ctx).expect("step");
+    assert_eq!(r.channels, all[2].channels);
+    assert_eq!(r.source, all[2].source);
+    assert!(resumed.load_state(&bytes[..bytes.len() / 2]).is_err());
+}
+
+#[test]
+fn global_and_local_placement_both_cover_everything() {
+    let c = clip("differential-rotation", 12, 3, 96);
+    for placement in [Placement::Local, Placement::Global] {
+        let params = ErosionParams {
+            placement,
+            ..Default::default()
+        };
+        let mut m = Erosion::new(params, exemplar(), 4).expect("params");
+        for r in step_all(&mut m, &c) {
+            assert_eq!(r.stats["uncovered_texels"], 0, "{placement:?}");
+            assert!(!sources(&r).contains(&SOURCE_UNCOVERED));
+        }
+    }
+}
+
+#[test]
+fn missing_velocity_and_bad_parameters_are_errors() {
+    let mut c = clip("rigid-rotation", 10, 1, 64);
+    c.meshes[0].attributes.clear();
+    let mut m = Erosion::new(ErosionParams::default(), exemplar(), 0).expect("params");
+    let ctx = FrameContext {
+        number: 3,
+        dt: 0.04,
+        mesh: &c.meshes[0],
+        index: &c.indices[0],
+        previous: None,
+        atlas: &c.atlases[0],
+    };
+    let err = m.step(&ctx).expect_err("no velocity").to_string();
+    assert!(err.contains("frame 3") && err.contains("velocity"), "{err}");
+    for bad in [
+        ErosionParams {
+            epsilon: 1.5,
+            ..Default::default()
+        },
+        ErosionParams {
+            delta_max: 1.0,
+            ..Default::default()
+        },
+        ErosionParams {
+            radius: Some(-1.0),
+            ..Default::default()
+        },
+        ErosionParams {
+            substeps: 0,
+            ..Default::default()
+        },
+        ErosionParams {
+            exemplar_scale: f32::NAN,
+            ..Default::default()
+        },
+    ] {
+        assert!(Erosion::new(bad, exemplar(), 0).is_err());
+    }
+}
