@@ -49,8 +49,10 @@
 //! **What the harness must supply** (details in each function's doc).
 //! - Atlases: `source`, `uv`, per-texel surface `points` (NaN outside
 //!   charts); chart ids where charts may touch without a gutter.
-//! - Renders: a foreground mask and depth for [`interior_mask`]; per pixel
-//!   the *true motion* over the frame in pixels. Prefer the exact
+//! - Renders (flow and popping are measured on renders only: the atlas is
+//!   unwrapped anew every frame, so texel (x, y) of two frames are
+//!   unrelated): a foreground mask and depth for [`interior_mask`]; per
+//!   pixel the *true motion* over the frame in pixels. Prefer the exact
 //!   displacement of the surface point seen at the pixel (trace it through
 //!   the scene's velocity field over the frame and project both ends) to
 //!   EVALUATION's velocity × frame time: on curved paths the two differ by
