@@ -1,0 +1,629 @@
+//! The committed pass thresholds, per-frame verdicts and summaries over
+//! frames.
+//!
+//! `thresholds.toml` (beside this file) is compiled in, so a binary always
+//! judges by the thresholds of its own commit. Each section holds one
+//! metric's pass threshold(s) and the settings it is measured with: both
+//! are part of what "pass" means and both are fixed before methods run.
+
+use std::fmt;
+
+use serde::Deserialize;
+
+use super::MetricsError;
+
+const FILE: &str = "metrics/thresholds.toml";
+const COMMITTED: &str = include_str!("thresholds.toml");
+
+/// Coverage (share of chart texels with no source).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct CoverageThresholds {
+    /// Largest passing share, in [0, 1]. EVALUATION: 0.
+    pub max_uncovered_share: f64,
+}
+
+/// Ghost fraction (share of chart texels with ≥ 2 significant layers).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct GhostingThresholds {
+    /// Weight from which a layer counts, in (0, 1]. EVALUATION: 0.05.
+    pub min_layer_weight: f32,
+    /// Largest passing share, in [0, 1]. EVALUATION: 0.
+    pub max_share: f64,
+}
+
+/// Contrast ratio ρ = σ(output)/σ_ex.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ContrastThresholds {
+    /// Smallest passing ρ (the minimum over frames must reach it). 0.90.
+    pub min_ratio: f64,
+}
+
+/// Distortion: area-weighted quantile of σ₁/σ₂.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct DistortionThresholds {
+    /// The quantile, in (0, 1]. EVALUATION: 0.95.
+    pub quantile: f32,
+    /// δ_max, the largest passing anisotropy (inclusive), ≥ 1. 3.
+    pub max_anisotropy: f64,
+}
+
+/// Exemplar fidelity: relative sliced Wasserstein distance.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct FidelityThresholds {
+    /// Largest passing SWD(output, exemplar)/SWD(half, half). 2.5.
+    pub max_ratio: f64,
+    /// Laplacian pyramid levels, 1–8. 4.
+    pub levels: u32,
+    /// Side of the square patch descriptor (odd, 3–15). 7.
+    pub patch_size: u32,
+    /// Random projection directions, 1–4096. 128.
+    pub projections: u32,
+    /// Patches drawn per image and level, 16–1 048 576. 4096.
+    pub patches_per_level: u32,
+    /// Seed of patch positions and projections.
+    pub seed: u64,
+}
+
+/// Flow fidelity.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct FlowThresholds {
+    /// Pixels with a slower true motion are not measured (px/frame). 0.3.
+    pub min_speed_px: f32,
+    /// Half-size of the search window around the predicted position (px), 1–32. 3.
+    pub search_radius_px: u32,
+    /// Half-size of the block matched by [`super::image_motion`] (px), 1–16. 3.
+    pub block_half_px: u32,
+    /// cos(angle) above which a pixel counts as aligned, in [-1, 1]. 0.9.
+    pub min_cos: f32,
+    /// Largest passing median end-point error (px). 0.25.
+    pub max_median_epe_px: f64,
+    /// Smallest passing share of aligned pixels, in [0, 1]. 0.90.
+    pub min_aligned_share: f64,
+}
+
+/// Silhouette margin used by flow and popping in renders.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SilhouetteSettings {
+    /// Margin from background, border and depth edges (px), 0–32. 2.
+    pub radius_px: u32,
+    /// Relative depth jump that makes an edge, > 0. 0.02.
+    pub relative_depth_jump: f32,
+}
+
+/// Popping (warping error with the true motion).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct PoppingThresholds {
+    /// A pixel pops where |I₁ − warp(I₀)| > `sigma_factor` σ_ex. 0.5.
+    pub sigma_factor: f32,
+    /// Largest passing mean popped share over frames, in [0, 1]. 0.02.
+    pub max_mean_share: f64,
+    /// Largest passing popped share of any frame, in [0, 1]. 0.05.
+    pub max_worst_share: f64,
+}
+
+/// Static stop.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct StaticStopThresholds {
+    /// Frames after the stop allowed to differ from the first still one. 0.
+    pub max_changed_frames: u32,
+}
+
+/// Exemplar-size cost.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SizeCostThresholds {
+    /// Largest passing time(2048²)/time(256²), > 0. 1.15.
+    pub max_ratio: f64,
+}
+
+/// All thresholds and measurement settings, one section per metric.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Thresholds {
+    pub coverage: CoverageThresholds,
+    pub ghosting: GhostingThresholds,
+    pub contrast: ContrastThresholds,
+    pub distortion: DistortionThresholds,
+    pub fidelity: FidelityThresholds,
+    pub flow: FlowThresholds,
+    pub silhouette: SilhouetteSettings,
+    pub popping: PoppingThresholds,
+    pub static_stop: StaticStopThresholds,
+    pub size_cost: SizeCostThresholds,
+}
+
+/// The metrics a report has a cell for. Flow fidelity has two.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Metric {
+    Coverage,
+    Ghosting,
+    Contrast,
+    Distortion,
+    Fidelity,
+    FlowEpe,
+    FlowAligned,
+    Popping,
+    StaticStop,
+    SizeCost,
+}
+
+impl Metric {
+    /// Every metric, in report order.
+    pub const ALL: [Metric; 10] = [
+        Metric::Coverage,
+        Metric::Ghosting,
+        Metric::Contrast,
+        Metric::Distortion,
+        Metric::Fidelity,
+        Metric::FlowEpe,
+        Metric::FlowAligned,
+        Metric::Popping,
+        Metric::StaticStop,
+        Metric::SizeCost,
+    ];
+
+    /// Column title of the report.
+    pub fn name(self) -> &'static str {
+        match self {
+            Metric::Coverage => "uncovered share",
+            Metric::Ghosting => "ghost fraction",
+            Metric::Contrast => "contrast ratio",
+            Metric::Distortion => "distortion p95",
+            Metric::Fidelity => "SWD ratio",
+            Metric::FlowEpe => "flow median EPE (px)",
+            Metric::FlowAligned => "flow aligned share",
+            Metric::Popping => "popping share",
+            Metric::StaticStop => "frames changed after stop",
+            Metric::SizeCost => "exemplar-size cost",
+        }
+    }
+}
+
+impl fmt::Display for Metric {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// The outcome of a threshold test.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Verdict {
+    Pass,
+    Fail,
+    /// Nothing was measured (no frame had samples): never a pass.
+    NoData,
+}
+
+impl Verdict {
+    fn of(pass: bool) -> Verdict {
+        if pass { Verdict::Pass } else { Verdict::Fail }
+    }
+
+    pub fn is_pass(self) -> bool {
+        self == Verdict::Pass
+    }
+}
+
+impl fmt::Display for Verdict {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Verdict::Pass => "PASS",
+            Verdict::Fail => "FAIL",
+            Verdict::NoData => "n/a",
+        })
+    }
+}
+
+/// One metric over a sequence: a report cell, "median [min, max] PASS".
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Summary {
+    pub metric: Metric,
+    /// Frames with a value.
+    pub frames: usize,
+    /// Frames without one (NaN: nothing to measure), left out of the rest.
+    pub skipped: usize,
+    /// Lower median (the ⌈n/2⌉-th smallest value).
+    pub median: f64,
+    pub min: f64,
+    pub max: f64,
+    pub mean: f64,
+    pub verdict: Verdict,
+}
+
+impl fmt::Display for Summary {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{:.4} [{:.4}, {:.4}] {}",
+            self.median, self.min, self.max, self.verdict
+        )
+    }
+}
+
+impl Thresholds {
+    /// The thresholds committed with this build.
+    pub fn committed() -> Result<Thresholds, MetricsError> {
+        Thresholds::from_toml(COMMITTED)
+    }
+
+    /// Parses and validates a thresholds file (for tests of the parser; the
+    /// evaluation uses [`Thresholds::committed`]).
+    pub fn from_toml(text: &str) -> Result<Thresholds, MetricsError> {
+        let t: Thresholds = toml::from_str(text).map_err(|e| MetricsError::Thresholds {
+            file: FILE,
+            message: e.message().to_string(),
+        })?;
+        t.validate()?;
+        Ok(t)
+    }
+
+    fn validate(&self) -> Result<(), MetricsError> {
+        fn check(
+            name: &'static str,
+            value: f64,
+            ok: bool,
+            allowed: &'static str,
+        ) -> Result<(), MetricsError> {
+            if ok && value.is_finite() {
+                Ok(())
+            } else {
+                Err(MetricsError::Invalid {
+                    name,
+                    value,
+                    allowed,
+                })
+            }
+        }
+        let share = |v: f64| (0.0..=1.0).contains(&v);
+        let c = &self.coverage;
+        check(
+            "coverage.max_uncovered_share",
+            c.max_uncovered_share,
+            share(c.max_uncovered_share),
+            "[0, 1]",
+        )?;
+        let g = &self.ghosting;
+        let w = g.min_layer_weight as f64;
+        check(
+            "ghosting.min_layer_weight",
+            w,
+            w > 0.0 && w <= 1.0,
+            "(0, 1]",
+        )?;
+        check(
+            "ghosting.max_share",
+            g.max_share,
+            share(g.max_share),
+            "[0, 1]",
+        )?;
+        let r = self.contrast.min_ratio;
+        check("contrast.min_ratio", r, r > 0.0, "(0, inf)")?;
+        let d = &self.distortion;
+        let q = d.quantile as f64;
+        check("distortion.quantile", q, q > 0.0 && q <= 1.0, "(0, 1]")?;
+        check(
+            "distortion.max_anisotropy",
+            d.max_anisotropy,
+            d.max_anisotropy >= 1.0,
+            "[1, inf)",
+        )?;
+        let f = &self.fidelity;
+        check(
+            "fidelity.max_ratio",
+            f.max_ratio,
+            f.max_ratio > 0.0,
+            "(0, inf)",
+        )?;
+        check(
+            "fidelity.levels",
+            f.levels as f64,
+            (1..=8).contains(&f.levels),
+            "1..=8",
+        )?;
+        check(
+            "fidelity.patch_size",
+            f.patch_size as f64,
+            (3..=15).contains(&f.patch_size) && f.patch_size % 2 == 1,
+            "odd, 3..=15",
+        )?;
+        check(
+            "fidelity.projections",
+            f.projections as f64,
+            (1..=4096).contains(&f.projections),
+            "1..=4096",
+        )?;
+        check(
+            "fidelity.patches_per_level",
+            f.patches_per_level as f64,
+            (16..=1 << 20).contains(&f.patches_per_level),
+            "16..=1048576",
+        )?;
+        let fl = &self.flow;
+        check(
+            "flow.min_speed_px",
+            fl.min_speed_px as f64,
+            fl.min_speed_px >= 0.0,
+            "[0, inf)",
+        )?;
+        check(
+            "flow.search_radius_px",
+            fl.search_radius_px as f64,
+            (1..=32).contains(&fl.search_radius_px),
+            "1..=32",
+        )?;
+        check(
+            "flow.block_half_px",
+            fl.block_half_px as f64,
+            (1..=16).contains(&fl.block_half_px),
+            "1..=16",
+        )?;
+        check(
+            "flow.min_cos",
+            fl.min_cos as f64,
+            (-1.0..=1.0).contains(&fl.min_cos),
+            "[-1, 1]",
+        )?;
+        check(
+            "flow.max_median_epe_px",
+            fl.max_median_epe_px,
+            fl.max_median_epe_px >= 0.0,
+            "[0, inf)",
+        )?;
+        check(
+            "flow.min_aligned_share",
+            fl.min_aligned_share,
+            share(fl.min_aligned_share),
+            "[0, 1]",
+        )?;
+        let s = &self.silhouette;
+        check(
+            "silhouette.radius_px",
+            s.radius_px as f64,
+            s.radius_px <= 32,
+            "0..=32",
+        )?;
+        check(
+            "silhouette.relative_depth_jump",
+            s.relative_depth_jump as f64,
+            s.relative_depth_jump > 0.0,
+            "(0, inf)",
+        )?;
+        let p = &self.popping;
+        check(
+            "popping.sigma_factor",
+            p.sigma_factor as f64,
+            p.sigma_factor > 0.0,
+            "(0, inf)",
+        )?;
+        check(
+            "popping.max_mean_share",
+            p.max_mean_share,
+            share(p.max_mean_share),
+            "[0, 1]",
+        )?;
+        check(
+            "popping.max_worst_share",
+            p.max_worst_share,
+            share(p.max_worst_share),
+            "[0, 1]",
+        )?;
+        check(
+            "size_cost.max_ratio",
+            self.size_cost.max_ratio,
+            self.size_cost.max_ratio > 0.0,
+            "(0, inf)",
+        )
+    }
+
+    /// The verdict on one frame's value (one sequence's value for
+    /// [`Metric::StaticStop`] and [`Metric::SizeCost`]). NaN is
+    /// [`Verdict::NoData`]. A single frame of popping is judged against the
+    /// worst-frame threshold.
+    pub fn verdict(&self, metric: Metric, value: f64) -> Verdict {
+        if value.is_nan() {
+            return Verdict::NoData;
+        }
+        Verdict::of(match metric {
+            Metric::Coverage => value <= self.coverage.max_uncovered_share,
+            Metric::Ghosting => value <= self.ghosting.max_share,
+            Metric::Contrast => value >= self.contrast.min_ratio,
+            Metric::Distortion => value <= self.distortion.max_anisotropy,
+            Metric::Fidelity => value <= self.fidelity.max_ratio,
+            Metric::FlowEpe => value <= self.flow.max_median_epe_px,
+            Metric::FlowAligned => value >= self.flow.min_aligned_share,
+            Metric::Popping => value <= self.popping.max_worst_share,
+            Metric::StaticStop => value <= self.static_stop.max_changed_frames as f64,
+            Metric::SizeCost => value <= self.size_cost.max_ratio,
+        })
+    }
+
+    /// Summarises per-frame values and judges the sequence:
+    /// - coverage, ghosting, distortion, fidelity, static stop, size cost:
+    ///   the worst (largest) value must pass;
+    /// - contrast: the smallest ρ must pass (EVALUATION: "min over frames");
+    /// - flow EPE and aligned share: the median over frames must pass. The
+    ///   median, because a frame's flow is measured on the pixels that move
+    ///   faster than `flow.min_speed_px`, and near a stop or a reversal of
+    ///   the flow those are few and at the edge of the measurable;
+    /// - popping: the mean must pass `max_mean_share` and the worst frame
+    ///   `max_worst_share`.
+    ///
+    /// NaN values (frames with nothing to measure) are skipped; no values
+    /// at all give [`Verdict::NoData`].
+    pub fn summarize(&self, metric: Metric, values: &[f64]) -> Summary {
+        let mut v: Vec<f64> = values.iter().copied().filter(|x| !x.is_nan()).collect();
+        v.sort_unstable_by(f64::total_cmp);
+        let skipped = values.len() - v.len();
+        let (Some(&min), Some(&max)) = (v.first(), v.last()) else {
+            return Summary {
+                metric,
+                frames: 0,
+                skipped,
+                median: f64::NAN,
+                min: f64::NAN,
+                max: f64::NAN,
+                mean: f64::NAN,
+                verdict: Verdict::NoData,
+            };
+        };
+        let median = v[(v.len() - 1) / 2];
+        let mean = v.iter().sum::<f64>() / v.len() as f64;
+        let verdict = match metric {
+            Metric::Contrast => self.verdict(metric, min),
+            Metric::FlowEpe | Metric::FlowAligned => self.verdict(metric, median),
+            Metric::Popping => Verdict::of(
+                mean <= self.popping.max_mean_share && max <= self.popping.max_worst_share,
+            ),
+            Metric::Coverage
+            | Metric::Ghosting
+            | Metric::Distortion
+            | Metric::Fidelity
+            | Metric::StaticStop
+            | Metric::SizeCost => self.verdict(metric, max),
+        };
+        Summary {
+            metric,
+            frames: v.len(),
+            skipped,
+            median,
+            min,
+            max,
+            mean,
+            verdict,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn committed() -> Thresholds {
+        Thresholds::committed().expect("the committed thresholds parse")
+    }
+
+    #[test]
+    fn committed_file_holds_the_evaluation_values() {
+        let t = committed();
+        assert_eq!(t.coverage.max_uncovered_share, 0.0);
+        assert_eq!(t.ghosting.min_layer_weight, 0.05);
+        assert_eq!(t.ghosting.max_share, 0.0);
+        assert_eq!(t.contrast.min_ratio, 0.90);
+        assert_eq!(t.distortion.quantile, 0.95);
+        assert_eq!(t.distortion.max_anisotropy, 3.0);
+        assert_eq!(t.fidelity.max_ratio, 2.5);
+        assert_eq!(t.fidelity.levels, 4);
+        assert_eq!(t.fidelity.patch_size, 7);
+        assert_eq!(t.fidelity.projections, 128);
+        assert_eq!(t.flow.min_speed_px, 0.3);
+        assert_eq!(t.flow.min_cos, 0.9);
+        assert_eq!(t.flow.max_median_epe_px, 0.25);
+        assert_eq!(t.flow.min_aligned_share, 0.90);
+        assert_eq!(t.popping.sigma_factor, 0.5);
+        assert_eq!(t.popping.max_mean_share, 0.02);
+        assert_eq!(t.popping.max_worst_share, 0.05);
+        assert_eq!(t.static_stop.max_changed_frames, 0);
+        assert_eq!(t.size_cost.max_ratio, 1.15);
+    }
+
+    #[test]
+    fn out_of_range_and_unknown_keys_are_named() {
+        let bad = COMMITTED.replace("quantile = 0.95", "quantile = 1.5");
+        assert_eq!(
+            Thresholds::from_toml(&bad),
+            Err(MetricsError::Invalid {
+                name: "distortion.quantile",
+                value: 1.5,
+                allowed: "(0, 1]"
+            })
+        );
+        let bad = COMMITTED.replace("patch_size = 7", "patch_size = 8");
+        assert!(matches!(
+            Thresholds::from_toml(&bad),
+            Err(MetricsError::Invalid {
+                name: "fidelity.patch_size",
+                ..
+            })
+        ));
+        let unknown = COMMITTED.replace("max_ratio = 1.15", "max_ratio = 1.15\nmax_ratoi = 2");
+        let err = Thresholds::from_toml(&unknown).expect_err("unknown key");
+        assert!(err.to_string().contains("max_ratoi"), "{err}");
+        let missing = COMMITTED.replace("min_cos = 0.9", "");
+        let err = Thresholds::from_toml(&missing).expect_err("missing key");
+        assert!(err.to_string().contains("min_cos"), "{err}");
+    }
+
+    #[test]
+    fn verdicts_at_and_beyond_each_threshold() {
+        let t = committed();
+        use Verdict::{Fail, NoData, Pass};
+        let cases = [
+            (Metric::Coverage, 0.0, Pass),
+            (Metric::Coverage, 1e-9, Fail),
+            (Metric::Ghosting, 0.0, Pass),
+            (Metric::Ghosting, 1e-9, Fail),
+            (Metric::Contrast, 0.90, Pass),
+            (Metric::Contrast, 0.899, Fail),
+            (Metric::Distortion, 3.0, Pass),
+            (Metric::Distortion, 3.001, Fail),
+            (Metric::Distortion, f64::INFINITY, Fail),
+            (Metric::Fidelity, 2.5, Pass),
+            (Metric::Fidelity, 2.51, Fail),
+            (Metric::FlowEpe, 0.25, Pass),
+            (Metric::FlowEpe, 0.26, Fail),
+            (Metric::FlowAligned, 0.90, Pass),
+            (Metric::FlowAligned, 0.89, Fail),
+            (Metric::Popping, 0.05, Pass),
+            (Metric::Popping, 0.051, Fail),
+            (Metric::StaticStop, 0.0, Pass),
+            (Metric::StaticStop, 1.0, Fail),
+            (Metric::SizeCost, 1.15, Pass),
+            (Metric::SizeCost, 1.16, Fail),
+            (Metric::Contrast, f64::NAN, NoData),
+        ];
+        for (metric, value, expected) in cases {
+            assert_eq!(t.verdict(metric, value), expected, "{metric} = {value}");
+        }
+    }
+
+    #[test]
+    fn summaries_aggregate_as_documented() {
+        let t = committed();
+        // Contrast: judged by the minimum.
+        let s = t.summarize(Metric::Contrast, &[1.0, 0.95, 0.89, f64::NAN]);
+        assert_eq!((s.frames, s.skipped), (3, 1));
+        assert_eq!((s.median, s.min, s.max), (0.95, 0.89, 1.0));
+        assert_eq!(s.verdict, Verdict::Fail);
+        // Flow EPE: judged by the median, one bad frame of three passes.
+        let s = t.summarize(Metric::FlowEpe, &[0.1, 3.0, 0.2]);
+        assert_eq!((s.median, s.verdict), (0.2, Verdict::Pass));
+        // Popping: mean 0.0225 > 0.02 fails though no frame exceeds 5%.
+        let s = t.summarize(Metric::Popping, &[0.01, 0.035]);
+        assert!((s.mean - 0.0225).abs() < 1e-12);
+        assert_eq!(s.verdict, Verdict::Fail);
+        // Popping: mean 0.0175 passes, worst 0.03 passes.
+        let s = t.summarize(Metric::Popping, &[0.005, 0.03]);
+        assert_eq!(s.verdict, Verdict::Pass);
+        // Popping: a single frame above 5% fails whatever the mean.
+        let mut calm = vec![0.0; 9];
+        calm.push(0.06);
+        let s = t.summarize(Metric::Popping, &calm);
+        assert_eq!(s.verdict, Verdict::Fail);
+        // Coverage: judged by the worst frame.
+        let s = t.summarize(Metric::Coverage, &[0.0, 0.0, 0.001]);
+        assert_eq!(s.verdict, Verdict::Fail);
+        // No frame measured is no pass.
+        let s = t.summarize(Metric::FlowAligned, &[f64::NAN]);
+        assert_eq!((s.frames, s.verdict), (0, Verdict::NoData));
+        assert_eq!(s.verdict.to_string(), "n/a");
+    }
+}
