@@ -31,7 +31,7 @@ pub enum Command {
     /// Describe a mesh sequence: frames, triangles, attributes, bounds, velocity range
     Info(commands::info::InfoArgs),
     /// Texture a mesh sequence
-    Run(commands::run::RunArgs),
+    Run(Box<commands::run::RunArgs>),
     /// Texture a built-in scene with the built-in pebbles exemplar, with previews
     Demo(commands::demo::DemoArgs),
     /// Generate a scene (analytic flows with exact velocity, or an SPH dam break)

@@ -218,30 +218,30 @@ pub fn run(
         path: job.out_dir.clone(),
         message: format!("cannot create the output folder: {e}"),
     })?;
-    let guard = InputGuard::new(&source.input_paths());
+    let guard = InputGuard::new(source.input_paths());
     let mut frames = source.frames();
     let mut previous: Option<(TriMesh, SurfaceIndex)> = None;
     let mut resumed_after = None;
-    if job.resume {
-        if let Some(saved) = read_state(&job.out_dir)? {
-            if saved.fingerprint != job.fingerprint || saved.method != method.name() {
-                return Err(PipelineError::Resume(format!(
-                    "{} was written by a run with another configuration or method ({}); \
+    if job.resume
+        && let Some(saved) = read_state(&job.out_dir)?
+    {
+        if saved.fingerprint != job.fingerprint || saved.method != method.name() {
+            return Err(PipelineError::Resume(format!(
+                "{} was written by a run with another configuration or method ({}); \
                      rerun without --resume or with the same settings",
-                    job.out_dir.join(STATE_FILE).display(),
-                    saved.method
-                )));
-            }
-            method.load_state(&saved.method_state)?;
-            let last = saved.last_frame;
-            if frames.contains(&last) {
-                let (mesh, _) = source.read(last)?;
-                let index = SurfaceIndex::new(&mesh);
-                previous = Some((mesh, index));
-            }
-            frames.retain(|&f| f > last);
-            resumed_after = Some(last);
+                job.out_dir.join(STATE_FILE).display(),
+                saved.method
+            )));
         }
+        method.load_state(&saved.method_state)?;
+        let last = saved.last_frame;
+        if frames.contains(&last) {
+            let (mesh, _) = source.read(last)?;
+            let index = SurfaceIndex::new(&mesh);
+            previous = Some((mesh, index));
+        }
+        frames.retain(|&f| f > last);
+        resumed_after = Some(last);
     }
     let total = frames.len();
     // Previews are taken every n frames counted from the sequence's first

@@ -65,6 +65,14 @@ impl FrameSource for Memory {
     }
 }
 
+/// One frame's figures: frame, stage seconds, stage order, method stats.
+type BenchRow = (
+    i32,
+    BTreeMap<String, f64>,
+    Vec<String>,
+    BTreeMap<String, serde_json::Value>,
+);
+
 pub fn bench(a: &BenchArgs) -> Result<()> {
     if a.frames < 2 {
         bail!("--frames {}: need at least 2", a.frames);
@@ -133,12 +141,7 @@ pub fn bench(a: &BenchArgs) -> Result<()> {
     };
     let mut method = build_method(&config)?;
     let job = build_job(&config, out, false)?;
-    let mut rows: Vec<(
-        i32,
-        BTreeMap<String, f64>,
-        Vec<String>,
-        BTreeMap<String, serde_json::Value>,
-    )> = Vec::new();
+    let mut rows: Vec<BenchRow> = Vec::new();
     let mut observer = |e: Event<'_>| {
         if let Event::Done { stats } = e {
             rows.push((

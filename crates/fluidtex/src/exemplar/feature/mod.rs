@@ -74,6 +74,29 @@ pub struct FeatureMap {
     pub origin: FeatureOrigin,
 }
 
+/// [`FeatureMap::sample`] with its set-up hoisted out of the loop.
+#[derive(Clone, Copy, Debug)]
+pub struct FeatureSampler<'a> {
+    lattice: Lattice,
+    data: &'a [f32],
+    stride: usize,
+}
+
+impl FeatureSampler<'_> {
+    /// `F_m(u, v)`: bilinear, repeating.
+    #[inline]
+    pub fn sample(&self, u: f32, v: f32) -> f32 {
+        let mut out = [0.0];
+        blend(
+            self.data,
+            self.stride,
+            &self.lattice.footprint(u, v),
+            &mut out,
+        );
+        out[0]
+    }
+}
+
 impl FeatureMap {
     /// Checks the map: non-empty, finite, one channel, values in `[0, 1]`.
     /// `what` names it in errors (a file name, or a description).
@@ -89,15 +112,17 @@ impl FeatureMap {
     /// `F_m(u, v)`: bilinear, repeating ([`crate::texture::Wrap::Repeat`]).
     #[inline]
     pub fn sample(&self, u: f32, v: f32) -> f32 {
-        let lattice = Lattice::new(self.map.width, self.map.height);
-        let mut out = [0.0];
-        blend(
-            &self.map.data,
-            self.map.channels.max(1),
-            &lattice.footprint(u, v),
-            &mut out,
-        );
-        out[0]
+        self.sampler().sample(u, v)
+    }
+
+    /// A sampler with the lattice arithmetic set up once, for loops that
+    /// sample the map per texel (the lapped fill).
+    pub fn sampler(&self) -> FeatureSampler<'_> {
+        FeatureSampler {
+            lattice: Lattice::new(self.map.width, self.map.height),
+            data: &self.map.data,
+            stride: self.map.channels.max(1),
+        }
     }
 
     /// The normaliser of the erosion test (2021 paper, Sec. 5.2):

@@ -25,6 +25,7 @@ use super::erode::ErosionTest;
 use super::patch::Patch;
 use crate::atlas::Atlas;
 use crate::exemplar::Exemplar;
+use crate::exemplar::feature::FeatureSampler;
 use crate::mesh::TriMesh;
 use crate::surface::SurfaceIndex;
 
@@ -72,6 +73,23 @@ impl TriFrame {
         })
     }
 
+    /// False when no point of fluid triangle `f` can be located in this
+    /// triangle: the fluid triangle faces away, or all its corners lie
+    /// beyond the same plane of the tolerance prism (the prism and the
+    /// triangle are convex, so one separating plane suffices).
+    #[inline]
+    pub fn may_cover(&self, mesh: &TriMesh, f: u32, tolerance: LocateTolerance) -> bool {
+        if mesh.triangle_cross(f as usize).dot(self.normal) <= 0.0 {
+            return false;
+        }
+        let corners = mesh.corners(f as usize).map(|q| self.locate(q));
+        let d = tolerance.max_plane_distance;
+        if corners.iter().all(|(_, h)| *h > d) || corners.iter().all(|(_, h)| *h < -d) {
+            return false;
+        }
+        (0..3).all(|k| corners.iter().any(|(b, _)| b[k] >= tolerance.min_bary))
+    }
+
     /// Barycentrics of the projection of `x` and its signed plane distance.
     #[inline]
     pub fn locate(&self, x: Vec3) -> ([f32; 3], f32) {
@@ -105,31 +123,42 @@ pub struct Candidates {
 }
 
 impl Candidates {
-    /// Matches the triangles of `patches[first..]` with the fluid triangles
-    /// of `index` whose boxes meet theirs enlarged by `margin`. Patch indices
-    /// in the result are absolute (offset by `first`).
+    /// Matches every patch triangle with the fluid triangles that may hold
+    /// texels it covers: those whose bounding box meets the patch
+    /// triangle's, enlarged by the plane tolerance (a BVH query), that face
+    /// the same side and that are not separated from the triangle's
+    /// tolerance prism by one of its planes ([`TriFrame::may_cover`]). The
+    /// prism test is exact for what [`FillContext::locate`] accepts, so it
+    /// prunes without changing any result.
     pub fn build(
-        fluid_triangles: usize,
+        mesh: &TriMesh,
         index: &SurfaceIndex,
         patches: &[Patch],
-        first: usize,
-        margin: f32,
+        frames: &[Vec<Option<TriFrame>>],
+        tolerance: LocateTolerance,
     ) -> Candidates {
-        let per_patch: Vec<Vec<(u32, u32, u32)>> = patches[first..]
+        let margin = Vec3::splat(tolerance.max_plane_distance);
+        let per_patch: Vec<Vec<(u32, u32, u32)>> = patches
             .par_iter()
+            .zip(frames.par_iter())
             .enumerate()
-            .map(|(k, p)| {
-                let i = (first + k) as u32;
+            .map(|(i, (p, frames))| {
                 let mut out = Vec::new();
-                for (j, t) in p.triangles.iter().enumerate() {
+                for (j, (t, frame)) in p.triangles.iter().zip(frames).enumerate() {
+                    let Some(frame) = frame else { continue };
                     let [a, b, c] = t.map(|v| p.positions[v as usize]);
-                    let lo = a.min(b).min(c) - Vec3::splat(margin);
-                    let hi = a.max(b).max(c) + Vec3::splat(margin);
-                    index.triangles_in_box(lo, hi, |f| out.push((f, i, j as u32)));
+                    let lo = a.min(b).min(c) - margin;
+                    let hi = a.max(b).max(c) + margin;
+                    index.triangles_in_box(lo, hi, |f| {
+                        if frame.may_cover(mesh, f, tolerance) {
+                            out.push((f, i as u32, j as u32));
+                        }
+                    });
                 }
                 out
             })
             .collect();
+        let fluid_triangles = mesh.triangle_count();
         let mut all: Vec<(u32, u32, u32)> = per_patch.into_iter().flatten().collect();
         all.par_sort_unstable();
         let mut offsets = vec![0u32; fluid_triangles + 1];
@@ -171,6 +200,7 @@ pub struct FillContext<'a> {
     pub patches: &'a [Patch],
     pub frames: &'a [Vec<Option<TriFrame>>],
     pub exemplar: &'a Exemplar,
+    pub feature: FeatureSampler<'a>,
     pub test: ErosionTest,
     pub tolerance: LocateTolerance,
 }
@@ -231,7 +261,7 @@ impl FillContext<'_> {
     /// True when patch uv `uv` with weight `w` survives erosion.
     #[inline]
     pub fn kept(&self, uv: Vec2, w: f32) -> bool {
-        let f = self.exemplar.feature.sample(uv.x, uv.y);
+        let f = self.feature.sample(uv.x, uv.y);
         !self.test.eroded(f, uv.x, uv.y, w)
     }
 
@@ -304,6 +334,119 @@ impl FillBuffers {
     }
 }
 
+/// A candidate patch triangle of one span, with the range of the span's
+/// texels (indices from the span start) where it may contain the texel.
+#[derive(Clone, Copy, Debug)]
+struct SpanCandidate {
+    patch: u32,
+    tri: u32,
+    lo: u32,
+    hi: u32,
+}
+
+/// Narrows `list` to the candidates that may contain some texel of a span
+/// of `n` texels from `p_first` to `p_last`. Along a span the surface point
+/// is affine in the texel index, and so are a triangle's barycentrics and
+/// plane distance: each acceptance condition of [`FillContext::locate`]
+/// holds on an interval, found from the values at both ends. The intervals
+/// are widened by a texel, so they only prune; every texel is still decided
+/// by the exact per-texel test.
+fn span_candidates(
+    ctx: &FillContext<'_>,
+    list: &[(u32, u32)],
+    p_first: Vec3,
+    p_last: Vec3,
+    n: u32,
+    out: &mut Vec<SpanCandidate>,
+) {
+    out.clear();
+    let last = n.saturating_sub(1) as f32;
+    let step = if n > 1 {
+        (p_last - p_first) / last
+    } else {
+        Vec3::ZERO
+    };
+    let tol = ctx.tolerance;
+    let bary_min = tol.min_bary - 1e-4;
+    let plane_min = -tol.max_plane_distance - 1e-4;
+    for &(i, j) in list {
+        let Some(frame) = ctx.frames[i as usize][j as usize] else {
+            continue;
+        };
+        let (b, h) = frame.locate(p_first);
+        // Per-texel increments of the three barycentrics and the plane distance.
+        let (d1, d2, dh) = (
+            frame.d1.dot(step),
+            frame.d2.dot(step),
+            frame.normal.dot(step),
+        );
+        let conditions = [
+            (b[0], -d1 - d2, bary_min),
+            (b[1], d1, bary_min),
+            (b[2], d2, bary_min),
+            (h, dh, plane_min),
+            (-h, -dh, plane_min),
+        ];
+        let (mut lo, mut hi) = (0.0f32, last);
+        for (g0, dg, c) in conditions {
+            // g0 + dg k >= c
+            if dg.abs() < 1e-12 {
+                if g0 < c {
+                    hi = -1.0;
+                }
+            } else {
+                let k = (c - g0) / dg;
+                if dg > 0.0 {
+                    lo = lo.max(k - 1.0);
+                } else {
+                    hi = hi.min(k + 1.0);
+                }
+            }
+            if lo > hi {
+                break;
+            }
+        }
+        if lo <= hi && hi >= 0.0 && lo <= last {
+            // Saturating casts; widen outwards by rounding lo down and hi up.
+            let lo = lo.max(0.0) as u32;
+            let hi = (hi.min(last) + 0.999_999) as u32;
+            out.push(SpanCandidate {
+                patch: i,
+                tri: j,
+                lo,
+                hi: hi.min(n.saturating_sub(1)),
+            });
+        }
+    }
+}
+
+impl FillContext<'_> {
+    /// [`FillContext::resolve`] for texel `k` of a span, among the span's
+    /// pruned candidates.
+    #[inline]
+    fn resolve_in_span(&self, cands: &[SpanCandidate], k: u32, x: Vec3, n: Vec3) -> Option<Hit> {
+        let mut start = 0;
+        while start < cands.len() {
+            let i = cands[start].patch;
+            let mut end = start + 1;
+            while end < cands.len() && cands[end].patch == i {
+                end += 1;
+            }
+            let tris = cands[start..end]
+                .iter()
+                .filter(|c| c.lo <= k && k <= c.hi)
+                .map(|c| c.tri);
+            if let Some((uv, w)) = self.locate(i, tris, x, n)
+                && self.kept(uv, w)
+            {
+                return Some(Hit { patch: i, uv });
+            }
+            start = end;
+        }
+        None
+    }
+}
+
 /// Fills every chart texel of `atlas` (parallel by bands) and returns the
 /// texels no patch covered, in texel order.
 pub fn fill(
@@ -328,17 +471,33 @@ pub fn fill(
         .zip(bands.par_iter())
         .flat_map_iter(|(((values, source), uvs), band)| {
             let mut missing = Vec::new();
+            let mut texels: Vec<(u32, [f32; 3])> = Vec::new();
+            let mut cands = Vec::new();
             let base = band.y0 as usize * w;
             for span in &band.spans {
                 let f = span.triangle;
                 let [a, b, cc] = mesh.corners(f as usize);
                 let n = (b - a).cross(cc - a).normalize_or_zero();
-                let list = candidates.of(f);
+                let point = |bary: [f32; 3]| a * bary[0] + b * bary[1] + cc * bary[2];
+                texels.clear();
+                texels.extend(atlas.span_barycentrics(span));
+                let (Some(&(_, b_first)), Some(&(_, b_last))) = (texels.first(), texels.last())
+                else {
+                    continue;
+                };
+                span_candidates(
+                    ctx,
+                    candidates.of(f),
+                    point(b_first),
+                    point(b_last),
+                    texels.len() as u32,
+                    &mut cands,
+                );
                 let row = span.y as usize * w - base;
-                for (x, bary) in atlas.span_barycentrics(span) {
+                for (k, &(x, bary)) in texels.iter().enumerate() {
                     let t = row + x as usize;
-                    let p = a * bary[0] + b * bary[1] + cc * bary[2];
-                    match ctx.resolve(list, p, n) {
+                    let p = point(bary);
+                    match ctx.resolve_in_span(&cands, k as u32, p, n) {
                         Some(hit) => {
                             ctx.exemplar.sample_all(
                                 hit.uv.x,

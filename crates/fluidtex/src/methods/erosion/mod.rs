@@ -217,6 +217,7 @@ impl Method for Erosion {
         let deleted_before;
         let mut created = 0usize;
         let mut forced = 0usize;
+        let mut candidate_pairs = 0usize;
 
         if mesh.is_empty() {
             // The fluid vanished: nothing to project onto, every patch goes.
@@ -267,7 +268,7 @@ impl Method for Erosion {
                     }),
                     dt: ctx.dt,
                     substeps: self.params.substeps,
-                    search_hint: radius,
+                    search_hint: 0.25 * radius,
                 };
                 self.state.patches.par_iter_mut().for_each(|p| {
                     if !p.advect(&flow, ctx.index, &shape) {
@@ -329,23 +330,20 @@ impl Method for Erosion {
                 max_plane_distance: 0.125 * radius,
             };
             let frames = fill::patch_frames(&self.state.patches);
-            let candidates = Candidates::build(
-                mesh.triangle_count(),
-                ctx.index,
-                &self.state.patches,
-                0,
-                tolerance.max_plane_distance,
-            );
+            let candidates =
+                Candidates::build(mesh, ctx.index, &self.state.patches, &frames, tolerance);
             let fill_ctx = FillContext {
                 mesh,
                 patches: &self.state.patches,
                 frames: &frames,
                 exemplar: &self.exemplar,
+                feature: self.exemplar.feature.sampler(),
                 test: self.test,
                 tolerance,
             };
             let uncovered = fill::fill(&fill_ctx, atlas, &candidates, &mut out);
-            drop(fill_ctx);
+            candidate_pairs = candidates.len();
+            // The fill's buffers are large; free them before the update.
             drop(candidates);
             drop(frames);
             clock.lap("fill");
@@ -357,6 +355,7 @@ impl Method for Erosion {
                 patches: &[],
                 frames: &[],
                 exemplar: &exemplar,
+                feature: exemplar.feature.sampler(),
                 test: self.test,
                 tolerance,
             };
@@ -369,7 +368,6 @@ impl Method for Erosion {
                 placement: self.params.placement,
                 normal_dot: self.params.normal_dot,
                 rotation: &rotation,
-                margin: tolerance.max_plane_distance,
             };
             let stats = update::cover(
                 &template,
@@ -412,6 +410,7 @@ impl Method for Erosion {
         stats.insert("texels_in_charts".into(), texels_in_charts.into());
         stats.insert("uncovered_texels".into(), uncovered_after.into());
         stats.insert("forced_texels".into(), forced.into());
+        stats.insert("candidate_pairs".into(), candidate_pairs.into());
         if let Some(r) = self.state.radius {
             stats.insert("radius".into(), serde_json::json!(r));
         }

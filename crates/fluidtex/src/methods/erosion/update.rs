@@ -62,8 +62,6 @@ pub struct UpdateInputs<'a> {
     pub normal_dot: f32,
     /// Rotation of the patch with a given id.
     pub rotation: &'a (dyn Fn(u32) -> f32 + Sync),
-    /// Margin used to match patch triangles with fluid triangles.
-    pub margin: f32,
 }
 
 /// Covers every texel in `uncovered`, appending new patches to `patches`.
@@ -148,11 +146,12 @@ pub fn cover(
                 patches: one,
                 frames: &frames,
                 exemplar: template.exemplar,
+                feature: template.feature,
                 test: template.test,
                 tolerance: template.tolerance,
             };
             let candidates =
-                Candidates::build(mesh.triangles.len(), inputs.index, one, 0, inputs.margin);
+                Candidates::build(mesh, inputs.index, one, &frames, template.tolerance);
             let mut touched: Vec<u32> = by_triangle
                 .keys()
                 .copied()
