@@ -1,0 +1,248 @@
+//! Helpers shared by the command-line tests: running the real binary,
+//! reading its outputs, and the interop meshes of the library's test data.
+//!
+//! Every test drives `fluidtex` as a user would, through the binary
+//! (`CARGO_BIN_EXE_fluidtex`), so argument parsing, exit codes and what
+//! lands on stderr are part of what is tested.
+
+#![allow(dead_code, clippy::unwrap_used)]
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// The `fluidtex` binary, with no inherited thread-count setting so tests
+/// that set one are the only ones that do.
+pub fn fluidtex() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_fluidtex"));
+    c.env_remove("RAYON_NUM_THREADS");
+    c
+}
+
+/// Runs the binary with `args`; fails the test unless it exits 0.
+/// Returns stdout.
+pub fn ok<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> String {
+    let out = fluidtex().args(args).output().unwrap();
+    check_ok(&out, args);
+    String::from_utf8(out.stdout).unwrap()
+}
+
+pub fn check_ok<S: AsRef<std::ffi::OsStr>>(out: &Output, args: &[S]) {
+    assert!(
+        out.status.success(),
+        "fluidtex {:?} failed ({:?}):\n{}",
+        args.iter().map(|a| a.as_ref()).collect::<Vec<_>>(),
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// Runs the binary with `args` and expects a user error: a non-zero exit
+/// that is not a panic (Rust exits 101 on a panic), and exactly one line on
+/// stderr, starting with `error: `. Returns that line.
+pub fn user_error<S: AsRef<std::ffi::OsStr>>(args: &[S]) -> String {
+    let out = fluidtex().args(args).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    let shown: Vec<_> = args.iter().map(|a| a.as_ref()).collect();
+    let code = out.status.code();
+    assert!(
+        code.is_some_and(|c| c != 0 && c != 101),
+        "fluidtex {shown:?}: exit {code:?}, expected a non-zero non-panic code; stderr:\n{stderr}"
+    );
+    let lines: Vec<&str> = stderr.lines().collect();
+    assert_eq!(
+        lines.len(),
+        1,
+        "fluidtex {shown:?}: expected one stderr line, got:\n{stderr}"
+    );
+    assert!(
+        lines[0].starts_with("error: "),
+        "fluidtex {shown:?}: {stderr}"
+    );
+    lines[0].to_string()
+}
+
+/// A file of the library's interop test data (see its README).
+pub fn interop(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../fluidtex/tests/data/interop")
+        .join(name)
+}
+
+/// A file of the library's exemplar test data.
+pub fn exemplar(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../fluidtex/tests/data/exemplars")
+        .join(name)
+}
+
+/// Copies interop files into `dir`, renamed: `(from, to)` pairs.
+pub fn copy_interop(dir: &Path, files: &[(&str, &str)]) {
+    std::fs::create_dir_all(dir).unwrap();
+    for (from, to) in files {
+        std::fs::copy(interop(from), dir.join(to)).unwrap();
+    }
+}
+
+/// Every file in `dir` (hidden ones included), by name, with its bytes.
+pub fn files(dir: &Path) -> BTreeMap<String, Vec<u8>> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| {
+            let e = e.unwrap();
+            (
+                e.file_name().into_string().unwrap(),
+                std::fs::read(e.path()).unwrap(),
+            )
+        })
+        .collect()
+}
+
+/// Names in `dir` that look like the atomic writer's temporaries
+/// (`.<name>.<random>.tmp`).
+pub fn temporaries(dir: &Path) -> Vec<String> {
+    let mut t: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|n| n.starts_with('.') && n.ends_with(".tmp"))
+        .collect();
+    t.sort();
+    t
+}
+
+/// A stats file with its wall-clock `seconds` removed: the only part of
+/// the outputs that may differ between two runs of the same job.
+pub fn stats_without_timings(bytes: &[u8]) -> serde_json::Value {
+    let mut v: serde_json::Value = serde_json::from_slice(bytes).unwrap();
+    let map = v.as_object_mut().unwrap();
+    assert!(map.remove("seconds").is_some(), "no seconds in {map:?}");
+    v
+}
+
+/// Asserts that two output folders hold the same files with the same
+/// bytes, except for the timings inside `stats.F.json`.
+pub fn assert_same_outputs(a: &Path, b: &Path) {
+    let fa = files(a);
+    let fb = files(b);
+    assert_eq!(
+        fa.keys().collect::<Vec<_>>(),
+        fb.keys().collect::<Vec<_>>(),
+        "{} and {} hold different files",
+        a.display(),
+        b.display()
+    );
+    for (name, bytes) in &fa {
+        if name.starts_with("stats.") {
+            assert_eq!(
+                stats_without_timings(bytes),
+                stats_without_timings(&fb[name]),
+                "{name} differs"
+            );
+        } else {
+            assert!(bytes == &fb[name], "{name} differs");
+        }
+    }
+}
+
+/// Width and height of a decoded PNG or EXR (decoded in full, by the
+/// library's exemplar reader).
+pub fn image(path: &Path) -> fluidtex::texture::Texture {
+    fluidtex::exemplar::decode::read_image(path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .texture
+}
+
+/// A frame of a meshio ASCII PLY of the interop data, parsed here
+/// independently of the library's reader: positions and velocities.
+pub struct AsciiPly {
+    pub positions: Vec<[f32; 3]>,
+    pub velocities: Vec<[f32; 3]>,
+    pub faces: usize,
+}
+
+pub fn read_meshio_ascii(path: &Path) -> AsciiPly {
+    let text = std::fs::read_to_string(path).unwrap();
+    let (header, body) = text.split_once("end_header\n").unwrap();
+    let count = |element: &str| -> usize {
+        header
+            .lines()
+            .find_map(|l| l.strip_prefix(&format!("element {element} ")))
+            .unwrap()
+            .trim()
+            .parse()
+            .unwrap()
+    };
+    let (nv, nf) = (count("vertex"), count("face"));
+    let props: Vec<&str> = header
+        .lines()
+        .skip_while(|l| !l.starts_with("element vertex"))
+        .skip(1)
+        .take_while(|l| l.starts_with("property"))
+        .map(|l| l.rsplit(' ').next().unwrap())
+        .collect();
+    assert_eq!(
+        props,
+        ["x", "y", "z", "vx", "vy", "vz"],
+        "{}",
+        path.display()
+    );
+    let mut ply = AsciiPly {
+        positions: Vec::new(),
+        velocities: Vec::new(),
+        faces: nf,
+    };
+    for line in body.lines().take(nv) {
+        let n: Vec<f32> = line
+            .split_whitespace()
+            .map(|x| x.parse().unwrap())
+            .collect();
+        ply.positions.push([n[0], n[1], n[2]]);
+        ply.velocities.push([n[3], n[4], n[5]]);
+    }
+    assert_eq!(body.lines().count(), nv + nf);
+    ply
+}
+
+/// The Khronos glTF validator (`.tools/node_modules/gltf-validator`, or
+/// `FLUIDTEX_GLTF_VALIDATOR`), found as the library's `io_gltf` test finds
+/// it. `None` when absent, unless `FLUIDTEX_REQUIRE_TOOLS=1`: then absent
+/// fails the test.
+pub fn gltf_validator() -> Option<(PathBuf, PathBuf)> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let dir = match std::env::var_os("FLUIDTEX_GLTF_VALIDATOR") {
+        Some(d) => PathBuf::from(d),
+        None => root.join(".tools/node_modules/gltf-validator"),
+    };
+    let node_ok = Command::new("node")
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    let script = root.join("crates/fluidtex/tests/gltf_validate.js");
+    if node_ok && dir.join("package.json").is_file() {
+        return Some((dir.canonicalize().unwrap(), script));
+    }
+    let msg = "Khronos glTF validator not found: run `npm install --prefix .tools \
+               gltf-validator@2.0.0-dev.3.10` at the workspace root, or set FLUIDTEX_GLTF_VALIDATOR";
+    if std::env::var("FLUIDTEX_REQUIRE_TOOLS").as_deref() == Ok("1") {
+        panic!("{msg} (FLUIDTEX_REQUIRE_TOOLS=1)");
+    }
+    eprintln!("note: skipping the glTF validation: {msg}");
+    None
+}
+
+/// The validator's report on one file: `errors`, `warnings`, `messages`.
+pub fn validate_glb(validator: &(PathBuf, PathBuf), file: &Path) -> serde_json::Value {
+    let (dir, script) = validator;
+    let out = Command::new("node")
+        .arg(script)
+        .arg(dir)
+        .arg(file)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "validator failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
