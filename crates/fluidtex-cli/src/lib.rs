@@ -67,9 +67,26 @@ pub fn main_entry() -> i32 {
                 let _ = clap_err.print();
                 return clap_err.exit_code();
             }
-            // One line: the context chain joined, outermost first.
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", one_line(&e));
             1
         }
     }
+}
+
+/// The error's context chain on one line, outermost first. Many of our
+/// errors already print their source inside their own message; a cause
+/// whose text the line already holds is not repeated.
+pub fn one_line(e: &anyhow::Error) -> String {
+    let mut line = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if line.contains(&text) {
+            continue;
+        }
+        if !line.is_empty() {
+            line.push_str(": ");
+        }
+        line.push_str(&text);
+    }
+    line.replace('\n', " ")
 }

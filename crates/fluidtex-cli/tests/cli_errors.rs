@@ -172,7 +172,6 @@ fn face_index_out_of_range_names_file_face_and_vertex() {
 /// vertices: face 88 refers to vertex 9999, but the mesh has 162 vertices`,
 /// and `frame 1: 6 charts do not fit ...: 6 charts do not fit ...`.
 #[test]
-#[ignore = "bug: error lines repeat the cause (Display includes `source` and `{:#}` appends it again)"]
 fn error_lines_do_not_repeat_their_cause() {
     let dir = tempfile::tempdir().unwrap();
     let pattern = ascii_frames(dir.path(), &[1]);

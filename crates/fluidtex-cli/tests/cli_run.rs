@@ -126,7 +126,6 @@ fn info_on_the_trimesh_obj_named_as_a_sequence() {
 /// Bug: a single mesh file (no frame token) is refused by `info`:
 /// `error: invalid frame pattern ".../trimesh.obj": no frame token`.
 #[test]
-#[ignore = "bug: `fluidtex info FILE` refuses a single file without a frame token"]
 fn info_on_a_single_file_without_a_frame_token() {
     let stdout = ok(&[Path::new("info"), &interop("trimesh.obj")]);
     let rows = info_rows(&stdout);
@@ -620,7 +619,6 @@ fn resume_after_sigkill_gives_the_same_files() {
 /// output folder, and `--resume` leaves it there for good (observed with
 /// 5 of 12 kill times on this scene).
 #[test]
-#[ignore = "bug: --resume keeps the temporary file of a write killed half-way"]
 fn resume_removes_the_temporary_of_a_killed_write() {
     let dir = tempfile::tempdir().unwrap();
     let pattern = make_scene(dir.path(), "0-5");
@@ -663,7 +661,6 @@ fn resume_removes_the_temporary_of_a_killed_write() {
 /// umask's mode (0644 under the usual umask 022).
 #[cfg(unix)]
 #[test]
-#[ignore = "bug: outputs are written with mode 0600 instead of following the umask"]
 fn outputs_get_the_same_permissions_as_any_new_file() {
     use std::os::unix::fs::PermissionsExt;
     let dir = tempfile::tempdir().unwrap();

@@ -219,6 +219,8 @@ pub fn run(
         message: format!("cannot create the output folder: {e}"),
     })?;
     let guard = InputGuard::new(source.input_paths());
+    // A run killed inside a write leaves its temporary behind.
+    crate::io::remove_stale_temporaries(&job.out_dir, &guard)?;
     let mut frames = source.frames();
     let mut previous: Option<(TriMesh, SurfaceIndex)> = None;
     let mut resumed_after = None;
@@ -638,7 +640,7 @@ impl SequenceSource {
         options: crate::io::ReadOptions,
     ) -> Result<SequenceSource, PipelineError> {
         use crate::io::{FramePattern, FrameRange, Sequence};
-        let pattern = FramePattern::parse(pattern)?;
+        let pattern = FramePattern::parse_or_file(pattern)?;
         let range = match range {
             Some(text) => text.parse::<FrameRange>()?,
             None => {

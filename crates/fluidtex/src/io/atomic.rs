@@ -35,11 +35,18 @@ where
             reason: "not a file name".into(),
         })?
         .to_string_lossy();
-    let tmp = tempfile::Builder::new()
-        .prefix(&format!(".{name}."))
-        .suffix(".tmp")
-        .tempfile_in(dir)
-        .map_err(os)?;
+    let prefix = format!(".{name}.");
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(&prefix).suffix(".tmp");
+    // tempfile creates 0600 files by default and the rename keeps the mode;
+    // asking for 0666 lets the umask decide, as for any new file, so that
+    // others on a render farm can read the outputs.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        builder.permissions(std::fs::Permissions::from_mode(0o666));
+    }
+    let tmp = builder.tempfile_in(dir).map_err(os)?;
     let (file, tmp_path) = tmp.into_parts();
     let mut w = BufWriter::with_capacity(1 << 20, file);
     write(&mut w).map_err(os)?;
@@ -53,6 +60,43 @@ where
         let _ = d.sync_all();
     }
     Ok(())
+}
+
+/// Removes the temporaries that a killed [`write_atomic`] left in `dir`
+/// (`.<name>.<random>.tmp`); returns how many. Only names of that exact
+/// shape are touched, and never one of `guard`'s inputs.
+pub fn remove_stale_temporaries(dir: &Path, guard: &InputGuard) -> Result<usize, IoError> {
+    let entries = match std::fs::read_dir(dir) {
+        Ok(e) => e,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(0),
+        Err(e) => {
+            return Err(IoError::Io {
+                path: dir.to_path_buf(),
+                source: e,
+            });
+        }
+    };
+    let mut removed = 0;
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(name) = name.to_str() else { continue };
+        let looks_ours = name.starts_with('.')
+            && name.ends_with(".tmp")
+            && name[1..name.len() - 4].contains('.');
+        let path = entry.path();
+        if !looks_ours || !entry.file_type().is_ok_and(|t| t.is_file()) {
+            continue;
+        }
+        if guard.check(&path).is_err() {
+            continue;
+        }
+        std::fs::remove_file(&path).map_err(|e| IoError::Io {
+            path: path.clone(),
+            source: e,
+        })?;
+        removed += 1;
+    }
+    Ok(removed)
 }
 
 /// The set of a run's input files; outputs must not be any of them.
@@ -124,6 +168,35 @@ fn canonical(p: &Path) -> PathBuf {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn stale_temporaries_are_removed_and_nothing_else() {
+        let dir = tempfile::tempdir().unwrap();
+        let keep = [
+            "color.0001.png",
+            ".hidden",
+            "notes.tmp",
+            ".input.tmp",
+            ".guarded.abc.tmp",
+        ];
+        for k in keep {
+            std::fs::write(dir.path().join(k), b"x").unwrap();
+        }
+        std::fs::write(dir.path().join(".color.0003.png.Xa9k2Q.tmp"), b"x").unwrap();
+        std::fs::write(dir.path().join(".mesh.0002.obj.q1.tmp"), b"x").unwrap();
+        let guard = InputGuard::new([dir.path().join(".guarded.abc.tmp")]);
+        assert_eq!(remove_stale_temporaries(dir.path(), &guard).unwrap(), 2);
+        let mut names: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        names.sort();
+        let mut want: Vec<String> = keep.iter().map(|s| s.to_string()).collect();
+        want.sort();
+        assert_eq!(names, want);
+        let missing = dir.path().join("nope");
+        assert_eq!(remove_stale_temporaries(&missing, &guard).unwrap(), 0);
+    }
 
     #[test]
     fn writes_and_replaces_without_leaving_temporaries() {

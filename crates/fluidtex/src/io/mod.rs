@@ -39,7 +39,7 @@ use thiserror::Error;
 
 use crate::mesh::{self, MeshError, TriMesh, ValidationReport};
 
-pub use atomic::{InputGuard, write_atomic};
+pub use atomic::{InputGuard, remove_stale_temporaries, write_atomic};
 pub use sequence::{Frame, FramePattern, FrameRange, Sequence};
 
 /// Everything that can go wrong reading or writing a file.

@@ -14,6 +14,10 @@
 //! so frame −7 with padding 4 is `-007`. A range is written `A-B` or `A`,
 //! e.g. `1-240`, `-10-5`, `-10--1`.
 //!
+//! A path with no token that names an existing file is accepted by
+//! [`FramePattern::parse_or_file`] as a one-frame sequence, frame 0, so a
+//! single mesh can be inspected or textured as it is.
+//!
 //! [`Sequence`] reads one frame per `next()`: memory is bounded by one frame
 //! whatever the sequence length.
 
@@ -34,6 +38,8 @@ pub struct FramePattern {
     padding: usize,
     /// The pattern as the user wrote it, for messages.
     text: String,
+    /// A single file without a token: frame 0 is `text`, no other exists.
+    single: bool,
 }
 
 impl FramePattern {
@@ -97,11 +103,42 @@ impl FramePattern {
             suffix: suffix.to_string(),
             padding,
             text: text.to_string(),
+            single: false,
         })
+    }
+
+    /// [`FramePattern::parse`], except that a path without a frame token
+    /// naming an existing file is a one-frame sequence (frame 0).
+    pub fn parse_or_file(text: &str) -> Result<FramePattern, IoError> {
+        match FramePattern::parse(text) {
+            Err(e) if Path::new(text).is_file() && !text.contains(['#', '%', '$']) => {
+                let _ = e;
+                Ok(FramePattern {
+                    prefix: String::new(),
+                    suffix: String::new(),
+                    padding: 0,
+                    text: text.to_string(),
+                    single: true,
+                })
+            }
+            other => other,
+        }
     }
 
     /// The file name of `frame`.
     pub fn path(&self, frame: i32) -> PathBuf {
+        if self.single {
+            // Any other frame names a file that cannot exist, so asking for
+            // it fails as a missing frame does.
+            return if frame == 0 {
+                PathBuf::from(&self.text)
+            } else {
+                PathBuf::from(format!(
+                    "{} (frame {frame}; a single file has only frame 0)",
+                    self.text
+                ))
+            };
+        }
         PathBuf::from(format!(
             "{}{}{}",
             self.prefix,
@@ -123,6 +160,13 @@ impl FramePattern {
     /// exactly what [`FramePattern::path`] gives for its number, so
     /// `fluid.12.ply` does not match `fluid.####.ply`.
     pub fn discover(&self) -> Result<Vec<i32>, IoError> {
+        if self.single {
+            return Ok(if Path::new(&self.text).is_file() {
+                vec![0]
+            } else {
+                Vec::new()
+            });
+        }
         let (dir, name_prefix) = match self.prefix.rfind(['/', std::path::MAIN_SEPARATOR]) {
             Some(k) => (&self.prefix[..=k], &self.prefix[k + 1..]),
             None => ("", self.prefix.as_str()),
@@ -345,6 +389,25 @@ mod tests {
         assert_eq!(p("fluid_%d.ply").path(3), PathBuf::from("fluid_3.ply"));
         assert_eq!(p("fluid.$F4.ply").path(-7), PathBuf::from("fluid.-007.ply"));
         assert_eq!(p("$F2").path(5), PathBuf::from("05"));
+    }
+
+    #[test]
+    fn a_single_file_is_frame_zero() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("blob.ply");
+        std::fs::write(&file, b"ply").unwrap();
+        let text = file.to_str().unwrap();
+        let p = FramePattern::parse_or_file(text).unwrap();
+        assert_eq!(p.discover().unwrap(), vec![0]);
+        assert_eq!(p.path(0), file);
+        assert!(!p.path(1).exists());
+        // A missing file without a token is still a bad pattern.
+        let missing = dir.path().join("none.ply");
+        let e = FramePattern::parse_or_file(missing.to_str().unwrap()).unwrap_err();
+        assert!(e.to_string().contains("no frame token"), "{e}");
+        // A real pattern is unchanged.
+        let q = FramePattern::parse_or_file("f.####.ply").unwrap();
+        assert_eq!(q.path(3), PathBuf::from("f.0003.ply"));
     }
 
     #[test]
