@@ -607,7 +607,7 @@ fn resume_after_sigkill_gives_the_same_files() {
     resume.push("--resume".into());
     ok(&resume);
     // A kill during a write leaves that write's temporary; the resumed run
-    // must not add any (removing the old one is the ignored test below).
+    // must not add any (removing the old one is tested below).
     for t in temporaries(&killed) {
         assert!(left.contains(&t), "the resumed run left {t}");
         std::fs::remove_file(killed.join(t)).unwrap();

@@ -52,8 +52,13 @@ pub struct FrameResult {
     pub channels: Vec<Texture>,
     /// Per texel: [`SOURCE_OUTSIDE`], [`SOURCE_UNCOVERED`] or patch id + 1.
     pub source: Option<Vec<u32>>,
-    /// Per texel exemplar uv of the source (NaN where none).
+    /// Per texel exemplar uv of the source (NaN where none). A blending
+    /// method gives the uv of its heaviest layer.
     pub uv: Option<Vec<Vec2>>,
+    /// Per texel, how many layers of normalised weight ≥ 0.05 were blended
+    /// (the ghost-fraction input). `None` for methods that never blend:
+    /// every covered texel has exactly one layer.
+    pub layers: Option<Vec<u8>>,
     /// Method statistics for `stats.F.json` (patches alive, created, ...).
     pub stats: BTreeMap<String, serde_json::Value>,
     /// Seconds per stage, in order.
