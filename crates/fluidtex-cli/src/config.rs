@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use fluidtex::methods::atlas_check::AtlasCheckParams;
+use fluidtex::methods::dual_rest::DualRestParams;
 use fluidtex::methods::erosion::{ErosionParams, Placement};
 use fluidtex::pipeline::OutputOptions;
 use serde::{Deserialize, Serialize};
@@ -49,6 +50,8 @@ pub struct Config {
     pub erosion: ErosionParams,
     /// atlas-check method parameters.
     pub atlas_check: AtlasCheckParams,
+    /// dual-rest baseline parameters.
+    pub dual_rest: DualRestParams,
     /// Which files to write.
     pub outputs: OutputOptions,
 }
@@ -120,7 +123,7 @@ pub struct RunFlags {
     /// Output folder
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Texturing method: erosion (default), atlas-check
+    /// Texturing method: erosion (default), advect, dual-rest, blend-deformable, atlas-check
     #[arg(long)]
     pub method: Option<String>,
     /// Atlas size in texels (square) [4096]
@@ -177,6 +180,9 @@ pub struct RunFlags {
     /// New patch placement: local (the paper) or global
     #[arg(long)]
     pub placement: Option<String>,
+    /// dual-rest: frames between two resets of a layer [24]
+    #[arg(long)]
+    pub period: Option<u32>,
     /// Do not write mesh.F.obj / .mtl
     #[arg(long)]
     pub no_obj: bool,
@@ -262,6 +268,9 @@ impl RunFlags {
                 "global" => Placement::Global,
                 other => bail!("--placement {other}: expected local or global"),
             };
+        }
+        if let Some(p) = self.period {
+            config.dual_rest.period = p;
         }
         let o = &mut config.outputs;
         if self.no_obj {

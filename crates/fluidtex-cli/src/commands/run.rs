@@ -10,7 +10,9 @@ use fluidtex::exemplar::{Exemplar, FeatureMethod, builtin_pebbles};
 use fluidtex::io::ReadOptions;
 use fluidtex::methods::Method;
 use fluidtex::methods::atlas_check::AtlasCheck;
+use fluidtex::methods::dual_rest::DualRest;
 use fluidtex::methods::erosion::Erosion;
+use fluidtex::methods::erosion::Variant;
 use fluidtex::pipeline::{self, Event, FrameSource, Job, SequenceSource};
 
 use crate::config::{Config, RunFlags};
@@ -32,7 +34,13 @@ pub struct RunArgs {
 }
 
 /// Methods `--method` accepts.
-pub const METHODS: &[&str] = &["erosion", "atlas-check"];
+pub const METHODS: &[&str] = &[
+    "erosion",
+    "advect",
+    "dual-rest",
+    "blend-deformable",
+    "atlas-check",
+];
 
 /// Size of the built-in exemplar in texels.
 pub const BUILTIN_EXEMPLAR_SIZE: u32 = 512;
@@ -155,6 +163,22 @@ pub fn build_method(config: &Config) -> Result<Box<dyn Method>> {
     let name = config.method.as_deref().unwrap_or("erosion");
     Ok(match name {
         "erosion" => Box::new(Erosion::new(
+            config.erosion.clone(),
+            Arc::new(build_exemplar(config)?),
+            seed,
+        )?),
+        "advect" | "blend-deformable" => Box::new(Erosion::with_variant(
+            if name == "advect" {
+                Variant::Advect
+            } else {
+                Variant::Blend
+            },
+            config.erosion.clone(),
+            Arc::new(build_exemplar(config)?),
+            seed,
+        )?),
+        "dual-rest" => Box::new(DualRest::new(
+            config.dual_rest.clone(),
             config.erosion.clone(),
             Arc::new(build_exemplar(config)?),
             seed,

@@ -10,6 +10,7 @@
 //! - [`atlas_check`]: a world-space checker, to look at the atlas chain itself.
 
 pub mod atlas_check;
+pub mod dual_rest;
 pub mod erosion;
 
 use std::collections::BTreeMap;

@@ -38,6 +38,15 @@ impl ErosionTest {
         }
     }
 
+    /// A test that never erodes (the baselines that carry patches without
+    /// erosion): ε = −∞ makes the left-hand side +∞, never below 1 − w.
+    pub fn never() -> ErosionTest {
+        ErosionTest {
+            inv_max_norm: 0.0,
+            epsilon: f32::NEG_INFINITY,
+        }
+    }
+
     /// Left-hand side of the test: normalised sqrt(F_m + D) − ε.
     #[inline]
     pub fn lhs(&self, feature: f32, u: f32, v: f32) -> f32 {
@@ -75,6 +84,20 @@ mod tests {
     #[derive(Deserialize)]
     struct Vectors {
         erosion: Vec<Case>,
+    }
+
+    #[test]
+    fn the_disabled_test_keeps_every_texel() {
+        let t = ErosionTest::never();
+        for (f, u, v, w) in [
+            (0.0, 0.0, 0.0, 0.0),
+            (1.0, 0.5, 0.5, 0.0),
+            (0.3, 0.9, 0.1, 1.0),
+        ] {
+            assert!(!t.eroded(f, u, v, w));
+        }
+        // Control: the real test erodes the first case.
+        assert!(ErosionTest::new(1.0, 0.1).eroded(0.0, 0.0, 0.0, 0.0));
     }
 
     #[test]

@@ -337,11 +337,11 @@ impl FillBuffers {
 /// A candidate patch triangle of one span, with the range of the span's
 /// texels (indices from the span start) where it may contain the texel.
 #[derive(Clone, Copy, Debug)]
-struct SpanCandidate {
-    patch: u32,
-    tri: u32,
-    lo: u32,
-    hi: u32,
+pub(crate) struct SpanCandidate {
+    pub(crate) patch: u32,
+    pub(crate) tri: u32,
+    pub(crate) lo: u32,
+    pub(crate) hi: u32,
 }
 
 /// Narrows `list` to the candidates that may contain some texel of a span
@@ -351,7 +351,7 @@ struct SpanCandidate {
 /// holds on an interval, found from the values at both ends. The intervals
 /// are widened by a texel, so they only prune; every texel is still decided
 /// by the exact per-texel test.
-fn span_candidates(
+pub(crate) fn span_candidates(
     ctx: &FillContext<'_>,
     list: &[(u32, u32)],
     p_first: Vec3,

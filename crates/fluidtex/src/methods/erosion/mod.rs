@@ -13,6 +13,7 @@
 //!
 //! Every exemplar channel is driven by the same per-texel selection.
 
+pub mod blend;
 pub mod distortion;
 pub mod erode;
 pub mod fill;
@@ -135,13 +136,34 @@ pub struct ErosionState {
     pub exemplar_size: Option<f32>,
 }
 
-/// The erosion method.
+/// What the patch machinery does with its patches: the 2021 method, or one
+/// of the DESIGN §4 baselines built from the same parts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Variant {
+    /// The 2021 method: erosion, lapped fill, new patches, deletion.
+    Erode,
+    /// `advect`: the first frame's lapped texture (patches placed and
+    /// covered as usual) is carried by the flow and never regenerated: no
+    /// erosion, no new patches, no deletion. It stretches without bound and
+    /// opens holes where the surface grows.
+    Advect,
+    /// `blend-deformable`: deformable patches with the weights of Eqs. 1–3,
+    /// alpha-blended by weight instead of lapped ([`blend`]); new patches
+    /// where no patch has weight left, deletion of patches no texel sees.
+    Blend,
+}
+
+/// The erosion method (and the baselines sharing its patches).
 pub struct Erosion {
+    variant: Variant,
     params: ErosionParams,
     exemplar: Arc<Exemplar>,
     test: ErosionTest,
     seed: u64,
     state: ErosionState,
+    /// Patches dropped by [`Erosion::reset`] since the last step (counted
+    /// as deleted by the next step).
+    dropped_by_reset: usize,
 }
 
 /// A well-mixed 64-bit value from (seed, stream, index) (SplitMix64
@@ -172,20 +194,45 @@ impl Erosion {
         exemplar: Arc<Exemplar>,
         seed: u64,
     ) -> Result<Erosion, MethodError> {
+        Erosion::with_variant(Variant::Erode, params, exemplar, seed)
+    }
+
+    /// The method or baseline `variant` with the erosion method's parameters.
+    pub fn with_variant(
+        variant: Variant,
+        params: ErosionParams,
+        exemplar: Arc<Exemplar>,
+        seed: u64,
+    ) -> Result<Erosion, MethodError> {
         params.validate()?;
-        let test = ErosionTest::new(exemplar.feature.erosion_normaliser(), params.epsilon);
+        let test = match variant {
+            Variant::Erode => {
+                ErosionTest::new(exemplar.feature.erosion_normaliser(), params.epsilon)
+            }
+            Variant::Advect | Variant::Blend => ErosionTest::never(),
+        };
         Ok(Erosion {
+            variant,
             params,
             exemplar,
             test,
             seed,
             state: ErosionState::default(),
+            dropped_by_reset: 0,
         })
     }
 
     /// The patch state (for tests and statistics).
     pub fn state(&self) -> &ErosionState {
         &self.state
+    }
+
+    /// Drops every patch: the next frame starts a fresh distribution (as on
+    /// the first frame). Ids keep increasing, so new patches get new
+    /// rotations and colours.
+    pub fn reset(&mut self) {
+        self.dropped_by_reset += self.state.patches.len();
+        self.state.patches.clear();
     }
 
     fn shape(&self, radius: f32, exemplar_size: f32) -> PatchShape {
@@ -201,7 +248,11 @@ impl Erosion {
 
 impl Method for Erosion {
     fn name(&self) -> &'static str {
-        "erosion"
+        match self.variant {
+            Variant::Erode => "erosion",
+            Variant::Advect => "advect",
+            Variant::Blend => "blend-deformable",
+        }
     }
 
     fn channel_specs(&self) -> Vec<ChannelSpec> {
@@ -218,6 +269,10 @@ impl Method for Erosion {
         let mut created = 0usize;
         let mut forced = 0usize;
         let mut candidate_pairs = 0usize;
+        let mut layers: Option<Vec<u8>> = None;
+        let mut blend_used: Option<Vec<u32>> = None;
+        // `advect` carries what it has; it only places patches on a fresh start.
+        let mut carried = false;
 
         if mesh.is_empty() {
             // The fluid vanished: nothing to project onto, every patch goes.
@@ -228,7 +283,7 @@ impl Method for Erosion {
             if mesh.velocity().is_none() {
                 return Err(MethodError::MissingVelocity {
                     frame: ctx.number,
-                    method: "erosion",
+                    method: self.name(),
                 });
             }
             let radius = *self.state.radius.get_or_insert_with(|| {
@@ -252,7 +307,7 @@ impl Method for Erosion {
             {
                 let pv = prev.mesh.velocity().ok_or(MethodError::MissingVelocity {
                     frame: ctx.number - 1,
-                    method: "erosion",
+                    method: self.name(),
                 })?;
                 let cv = mesh.velocity().unwrap_or(&[]);
                 let flow = FlowInterval {
@@ -276,6 +331,7 @@ impl Method for Erosion {
                     }
                 });
                 self.state.patches.retain(|p| !p.triangles.is_empty());
+                carried = self.variant == Variant::Advect && !self.state.patches.is_empty();
             } else if ctx.previous.is_none() || ctx.previous.is_some_and(|p| p.mesh.is_empty()) {
                 // A fresh start of the surface: patches of an older surface cannot be carried.
                 self.state.patches.clear();
@@ -341,7 +397,14 @@ impl Method for Erosion {
                 test: self.test,
                 tolerance,
             };
-            let uncovered = fill::fill(&fill_ctx, atlas, &candidates, &mut out);
+            let uncovered = if self.variant == Variant::Blend {
+                let outcome = blend::fill(&fill_ctx, atlas, &candidates, &mut out);
+                layers = Some(outcome.layers);
+                blend_used = Some(outcome.used);
+                outcome.uncovered
+            } else {
+                fill::fill(&fill_ctx, atlas, &candidates, &mut out)
+            };
             candidate_pairs = candidates.len();
             // The fill's buffers are large; free them before the update.
             drop(candidates);
@@ -369,29 +432,47 @@ impl Method for Erosion {
                 normal_dot: self.params.normal_dot,
                 rotation: &rotation,
             };
-            let stats = update::cover(
-                &template,
-                &inputs,
-                &mut self.state.patches,
-                &mut self.state.next_id,
-                &uncovered,
-                &mut out,
-            );
-            created += stats.created;
-            forced = stats.forced;
+            if !carried {
+                let stats = update::cover(
+                    &template,
+                    &inputs,
+                    &mut self.state.patches,
+                    &mut self.state.next_id,
+                    &uncovered,
+                    &mut out,
+                );
+                created += stats.created;
+                forced = stats.forced;
+            }
+            if let Some(layers) = layers.as_mut() {
+                // Texels the update covered hold one new patch each.
+                for (l, &s) in layers.iter_mut().zip(&out.source) {
+                    if *l == 0 && s != fill::OUTSIDE && s != fill::UNCOVERED {
+                        *l = 1;
+                    }
+                }
+            }
             clock.lap("update");
         }
 
-        // Delete patches no texel used (Sec. 3).
+        // Delete patches no texel used (Sec. 3); `advect` keeps everything
+        // (a hidden patch is still part of the carried parameterization).
         let alive_before = self.state.patches.len();
-        let max_id = self.state.next_id as usize;
-        let mut used = vec![false; max_id + 1];
-        for &s in &out.source {
-            if s != fill::OUTSIDE && s != fill::UNCOVERED && (s as usize) <= max_id {
-                used[s as usize - 1] = true;
+        if self.variant != Variant::Advect {
+            let max_id = self.state.next_id as usize;
+            let mut used = vec![false; max_id + 1];
+            for &s in &out.source {
+                if s != fill::OUTSIDE && s != fill::UNCOVERED && (s as usize) <= max_id {
+                    used[s as usize - 1] = true;
+                }
             }
+            for &id in blend_used.iter().flatten() {
+                if let Some(u) = used.get_mut(id as usize) {
+                    *u = true;
+                }
+            }
+            self.state.patches.retain(|p| used[p.id as usize]);
         }
-        self.state.patches.retain(|p| used[p.id as usize]);
         let unused = alive_before - self.state.patches.len();
         clock.lap("delete");
 
@@ -404,7 +485,11 @@ impl Method for Erosion {
         let stats = &mut result.stats;
         stats.insert("patches_alive".into(), self.state.patches.len().into());
         stats.insert("patches_created".into(), created.into());
-        stats.insert("patches_deleted".into(), (deleted_before + unused).into());
+        let dropped = std::mem::take(&mut self.dropped_by_reset);
+        stats.insert(
+            "patches_deleted".into(),
+            (deleted_before + unused + dropped).into(),
+        );
         stats.insert("patches_deleted_unused".into(), unused.into());
         stats.insert("patches_deleted_advection".into(), deleted_before.into());
         stats.insert("texels_in_charts".into(), texels_in_charts.into());
@@ -419,6 +504,7 @@ impl Method for Erosion {
         }
         result.source = Some(out.source);
         result.uv = Some(out.uv);
+        result.layers = layers;
         result.timings = clock.stages;
         Ok(result)
     }

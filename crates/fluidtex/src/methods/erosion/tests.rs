@@ -7,7 +7,8 @@ use std::sync::Arc;
 use glam::{Vec2, Vec3};
 
 use super::distortion::distortion;
-use super::fill::{LocateTolerance, TriFrame};
+use super::erode::ErosionTest;
+use super::fill::{Candidates, FillBuffers, FillContext, LocateTolerance, TriFrame};
 use super::patch::{FrameSurface, Patch, PatchShape};
 use super::*;
 use crate::atlas::{Atlas, AtlasParams};
@@ -501,5 +502,180 @@ fn missing_velocity_and_bad_parameters_are_errors() {
         },
     ] {
         assert!(Erosion::new(bad, exemplar(), 0).is_err());
+    }
+}
+
+// ---------------------------------------------------------------------------
+// The baselines built from the same patches (DESIGN §4).
+
+#[test]
+fn blend_fill_is_the_weight_normalised_mix_of_every_covering_patch() {
+    let mesh = grid(16, 0.1);
+    let index = SurfaceIndex::new(&mesh);
+    let atlas = Atlas::build(&mesh, &AtlasParams::square(64)).expect("atlas");
+    let sh = shape(0.5);
+    let at = |x: f32| {
+        index
+            .closest(Vec3::new(x, 0.05, 0.0), 1.0)
+            .expect("hit")
+            .location
+    };
+    let a = create_on(&mesh, at(-0.25), &sh, 0.3);
+    let mut b = create_on(&mesh, at(0.25), &sh, 1.9);
+    b.id = 1;
+    let patches = vec![a, b];
+    let ex = exemplar();
+    let frames = fill::patch_frames(&patches);
+    let tolerance = LocateTolerance {
+        min_bary: -0.05,
+        max_plane_distance: 0.125 * 0.5,
+    };
+    let ctx = FillContext {
+        mesh: &mesh,
+        patches: &patches,
+        frames: &frames,
+        exemplar: &ex,
+        feature: ex.feature.sampler(),
+        test: ErosionTest::never(),
+        tolerance,
+    };
+    let candidates = Candidates::build(&mesh, &index, &patches, &frames, tolerance);
+    let mut out = FillBuffers::new(atlas.width, atlas.height, ex.total_channels());
+    let outcome = blend::fill(&ctx, &atlas, &candidates, &mut out);
+
+    let c = ex.total_channels();
+    let mut sample = vec![0.0; c];
+    let (mut one, mut two, mut none) = (0, 0, 0);
+    let mut want_uncovered = Vec::new();
+    for band in atlas.bands() {
+        for span in &band.spans {
+            let [p0, p1, p2] = mesh.corners(span.triangle as usize);
+            let n = (p1 - p0).cross(p2 - p0).normalize();
+            for (x, bary) in atlas.span_barycentrics(span) {
+                let t = (span.y * atlas.width + x) as usize;
+                let p = p0 * bary[0] + p1 * bary[1] + p2 * bary[2];
+                // Every patch, every triangle: brute force.
+                let layers: Vec<(u32, Vec2, f32)> = (0..patches.len() as u32)
+                    .filter_map(|i| {
+                        let all = 0..patches[i as usize].triangles.len() as u32;
+                        ctx.locate(i, all, p, n)
+                            .filter(|l| l.1 > 0.0)
+                            .map(|(uv, w)| (i, uv, w))
+                    })
+                    .collect();
+                let total: f32 = layers.iter().map(|l| l.2).sum();
+                if layers.is_empty() {
+                    none += 1;
+                    want_uncovered.push(t as u32);
+                    assert_eq!(out.source[t], SOURCE_UNCOVERED, "texel {t}");
+                    assert_eq!(outcome.layers[t], 0);
+                    continue;
+                }
+                let mut want = vec![0.0f32; c];
+                for &(_, uv, w) in &layers {
+                    ex.sample_all(uv.x, uv.y, &mut sample);
+                    for (o, s) in want.iter_mut().zip(&sample) {
+                        *o += w / total * s;
+                    }
+                }
+                for (k, (&got, &want)) in
+                    out.values[t * c..(t + 1) * c].iter().zip(&want).enumerate()
+                {
+                    assert!(
+                        (got - want).abs() < 1e-6,
+                        "texel {t} channel {k}: {got} vs {want}"
+                    );
+                }
+                let visible = layers.iter().filter(|l| l.2 / total >= 0.05).count();
+                assert_eq!(outcome.layers[t] as usize, visible, "texel {t}");
+                let heaviest = layers
+                    .iter()
+                    .fold(layers[0], |h, &l| if l.2 > h.2 { l } else { h });
+                assert_eq!(out.source[t], patches[heaviest.0 as usize].id + 1);
+                match visible {
+                    1 => one += 1,
+                    2 => two += 1,
+                    _ => {}
+                }
+            }
+        }
+    }
+    let got: Vec<u32> = outcome.uncovered.iter().map(|u| u.texel).collect();
+    want_uncovered.sort_unstable();
+    assert_eq!(got, want_uncovered);
+    assert_eq!(outcome.used, vec![0, 1]);
+    // The two discs overlap, and the grid's corners are outside both.
+    assert!(one > 200 && two > 200 && none > 200, "{one} {two} {none}");
+}
+
+#[test]
+fn advect_carries_the_first_frame_patches_and_never_renews_them() {
+    let c = clip("differential-rotation", 12, 5, 96);
+    let ex = exemplar();
+    let mut method =
+        Erosion::with_variant(Variant::Advect, ErosionParams::default(), ex.clone(), 2)
+            .expect("params");
+    let results = step_all(&mut method, &c);
+    assert_eq!(method.name(), "advect");
+    let first_ids: Vec<u32> = {
+        let mut m2 =
+            Erosion::with_variant(Variant::Advect, ErosionParams::default(), ex.clone(), 2)
+                .expect("params");
+        let one = Clip {
+            meshes: vec![c.meshes[0].clone()],
+            indices: vec![SurfaceIndex::new(&c.meshes[0])],
+            atlases: vec![c.atlases[0].clone()],
+        };
+        step_all(&mut m2, &one);
+        m2.state().patches.iter().map(|p| p.id).collect()
+    };
+    let ids: Vec<u32> = method.state().patches.iter().map(|p| p.id).collect();
+    assert_eq!(
+        ids, first_ids,
+        "the frame-0 patches, all of them, and no other"
+    );
+    assert!(results[0].stats["patches_created"].as_u64() > Some(0));
+    for (k, r) in results.iter().enumerate().skip(1) {
+        assert_eq!(r.stats["patches_created"], 0, "frame {k}");
+        assert_eq!(r.stats["patches_deleted"], 0, "frame {k}");
+        assert!(r.layers.is_none());
+        // Still lapped: every covered texel is the exemplar at its uv.
+        let (source, uv) = (sources(r), r.uv.as_deref().expect("uv"));
+        let mut value = vec![0.0; ex.total_channels()];
+        for t in (0..source.len()).filter(|&t| source[t] != SOURCE_OUTSIDE && source[t] != 0) {
+            ex.sample_all(uv[t].x, uv[t].y, &mut value);
+            assert_eq!(&r.channels[0].data[t * 3..t * 3 + 3], &value[..3]);
+        }
+    }
+    // Control: the erosion method on the same clip renews its patches.
+    let mut erosion = Erosion::new(ErosionParams::default(), ex, 2).expect("params");
+    let renewed: u64 = step_all(&mut erosion, &c)
+        .iter()
+        .skip(1)
+        .map(|r| r.stats["patches_created"].as_u64().unwrap_or(0))
+        .sum();
+    assert!(renewed > 0);
+}
+
+#[test]
+fn blend_deformable_covers_everything_and_shows_ghosts() {
+    let c = clip("differential-rotation", 12, 3, 96);
+    let mut method = Erosion::with_variant(Variant::Blend, ErosionParams::default(), exemplar(), 4)
+        .expect("params");
+    assert_eq!(method.name(), "blend-deformable");
+    for (k, r) in step_all(&mut method, &c).iter().enumerate() {
+        assert_eq!(r.stats["uncovered_texels"], 0, "frame {k}");
+        let layers = r
+            .layers
+            .as_deref()
+            .expect("a blending method counts layers");
+        let source = sources(r);
+        let mut ghosts = 0;
+        for (t, &l) in layers.iter().enumerate() {
+            // Outside charts no layer; inside at least one.
+            assert_eq!(l == 0, source[t] == SOURCE_OUTSIDE, "frame {k} texel {t}");
+            ghosts += usize::from(l >= 2);
+        }
+        assert!(ghosts > 0, "frame {k}: overlapping patches blend");
     }
 }

@@ -1,0 +1,374 @@
+//! The `dual-rest` baseline (DESIGN §4): the production habit of two rest
+//! parameterizations, each advected with the flow and reset to a fresh one
+//! every `period` frames, half a period apart, and cross-faded so that each
+//! is invisible at the moment it resets. Stretch stays bounded by one
+//! period of advection, at the price of ghosts (two textures visible at
+//! once, contrast down to ≈ 0.71 at the 50% point) and a pulse per period.
+//!
+//! Each parameterization is an [`Variant::Advect`] instance of the patch
+//! machinery (a lapped texture placed on the frame where it resets).
+//!
+//! With φ = (frames since the first) mod period / period, layer A resets at
+//! φ = 0 and layer B at φ = ½; their weights are the triangle waves
+//! w_A = 1 − |2φ − 1| and w_B = 1 − w_A, so the layer that resets always
+//! has weight 0 at that frame.
+
+use std::sync::Arc;
+
+use serde::{Deserialize, Serialize};
+
+use super::erosion::{Erosion, ErosionParams, Variant};
+use super::{
+    ChannelSpec, FrameContext, FrameResult, Method, MethodError, SOURCE_OUTSIDE, SOURCE_UNCOVERED,
+};
+use crate::exemplar::Exemplar;
+use crate::texture::Texture;
+
+/// Parameters of the `dual-rest` baseline.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DualRestParams {
+    /// Frames between two resets of the same layer [24]; the layers reset
+    /// half a period apart. At least 2.
+    pub period: u32,
+}
+
+impl Default for DualRestParams {
+    fn default() -> Self {
+        DualRestParams { period: 24 }
+    }
+}
+
+/// The two cross-faded advected layers.
+pub struct DualRest {
+    params: DualRestParams,
+    layers: [Erosion; 2],
+    /// The first frame number seen (the phase origin).
+    first: Option<i32>,
+}
+
+#[derive(Serialize, Deserialize)]
+struct SavedDualRest {
+    first: Option<i32>,
+    a: Vec<u8>,
+    b: Vec<u8>,
+}
+
+/// A different seed stream for layer B, so that the two layers placed on
+/// the same first frame are different textures.
+const LAYER_B_SEED: u64 = 0x5DEE_CE66_D1CE_4E5B;
+
+impl DualRest {
+    pub fn new(
+        params: DualRestParams,
+        erosion: ErosionParams,
+        exemplar: Arc<Exemplar>,
+        seed: u64,
+    ) -> Result<DualRest, MethodError> {
+        if params.period < 2 {
+            return Err(MethodError::InvalidParameter {
+                name: "dual_rest.period",
+                value: params.period.to_string(),
+                allowed: "at least 2 frames",
+            });
+        }
+        let a = Erosion::with_variant(
+            Variant::Advect,
+            erosion.clone(),
+            Arc::clone(&exemplar),
+            seed,
+        )?;
+        let b = Erosion::with_variant(Variant::Advect, erosion, exemplar, seed ^ LAYER_B_SEED)?;
+        Ok(DualRest {
+            params,
+            layers: [a, b],
+            first: None,
+        })
+    }
+
+    /// Frames since the first frame, modulo the period, and layer A's weight.
+    fn phase(&self, number: i32) -> (u32, f32) {
+        let first = self.first.unwrap_or(number);
+        let p = self.params.period as i64;
+        let k = (number as i64 - first as i64).rem_euclid(p) as u32;
+        let phi = k as f32 / self.params.period as f32;
+        (k, 1.0 - (2.0 * phi - 1.0).abs())
+    }
+}
+
+impl Method for DualRest {
+    fn name(&self) -> &'static str {
+        "dual-rest"
+    }
+
+    fn channel_specs(&self) -> Vec<ChannelSpec> {
+        self.layers[0].channel_specs()
+    }
+
+    fn step(&mut self, ctx: &FrameContext<'_>) -> Result<FrameResult, MethodError> {
+        self.first.get_or_insert(ctx.number);
+        let (k, wa) = self.phase(ctx.number);
+        if k == 0 {
+            self.layers[0].reset();
+        }
+        if k == self.params.period / 2 {
+            self.layers[1].reset();
+        }
+        let ra = self.layers[0].step(ctx)?;
+        let rb = self.layers[1].step(ctx)?;
+        Ok(cross_fade(ra, rb, wa))
+    }
+
+    fn save_state(&self) -> Result<Vec<u8>, MethodError> {
+        let saved = SavedDualRest {
+            first: self.first,
+            a: self.layers[0].save_state()?,
+            b: self.layers[1].save_state()?,
+        };
+        postcard::to_allocvec(&saved).map_err(|e| MethodError::State(e.to_string()))
+    }
+
+    fn load_state(&mut self, bytes: &[u8]) -> Result<(), MethodError> {
+        let saved: SavedDualRest =
+            postcard::from_bytes(bytes).map_err(|e| MethodError::State(e.to_string()))?;
+        self.first = saved.first;
+        self.layers[0].load_state(&saved.a)?;
+        self.layers[1].load_state(&saved.b)?;
+        Ok(())
+    }
+}
+
+/// Blends layer results `a` (weight `wa`) and `b` (weight 1 − `wa`) texel
+/// by texel; where only one layer covers a texel it is shown alone. Patch
+/// ids are interleaved (A's k → 2k, B's k → 2k + 1) so the two layers'
+/// patches stay distinct in `source`.
+fn cross_fade(a: FrameResult, b: FrameResult, wa: f32) -> FrameResult {
+    let wb = 1.0 - wa;
+    let n = a.source.as_ref().map_or(0, Vec::len);
+    let empty = Vec::new();
+    let sa = a.source.as_ref().unwrap_or(&empty);
+    let sb = b.source.as_ref().unwrap_or(&empty);
+    let covered = |s: u32| s != SOURCE_OUTSIDE && s != SOURCE_UNCOVERED;
+    let relabel = |s: u32, layer: u32| {
+        if covered(s) {
+            2 * (s - 1) + layer + 1
+        } else {
+            s
+        }
+    };
+    let mut source = Vec::with_capacity(n);
+    let mut layers = Vec::with_capacity(n);
+    // Per texel, the weight each layer gets.
+    let mut shares = Vec::with_capacity(n);
+    for t in 0..n {
+        let (ca, cb) = (covered(sa[t]), sb.get(t).is_some_and(|&s| covered(s)));
+        let (xa, xb) = match (ca, cb) {
+            (true, true) => (wa, wb),
+            (true, false) => (1.0, 0.0),
+            (false, true) => (0.0, 1.0),
+            (false, false) => (0.0, 0.0),
+        };
+        shares.push((xa, xb));
+        let visible = u8::from(xa >= 0.05) + u8::from(xb >= 0.05);
+        layers.push(visible);
+        source.push(if !ca && !cb {
+            sa[t]
+        } else if xa >= xb {
+            relabel(sa[t], 0)
+        } else {
+            relabel(sb[t], 1)
+        });
+    }
+    let channels: Vec<Texture> = a
+        .channels
+        .iter()
+        .zip(&b.channels)
+        .map(|(ta, tb)| {
+            let ch = ta.channels;
+            let mut out = ta.clone();
+            for (t, &(xa, xb)) in shares.iter().enumerate() {
+                if xa == 1.0 || (xa == 0.0 && xb == 0.0) {
+                    continue;
+                }
+                for c in 0..ch {
+                    let i = t * ch + c;
+                    out.data[i] = xa * ta.data[i] + xb * tb.data[i];
+                }
+            }
+            out
+        })
+        .collect();
+    let uv = match (&a.uv, &b.uv) {
+        (Some(ua), Some(ub)) => Some(
+            shares
+                .iter()
+                .enumerate()
+                .map(|(t, &(xa, xb))| if xb > xa { ub[t] } else { ua[t] })
+                .collect(),
+        ),
+        _ => None,
+    };
+    let mut stats = std::collections::BTreeMap::new();
+    for (prefix, r) in [("a", &a), ("b", &b)] {
+        for (k, v) in &r.stats {
+            stats.insert(format!("layer_{prefix}_{k}"), v.clone());
+        }
+    }
+    let sum = |key: &str| {
+        a.stats.get(key).and_then(|v| v.as_u64()).unwrap_or(0)
+            + b.stats.get(key).and_then(|v| v.as_u64()).unwrap_or(0)
+    };
+    for key in [
+        "patches_alive",
+        "patches_created",
+        "patches_deleted",
+        "forced_texels",
+    ] {
+        stats.insert(key.to_string(), sum(key).into());
+    }
+    let in_charts = source.iter().filter(|&&s| s != SOURCE_OUTSIDE).count();
+    let uncovered = source.iter().filter(|&&s| s == SOURCE_UNCOVERED).count();
+    stats.insert("texels_in_charts".into(), in_charts.into());
+    stats.insert("uncovered_texels".into(), uncovered.into());
+    stats.insert("weight_a".into(), serde_json::json!(wa));
+    let mut timings = a.timings;
+    for (name, secs) in b.timings {
+        match timings.iter_mut().find(|(n, _)| *n == name) {
+            Some(slot) => slot.1 += secs,
+            None => timings.push((name, secs)),
+        }
+    }
+    FrameResult {
+        channels,
+        source: Some(source),
+        uv,
+        layers: Some(layers),
+        stats,
+        timings,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::atlas::{Atlas, AtlasParams};
+    use crate::exemplar::builtin_pebbles;
+    use crate::methods::PreviousFrame;
+    use crate::surface::SurfaceIndex;
+
+    fn texture(values: &[f32]) -> Texture {
+        Texture {
+            width: values.len() as u32,
+            height: 1,
+            channels: 1,
+            data: values.to_vec(),
+        }
+    }
+
+    fn result(values: &[f32], source: &[u32]) -> FrameResult {
+        FrameResult {
+            channels: vec![texture(values)],
+            source: Some(source.to_vec()),
+            uv: Some(vec![glam::Vec2::ZERO; source.len()]),
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn weights_are_triangle_waves_zero_at_each_reset() {
+        let ex = Arc::new(builtin_pebbles(32, 1));
+        let mut m = DualRest::new(
+            DualRestParams { period: 8 },
+            ErosionParams::default(),
+            ex,
+            0,
+        )
+        .expect("params");
+        m.first = Some(10);
+        let want = [0.0, 0.25, 0.5, 0.75, 1.0, 0.75, 0.5, 0.25, 0.0];
+        for (k, &w) in want.iter().enumerate() {
+            assert_eq!(m.phase(10 + k as i32), ((k % 8) as u32, w), "frame {k}");
+        }
+        // Layer B resets at k = 4, where A has all the weight.
+        assert_eq!(m.phase(14).1, 1.0);
+        let bad = DualRest::new(
+            DualRestParams { period: 1 },
+            ErosionParams::default(),
+            Arc::new(builtin_pebbles(32, 1)),
+            0,
+        );
+        assert!(bad.is_err());
+    }
+
+    #[test]
+    fn cross_fade_mixes_covered_texels_and_keeps_lone_ones() {
+        let out = SOURCE_OUTSIDE;
+        let a = result(&[1.0, 2.0, 3.0, 0.0], &[1, 2, 0, out]);
+        let b = result(&[5.0, 6.0, 7.0, 0.0], &[3, 0, 4, out]);
+        let r = cross_fade(a, b, 0.25);
+        // Texel 0 both (0.25·1 + 0.75·5), 1 only A, 2 only B, 3 outside.
+        assert_eq!(r.channels[0].data, vec![4.0, 2.0, 7.0, 0.0]);
+        assert_eq!(r.layers, Some(vec![2, 1, 1, 0]));
+        // B is heavier at texel 0: its patch 2 becomes 2·2 + 1 = 5, + 1.
+        assert_eq!(r.source, Some(vec![6, 3, 8, out]));
+        assert_eq!(r.stats["uncovered_texels"], 0);
+        assert_eq!(r.stats["texels_in_charts"], 3);
+        // A weight under 0.05 is not a visible layer.
+        let a = result(&[1.0], &[1]);
+        let b = result(&[5.0], &[1]);
+        assert_eq!(cross_fade(a, b, 0.01).layers, Some(vec![1]));
+    }
+
+    #[test]
+    fn layers_reset_half_a_period_apart() {
+        let mut params = crate::scenes::default_params("differential-rotation").expect("scene");
+        params.resolution = 10;
+        params.last = params.first + 6;
+        let mut scene =
+            crate::scenes::by_name("differential-rotation", Some(params)).expect("scene");
+        let meshes: Vec<_> = (params.first..=params.last)
+            .map(|f| scene.frame(f).expect("frame"))
+            .collect();
+        let indices: Vec<_> = meshes.iter().map(SurfaceIndex::new).collect();
+        let atlases: Vec<_> = meshes
+            .iter()
+            .map(|m| Atlas::build(m, &AtlasParams::square(64)).expect("atlas"))
+            .collect();
+        let mut m = DualRest::new(
+            DualRestParams { period: 4 },
+            ErosionParams::default(),
+            Arc::new(builtin_pebbles(32, 1)),
+            3,
+        )
+        .expect("params");
+        let mut created = Vec::new();
+        for k in 0..meshes.len() {
+            let ctx = FrameContext {
+                number: k as i32,
+                dt: 1.0 / 24.0,
+                mesh: &meshes[k],
+                index: &indices[k],
+                previous: (k > 0).then(|| PreviousFrame {
+                    mesh: &meshes[k - 1],
+                    index: &indices[k - 1],
+                }),
+                atlas: &atlases[k],
+            };
+            let r = m.step(&ctx).expect("step");
+            let n = |key: &str| r.stats[key].as_u64().unwrap_or(0) > 0;
+            created.push((n("layer_a_patches_created"), n("layer_b_patches_created")));
+            assert_eq!(r.stats["uncovered_texels"], 0, "frame {k}");
+        }
+        // A: frames 0 and 4; B: frame 0 (start) and frames 2 and 6.
+        let want = [
+            (true, true),
+            (false, false),
+            (false, true),
+            (false, false),
+            (true, false),
+            (false, false),
+            (false, true),
+        ];
+        assert_eq!(created, want);
+    }
+}
