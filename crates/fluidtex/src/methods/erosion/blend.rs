@@ -13,7 +13,7 @@
 use glam::Vec2;
 use rayon::prelude::*;
 
-use super::fill::{Candidates, FillBuffers, FillContext, UNCOVERED, Uncovered, span_candidates};
+use super::fill::{Candidates, FillBuffers, FillContext, UNCOVERED, Uncovered, walk_band};
 use crate::atlas::Atlas;
 
 /// Layers below this normalised weight are not counted as visible layers
@@ -53,7 +53,6 @@ pub fn fill(
         };
     };
     let band_rows = (first.y1 - first.y0) as usize;
-    let mesh = ctx.mesh;
     let results: Vec<(Vec<Uncovered>, Vec<u32>)> = out
         .values
         .par_chunks_mut(band_rows * w * c)
@@ -64,87 +63,62 @@ pub fn fill(
         .map(|((((values, source), uvs), layers), band)| {
             let mut missing = Vec::new();
             let mut used = Vec::new();
-            let mut texels: Vec<(u32, [f32; 3])> = Vec::new();
-            let mut cands = Vec::new();
             let mut found: Vec<(u32, Vec2, f32)> = Vec::new();
             let mut sample = vec![0.0f32; c];
             let base = band.y0 as usize * w;
-            for span in &band.spans {
-                let f = span.triangle;
-                let [a, b, cc] = mesh.corners(f as usize);
-                let n = (b - a).cross(cc - a).normalize_or_zero();
-                let point = |bary: [f32; 3]| a * bary[0] + b * bary[1] + cc * bary[2];
-                texels.clear();
-                texels.extend(atlas.span_barycentrics(span));
-                let (Some(&(_, b_first)), Some(&(_, b_last))) = (texels.first(), texels.last())
-                else {
-                    continue;
-                };
-                span_candidates(
-                    ctx,
-                    candidates.of(f),
-                    point(b_first),
-                    point(b_last),
-                    texels.len() as u32,
-                    &mut cands,
-                );
-                let row = span.y as usize * w - base;
-                for (k, &(x, bary)) in texels.iter().enumerate() {
-                    let t = row + x as usize;
-                    let p = point(bary);
-                    found.clear();
-                    let mut start = 0;
-                    while start < cands.len() {
-                        let i = cands[start].patch;
-                        let mut end = start + 1;
-                        while end < cands.len() && cands[end].patch == i {
-                            end += 1;
-                        }
-                        let k = k as u32;
-                        let tris = cands[start..end]
-                            .iter()
-                            .filter(|c| c.lo <= k && k <= c.hi)
-                            .map(|c| c.tri);
-                        if let Some((uv, weight)) = ctx.locate(i, tris, p, n)
-                            && weight > 0.0
-                        {
-                            found.push((i, uv, weight));
-                        }
-                        start = end;
+            walk_band(ctx, atlas, candidates, band, |texel, cands| {
+                let t = texel.t;
+                found.clear();
+                let mut start = 0;
+                while start < cands.len() {
+                    let i = cands[start].patch;
+                    let mut end = start + 1;
+                    while end < cands.len() && cands[end].patch == i {
+                        end += 1;
                     }
-                    let total: f32 = found.iter().map(|l| l.2).sum();
-                    if found.is_empty() || total <= 0.0 {
-                        source[t] = UNCOVERED;
-                        missing.push(Uncovered {
-                            texel: (base + t) as u32,
-                            triangle: f,
-                            bary,
-                        });
-                        continue;
+                    let tris = cands[start..end]
+                        .iter()
+                        .filter(|c| c.lo <= texel.k && texel.k <= c.hi)
+                        .map(|c| c.tri);
+                    if let Some((uv, weight)) = ctx.locate(i, tris, texel.p, texel.n)
+                        && weight > 0.0
+                    {
+                        found.push((i, uv, weight));
                     }
-                    let texel = &mut values[t * c..(t + 1) * c];
-                    texel.fill(0.0);
-                    let mut heaviest = found[0];
-                    let mut visible = 0u8;
-                    for &(i, uv, weight) in &found {
-                        let share = weight / total;
-                        ctx.exemplar.sample_all(uv.x, uv.y, &mut sample);
-                        for (o, s) in texel.iter_mut().zip(&sample) {
-                            *o += share * s;
-                        }
-                        if share >= VISIBLE_LAYER_WEIGHT {
-                            visible = visible.saturating_add(1);
-                            used.push(ctx.patches[i as usize].id);
-                        }
-                        if weight > heaviest.2 {
-                            heaviest = (i, uv, weight);
-                        }
-                    }
-                    source[t] = ctx.patches[heaviest.0 as usize].id + 1;
-                    uvs[t] = heaviest.1;
-                    layers[t] = visible;
+                    start = end;
                 }
-            }
+                let total: f32 = found.iter().map(|l| l.2).sum();
+                if found.is_empty() || total <= 0.0 {
+                    source[t] = UNCOVERED;
+                    missing.push(Uncovered {
+                        texel: (base + t) as u32,
+                        triangle: texel.triangle,
+                        bary: texel.bary,
+                    });
+                    return;
+                }
+                let out = &mut values[t * c..(t + 1) * c];
+                out.fill(0.0);
+                let mut heaviest = found[0];
+                let mut visible = 0u8;
+                for &(i, uv, weight) in &found {
+                    let share = weight / total;
+                    ctx.exemplar.sample_all(uv.x, uv.y, &mut sample);
+                    for (o, s) in out.iter_mut().zip(&sample) {
+                        *o += share * s;
+                    }
+                    if share >= VISIBLE_LAYER_WEIGHT {
+                        visible = visible.saturating_add(1);
+                        used.push(ctx.patches[i as usize].id);
+                    }
+                    if weight > heaviest.2 {
+                        heaviest = (i, uv, weight);
+                    }
+                }
+                source[t] = ctx.patches[heaviest.0 as usize].id + 1;
+                uvs[t] = heaviest.1;
+                layers[t] = visible;
+            });
             used.sort_unstable();
             used.dedup();
             (missing, used)

@@ -447,6 +447,66 @@ impl FillContext<'_> {
     }
 }
 
+/// One chart texel as [`walk_band`] hands it over.
+pub(crate) struct BandTexel {
+    /// Texel index from the band's first texel.
+    pub(crate) t: usize,
+    /// Index of the texel in its span (for [`SpanCandidate`] intervals).
+    pub(crate) k: u32,
+    /// Surface point and unit normal of its fluid triangle.
+    pub(crate) p: Vec3,
+    pub(crate) n: Vec3,
+    pub(crate) triangle: u32,
+    pub(crate) bary: [f32; 3],
+}
+
+/// Visits every chart texel of `band` in texel order, with the span's
+/// candidates pruned by [`span_candidates`]: the walk the lapped and the
+/// blended fills share.
+pub(crate) fn walk_band(
+    ctx: &FillContext<'_>,
+    atlas: &Atlas,
+    candidates: &Candidates,
+    band: &crate::atlas::Band,
+    mut visit: impl FnMut(&BandTexel, &[SpanCandidate]),
+) {
+    let w = atlas.width as usize;
+    let base = band.y0 as usize * w;
+    let mut texels: Vec<(u32, [f32; 3])> = Vec::new();
+    let mut cands = Vec::new();
+    for span in &band.spans {
+        let f = span.triangle;
+        let [a, b, c] = ctx.mesh.corners(f as usize);
+        let n = (b - a).cross(c - a).normalize_or_zero();
+        let point = |bary: [f32; 3]| a * bary[0] + b * bary[1] + c * bary[2];
+        texels.clear();
+        texels.extend(atlas.span_barycentrics(span));
+        let (Some(&(_, b_first)), Some(&(_, b_last))) = (texels.first(), texels.last()) else {
+            continue;
+        };
+        span_candidates(
+            ctx,
+            candidates.of(f),
+            point(b_first),
+            point(b_last),
+            texels.len() as u32,
+            &mut cands,
+        );
+        let row = span.y as usize * w - base;
+        for (k, &(x, bary)) in texels.iter().enumerate() {
+            let texel = BandTexel {
+                t: row + x as usize,
+                k: k as u32,
+                p: point(bary),
+                n,
+                triangle: f,
+                bary,
+            };
+            visit(&texel, &cands);
+        }
+    }
+}
+
 /// Fills every chart texel of `atlas` (parallel by bands) and returns the
 /// texels no patch covered, in texel order.
 pub fn fill(
@@ -462,7 +522,6 @@ pub fn fill(
     let band_rows = (first.y1 - first.y0) as usize;
     let w = atlas.width as usize;
     let c = out.channels;
-    let mesh = ctx.mesh;
     let mut uncovered: Vec<Uncovered> = out
         .values
         .par_chunks_mut(band_rows * w * c)
@@ -471,53 +530,29 @@ pub fn fill(
         .zip(bands.par_iter())
         .flat_map_iter(|(((values, source), uvs), band)| {
             let mut missing = Vec::new();
-            let mut texels: Vec<(u32, [f32; 3])> = Vec::new();
-            let mut cands = Vec::new();
             let base = band.y0 as usize * w;
-            for span in &band.spans {
-                let f = span.triangle;
-                let [a, b, cc] = mesh.corners(f as usize);
-                let n = (b - a).cross(cc - a).normalize_or_zero();
-                let point = |bary: [f32; 3]| a * bary[0] + b * bary[1] + cc * bary[2];
-                texels.clear();
-                texels.extend(atlas.span_barycentrics(span));
-                let (Some(&(_, b_first)), Some(&(_, b_last))) = (texels.first(), texels.last())
-                else {
-                    continue;
-                };
-                span_candidates(
-                    ctx,
-                    candidates.of(f),
-                    point(b_first),
-                    point(b_last),
-                    texels.len() as u32,
-                    &mut cands,
-                );
-                let row = span.y as usize * w - base;
-                for (k, &(x, bary)) in texels.iter().enumerate() {
-                    let t = row + x as usize;
-                    let p = point(bary);
-                    match ctx.resolve_in_span(&cands, k as u32, p, n) {
-                        Some(hit) => {
-                            ctx.exemplar.sample_all(
-                                hit.uv.x,
-                                hit.uv.y,
-                                &mut values[t * c..(t + 1) * c],
-                            );
-                            source[t] = ctx.patches[hit.patch as usize].id + 1;
-                            uvs[t] = hit.uv;
-                        }
-                        None => {
-                            source[t] = UNCOVERED;
-                            missing.push(Uncovered {
-                                texel: (base + t) as u32,
-                                triangle: f,
-                                bary,
-                            });
-                        }
+            walk_band(ctx, atlas, candidates, band, |texel, cands| {
+                let t = texel.t;
+                match ctx.resolve_in_span(cands, texel.k, texel.p, texel.n) {
+                    Some(hit) => {
+                        ctx.exemplar.sample_all(
+                            hit.uv.x,
+                            hit.uv.y,
+                            &mut values[t * c..(t + 1) * c],
+                        );
+                        source[t] = ctx.patches[hit.patch as usize].id + 1;
+                        uvs[t] = hit.uv;
+                    }
+                    None => {
+                        source[t] = UNCOVERED;
+                        missing.push(Uncovered {
+                            texel: (base + t) as u32,
+                            triangle: texel.triangle,
+                            bary: texel.bary,
+                        });
                     }
                 }
-            }
+            });
             missing
         })
         .collect();
