@@ -58,14 +58,29 @@ pub struct FlowInterval<'a> {
 impl FlowInterval<'_> {
     /// Velocity at `p` and fraction `s` ∈ [0, 1] of the interval.
     pub fn velocity(&self, p: Vec3, s: f32) -> Option<Vec3> {
-        let v0 = self.from.sample(p, self.search_hint);
-        match (&self.to, v0) {
-            (Some(to), Some(v0)) => match to.sample(p, self.search_hint) {
+        let Some(to) = &self.to else {
+            return self.from.sample(p, self.search_hint);
+        };
+        // At the ends of the interval one mesh has weight 0: skip its
+        // closest-point query (RK4's first and last stages; 2 of the 8
+        // queries of a step). The result is the blend's, exactly.
+        if s <= 0.0 {
+            return self
+                .from
+                .sample(p, self.search_hint)
+                .or_else(|| to.sample(p, self.search_hint));
+        }
+        if s >= 1.0 {
+            return to
+                .sample(p, self.search_hint)
+                .or_else(|| self.from.sample(p, self.search_hint));
+        }
+        match self.from.sample(p, self.search_hint) {
+            Some(v0) => match to.sample(p, self.search_hint) {
                 Some(v1) => Some(v0 * (1.0 - s) + v1 * s),
                 None => Some(v0),
             },
-            (Some(to), None) => to.sample(p, self.search_hint),
-            (None, v0) => v0,
+            None => to.sample(p, self.search_hint),
         }
     }
 
@@ -187,6 +202,22 @@ mod tests {
             flow.velocity(Vec3::ZERO, 0.25),
             Some(Vec3::new(0.75, 0.25, 0.0))
         );
+        // The ends of the interval are each frame's own field.
+        assert_eq!(flow.velocity(Vec3::ZERO, 0.0), Some(Vec3::X));
+        assert_eq!(flow.velocity(Vec3::ZERO, 1.0), Some(Vec3::Y));
+        // With one mesh empty, the other one's field at both ends.
+        let empty = TriMesh::new(Vec::new(), Vec::new()).with_velocity(Vec::new());
+        let ie = SurfaceIndex::new(&empty);
+        let half = FlowInterval {
+            to: Some(FlowFrame {
+                mesh: &empty,
+                index: &ie,
+                velocity: &[],
+            }),
+            ..flow
+        };
+        assert_eq!(half.velocity(Vec3::ZERO, 0.0), Some(Vec3::X));
+        assert_eq!(half.velocity(Vec3::ZERO, 1.0), Some(Vec3::X));
         // Constant-in-space, linear-in-time field: RK4 integrates it exactly.
         let q = flow.advect(Vec3::ZERO);
         assert!((q - Vec3::new(0.5, 0.5, 0.0)).length() < 1e-6, "{q}");
