@@ -388,7 +388,7 @@ pub fn evaluate(
             set(Metric::Distortion, d.anisotropy);
             texel_scale = d.exemplar_texels_per_texel;
         }
-        if fidelity.is_none() {
+        if fidelity_scale.is_nan() {
             let s = if texel_scale.is_finite() && texel_scale > 0.0 {
                 texel_scale
             } else {
@@ -422,10 +422,18 @@ pub fn evaluate(
             && (k as u32).is_multiple_of(settings.fidelity_every)
             && charts.iter().any(|&c| c)
         {
-            let f = reference
-                .measure(colour, Some(&charts))
-                .map_err(metric_err(number, "fidelity"))?;
-            set(Metric::Fidelity, f.ratio);
+            // Too little chart area for the pyramid's patches is a frame
+            // without a value, not a failed evaluation.
+            match reference.measure(colour, Some(&charts)) {
+                Ok(f) => set(Metric::Fidelity, f.ratio),
+                Err(e @ (MetricsError::Empty(_) | MetricsError::TooSmall { .. })) => {
+                    let note = format!("fidelity not measured on some frames: {e}");
+                    if !notes.contains(&note) {
+                        notes.push(note);
+                    }
+                }
+                Err(e) => return Err(metric_err(number, "fidelity")(e)),
+            }
         }
 
         // Renders.
