@@ -82,6 +82,12 @@ pub struct EvalSettings {
     /// Gutter dilation radius, texels, as `pipeline::run` uses it
     /// (`2 · max(gutter, 1)`).
     pub dilate_radius: u32,
+    /// Colour renders are drawn at this many samples per pixel side and
+    /// box-filtered [4], 1–8: what a viewer sees with antialiasing. Without
+    /// it, atlas detail finer than a pixel aliases, and the aliasing
+    /// changes under sub-pixel motion, which popping would charge to the
+    /// method. Provenance (flow) is read at one sample per pixel.
+    pub supersample: u32,
 }
 
 impl Default for EvalSettings {
@@ -93,6 +99,7 @@ impl Default for EvalSettings {
             keep_renders: Vec::new(),
             fidelity_every: 1,
             dilate_radius: 8,
+            supersample: 4,
         }
     }
 }
@@ -119,6 +126,9 @@ impl EvalSettings {
         }
         if !(1..=64).contains(&self.trace_substeps) {
             return bad("trace substeps", self.trace_substeps.to_string(), "1 to 64");
+        }
+        if !(1..=8).contains(&self.supersample) {
+            return bad("supersample", self.supersample.to_string(), "1 to 8");
         }
         if self.fidelity_every == 0 {
             return bad("fidelity_every", "0".into(), "1 or more");
@@ -439,7 +449,15 @@ pub fn evaluate(
         // Renders.
         let gb = &frame.gbuffer;
         let mesh = &frame.atlas.uv_mesh;
-        let unlit = render::shade_textured(gb, &mesh.triangles, &mesh.uvs, colour, RENDER_BACKGROUND);
+        let unlit = if settings.supersample > 1 {
+            let k = settings.supersample;
+            let (fine, _) = fine_gbuffer(frame, &scene.camera, k);
+            let image =
+                render::shade_textured(&fine, &mesh.triangles, &mesh.uvs, colour, RENDER_BACKGROUND);
+            box_filter(&image, k)
+        } else {
+            render::shade_textured(gb, &mesh.triangles, &mesh.uvs, colour, RENDER_BACKGROUND)
+        };
         let (px_source, px_uv) = match (source, uv) {
             (Some(s), Some(u)) => pixel_provenance(gb, &frame.atlas, s, u),
             _ => (Vec::new(), Vec::new()),
@@ -526,7 +544,10 @@ pub fn evaluate(
             stop.push(colour);
         }
         if settings.keep_renders.contains(&number) {
-            renders.push((number, lit_render(frame, &scene.camera, colour)));
+            renders.push((
+                number,
+                lit_render(frame, &scene.camera, colour, settings.supersample),
+            ));
         }
         let patches = result.stats.get("patches_alive").and_then(|v| v.as_f64());
         records.push(FrameRecord {
@@ -558,8 +579,46 @@ pub fn evaluate(
     })
 }
 
-/// A lit render of the colour atlas for pictures.
-fn lit_render(frame: &PreparedFrame, camera: &Camera, colour: &Texture) -> Texture {
+/// The G-buffer of `frame` seen by `camera` at `k` samples per pixel side
+/// (the same pinhole: pixel (x, y) of the fine image lies in pixel
+/// (x / k, y / k) of the coarse one), and that camera.
+fn fine_gbuffer(frame: &PreparedFrame, camera: &Camera, k: u32) -> (render::GBuffer, Camera) {
+    let fine = Camera {
+        width: camera.width * k,
+        height: camera.height * k,
+        ..*camera
+    };
+    let mesh = &frame.atlas.uv_mesh;
+    (render::rasterize(&mesh.positions, &mesh.triangles, &fine), fine)
+}
+
+/// Mean of each `k`×`k` block (a box filter and decimation).
+fn box_filter(image: &Texture, k: u32) -> Texture {
+    let (w, h, c) = (image.width / k, image.height / k, image.channels);
+    let mut out = Texture::filled(w, h, c, 0.0);
+    let norm = 1.0 / (k * k) as f32;
+    for y in 0..h {
+        for x in 0..w {
+            let mut sum = [0.0f32; 4];
+            for sy in 0..k {
+                for sx in 0..k {
+                    let t = image.texel(x * k + sx, y * k + sy);
+                    for (s, v) in sum.iter_mut().zip(t) {
+                        *s += v;
+                    }
+                }
+            }
+            for (o, s) in out.texel_mut(x, y).iter_mut().zip(sum) {
+                *o = s * norm;
+            }
+        }
+    }
+    out
+}
+
+/// A lit render of the colour atlas for pictures (antialiased like the
+/// metric renders).
+fn lit_render(frame: &PreparedFrame, camera: &Camera, colour: &Texture, k: u32) -> Texture {
     let mesh = &frame.atlas.uv_mesh;
     let normals = frame.mesh.vertex_normals();
     let normals: Vec<Vec3> = mesh
@@ -567,15 +626,22 @@ fn lit_render(frame: &PreparedFrame, camera: &Camera, colour: &Texture) -> Textu
         .iter()
         .map(|&v| normals.get(v as usize).copied().unwrap_or(Vec3::Z))
         .collect();
-    render::shade_lit(
-        &frame.gbuffer,
-        &mesh.triangles,
-        &normals,
-        &mesh.uvs,
-        colour,
-        camera,
-        [0.12, 0.12, 0.14],
-    )
+    let background = [0.12, 0.12, 0.14];
+    if k > 1 {
+        let (gb, fine) = fine_gbuffer(frame, camera, k);
+        let image = render::shade_lit(&gb, &mesh.triangles, &normals, &mesh.uvs, colour, &fine, background);
+        box_filter(&image, k)
+    } else {
+        render::shade_lit(
+            &frame.gbuffer,
+            &mesh.triangles,
+            &normals,
+            &mesh.uvs,
+            colour,
+            camera,
+            background,
+        )
+    }
 }
 
 /// Median, min and max over a method's frames of the wall time per frame (s).
