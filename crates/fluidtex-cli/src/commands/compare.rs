@@ -148,7 +148,8 @@ pub fn compare(a: &CompareArgs) -> Result<()> {
         }
     };
 
-    let mut scene_reports = Vec::new();
+    // Every scene's parameters and window, checked before any work.
+    let mut plans = Vec::new();
     for name in &scene_names {
         let mut params = scenes::default_params(name)?;
         params.resolution = match a.resolution {
@@ -156,7 +157,20 @@ pub fn compare(a: &CompareArgs) -> Result<()> {
             None => params.resolution.min(DEFAULT_RESOLUTION_CAP),
         };
         params.seed = a.seed;
+        params.validate()?;
         let (first, last) = window(name, params.first, params.last, range);
+        if first < params.first || last > params.last {
+            bail!(
+                "--frames {first}-{last}: scene {name} has frames {}-{}",
+                params.first,
+                params.last
+            );
+        }
+        plans.push((name, params, first, last));
+    }
+
+    let mut scene_reports = Vec::new();
+    for (name, params, first, last) in plans {
         let mut scene = scenes::by_name(name, Some(params))?;
         let frames: Vec<i32> = (first..=last).collect();
         let keep = picture_frames(&frames);
