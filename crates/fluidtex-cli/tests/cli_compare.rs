@@ -46,7 +46,10 @@ fn compare_writes_json_markdown_html_and_pictures() {
     assert_eq!(coverage["median"], 0.0);
     assert_eq!(coverage["verdict"], "PASS");
     assert_eq!(method["per_frame"].as_array().unwrap().len(), 3);
-    assert_eq!(method["parameters"]["parameters"]["cells_per_diagonal"], 24.0);
+    assert_eq!(
+        method["parameters"]["parameters"]["cells_per_diagonal"],
+        24.0
+    );
     let md = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
     assert!(md.contains("| atlas-check | 0 [0, 0] PASS |"), "{md}");
     let html = std::fs::read_to_string(dir.path().join("report.html")).unwrap();
@@ -60,9 +63,15 @@ fn compare_writes_json_markdown_html_and_pictures() {
 fn bad_compare_input_is_one_line_and_writes_nothing() {
     let cases: [(&[&str], &str); 5] = [
         (&["--scenes", "vortx"], "unknown scene 'vortx'"),
-        (&["--methods", "erosion,magic"], "unknown method magic; available: "),
+        (
+            &["--methods", "erosion,magic"],
+            "unknown method magic; available: ",
+        ),
         (&["--frames", "5-2"], "5-2"),
-        (&["--frames", "0-500"], "--frames 0-500: scene rigid-rotation has frames 0-96"),
+        (
+            &["--frames", "0-500"],
+            "--frames 0-500: scene rigid-rotation has frames 0-96",
+        ),
         (&["--atlas", "8"], "--atlas 8"),
     ];
     for (extra, expected) in cases {

@@ -158,10 +158,7 @@ pub enum EvalError {
     #[error("frame {frame}: {source}")]
     Atlas { frame: i32, source: AtlasError },
     #[error("{method}: {source}")]
-    Method {
-        method: String,
-        source: MethodError,
-    },
+    Method { method: String, source: MethodError },
     #[error("frame {frame}: {what}: {source}")]
     Metrics {
         frame: i32,
@@ -284,7 +281,7 @@ pub fn evaluate(
         }
     };
     let sigma_ex = metrics::exemplar_sigma(exemplar);
-    if !(sigma_ex > 0.0) {
+    if sigma_ex.is_nan() || sigma_ex <= 0.0 {
         return Err(metric_err(first_frame, "exemplar")(MetricsError::Invalid {
             name: "sigma_ex",
             value: sigma_ex as f64,
@@ -302,6 +299,11 @@ pub fn evaluate(
     let mut fidelity: Option<FidelityReference> = None;
     let mut fidelity_scale = f64::NAN;
     let mut stop = StaticStop::new();
+    // Still frames that differ from the still frame before them: tells a
+    // method that settles late (a few changes, then identical) from one
+    // that never settles.
+    let mut previous_still: Option<Texture> = None;
+    let mut changed_from_previous = Vec::new();
     let mut records = Vec::with_capacity(scene.frames.len());
     let mut renders = Vec::new();
     let mut previous_view: Option<FrameView> = None;
@@ -336,20 +338,14 @@ pub fn evaluate(
                 })?;
         }
         let seconds = clock.elapsed().as_secs_f64();
-        let colour = result
-            .channels
-            .first()
-            .ok_or_else(|| EvalError::NoColour {
-                method: name.clone(),
-                frame: number,
-            })?;
+        let colour = result.channels.first().ok_or_else(|| EvalError::NoColour {
+            method: name.clone(),
+            frame: number,
+        })?;
         let n_texels = frame.atlas.width as usize * frame.atlas.height as usize;
         // Chart texels: from the method's provenance where it has one,
         // else from the atlas itself.
-        let source: Option<&[u32]> = result
-            .source
-            .as_deref()
-            .filter(|s| s.len() == n_texels);
+        let source: Option<&[u32]> = result.source.as_deref().filter(|s| s.len() == n_texels);
         let charts = match source {
             Some(s) => chart_mask(s),
             None => frame.chart.iter().map(|&c| c != u32::MAX).collect(),
@@ -452,8 +448,13 @@ pub fn evaluate(
         let unlit = if settings.supersample > 1 {
             let k = settings.supersample;
             let (fine, _) = fine_gbuffer(frame, &scene.camera, k);
-            let image =
-                render::shade_textured(&fine, &mesh.triangles, &mesh.uvs, colour, RENDER_BACKGROUND);
+            let image = render::shade_textured(
+                &fine,
+                &mesh.triangles,
+                &mesh.uvs,
+                colour,
+                RENDER_BACKGROUND,
+            );
             box_filter(&image, k)
         } else {
             render::shade_textured(gb, &mesh.triangles, &mesh.uvs, colour, RENDER_BACKGROUND)
@@ -542,6 +543,12 @@ pub fn evaluate(
         }
         if frame.still {
             stop.push(colour);
+            if let Some(p) = &previous_still
+                && !metrics::bit_identical(p, colour)
+            {
+                changed_from_previous.push(number);
+            }
+            previous_still = Some(colour.clone());
         }
         if settings.keep_renders.contains(&number) {
             renders.push((
@@ -560,6 +567,15 @@ pub fn evaluate(
         previous_view = Some(view);
     }
 
+    if stop.frames_after() > 0 {
+        notes.push(format!(
+            "static stop: {} of {} frames after the first still frame differ from it; \
+             still frames that differ from the frame before: {:?}",
+            stop.changed(),
+            stop.frames_after(),
+            changed_from_previous
+        ));
+    }
     let mut summaries = Vec::with_capacity(Metric::ALL.len());
     for m in Metric::ALL {
         let values: Vec<f64> = match m {
@@ -589,7 +605,10 @@ fn fine_gbuffer(frame: &PreparedFrame, camera: &Camera, k: u32) -> (render::GBuf
         ..*camera
     };
     let mesh = &frame.atlas.uv_mesh;
-    (render::rasterize(&mesh.positions, &mesh.triangles, &fine), fine)
+    (
+        render::rasterize(&mesh.positions, &mesh.triangles, &fine),
+        fine,
+    )
 }
 
 /// Mean of each `k`×`k` block (a box filter and decimation).
@@ -629,7 +648,15 @@ fn lit_render(frame: &PreparedFrame, camera: &Camera, colour: &Texture, k: u32) 
     let background = [0.12, 0.12, 0.14];
     if k > 1 {
         let (gb, fine) = fine_gbuffer(frame, camera, k);
-        let image = render::shade_lit(&gb, &mesh.triangles, &normals, &mesh.uvs, colour, &fine, background);
+        let image = render::shade_lit(
+            &gb,
+            &mesh.triangles,
+            &normals,
+            &mesh.uvs,
+            colour,
+            &fine,
+            background,
+        );
         box_filter(&image, k)
     } else {
         render::shade_lit(

@@ -93,13 +93,15 @@ pub fn prepare(
     }
     // One camera for the whole window, framing every frame's surface, so
     // a surface that travels stays in view.
-    let (lo, hi) = meshes
-        .iter()
-        .filter_map(TriMesh::bounding_box)
-        .fold((Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)), |(l, h), (a, b)| {
-            (l.min(a), h.max(b))
-        });
-    let (lo, hi) = if lo.x <= hi.x { (lo, hi) } else { (Vec3::ZERO, Vec3::ONE) };
+    let (lo, hi) = meshes.iter().filter_map(TriMesh::bounding_box).fold(
+        (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
+        |(l, h), (a, b)| (l.min(a), h.max(b)),
+    );
+    let (lo, hi) = if lo.x <= hi.x {
+        (lo, hi)
+    } else {
+        (Vec3::ZERO, Vec3::ONE)
+    };
     let camera = Camera::framing(
         lo,
         hi,
@@ -154,10 +156,26 @@ pub fn prepare(
         let (prev, next) = (&mut before[k - 1], &mut after[0]);
         let step = (next.number - prev.number) as f64 * f64::from(dt);
         prev.forward = Some(
-            true_motion(&*scene, &truth, &prev.mesh, &prev.gbuffer, &camera, prev.time, step).0,
+            true_motion(
+                &*scene,
+                &truth,
+                &prev.mesh,
+                &prev.gbuffer,
+                &camera,
+                prev.time,
+                step,
+            )
+            .0,
         );
-        let (back, depth) =
-            true_motion(&*scene, &truth, &next.mesh, &next.gbuffer, &camera, next.time, -step);
+        let (back, depth) = true_motion(
+            &*scene,
+            &truth,
+            &next.mesh,
+            &next.gbuffer,
+            &camera,
+            next.time,
+            -step,
+        );
         // `back` is where the point was minus where it is; the metrics want
         // the displacement over the frame, and whether the point was seen.
         let visible = visible_before(&back, &depth, &next.gbuffer, &prev.gbuffer, thresholds);

@@ -185,7 +185,11 @@ fn num(v: f64) -> String {
     if v.is_nan() {
         "—".into()
     } else if v.is_infinite() {
-        if v > 0.0 { "∞".into() } else { "−∞".into() }
+        if v > 0.0 {
+            "∞".into()
+        } else {
+            "−∞".into()
+        }
     } else if v == 0.0 {
         "0".into()
     } else if v.abs() >= 100.0 {
@@ -364,7 +368,8 @@ impl Report {
                     match m.cell(metric_key(c)) {
                         Some(cell) if cell.frames > 0 => {
                             let class = if cell.pass { "pass" } else { "fail" };
-                            let _ = write!(s, "<td class=\"{class}\">{}</td>", esc(&cell_text(cell)));
+                            let _ =
+                                write!(s, "<td class=\"{class}\">{}</td>", esc(&cell_text(cell)));
                         }
                         _ => s.push_str("<td class=\"na\">n/a</td>"),
                     }

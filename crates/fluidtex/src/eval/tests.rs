@@ -122,8 +122,7 @@ impl Method for Painted {
                     let m = if self.advect {
                         let d = p.as_dvec3() - CENTRE;
                         let (s, co) = (-OMEGA * t).sin_cos();
-                        (CENTRE + DVec3::new(co * d.x - s * d.y, s * d.x + co * d.y, d.z))
-                            .as_vec3()
+                        (CENTRE + DVec3::new(co * d.x - s * d.y, s * d.x + co * d.y, d.z)).as_vec3()
                     } else {
                         p
                     };
@@ -136,7 +135,8 @@ impl Method for Painted {
                     uv[i] = q;
                     source[i] = 1;
                     let mut g = [0.0f32];
-                    self.exemplar.sample_bilinear(q.x, q.y, Wrap::Repeat, &mut g);
+                    self.exemplar
+                        .sample_bilinear(q.x, q.y, Wrap::Repeat, &mut g);
                     colour.data[i] = g[0];
                 }
             }
@@ -183,7 +183,8 @@ fn verdict(r: &MethodRun, m: Metric) -> Verdict {
 
 #[test]
 fn trace_follows_the_rigid_rotation_exactly() {
-    let scene = scenes::by_name("rigid-rotation", Some(params("rigid-rotation", 16, 0, 4))).unwrap();
+    let scene =
+        scenes::by_name("rigid-rotation", Some(params("rigid-rotation", 16, 0, 4))).unwrap();
     let p = Vec3::new(0.8, 0.5, 0.55);
     let step = 1.0 / 24.0;
     let q = trace(scene.as_ref(), p, 0.0, step, 4).unwrap();
@@ -228,7 +229,10 @@ fn true_motion_of_a_rigid_rotation_is_the_projected_rotation() {
         checked += 1;
     }
     assert!(checked > 1000, "only {checked} pixels on the sphere");
-    assert!(straight_error > 1e-2, "v*dt would be as good: {straight_error}");
+    assert!(
+        straight_error > 1e-2,
+        "v*dt would be as good: {straight_error}"
+    );
     // Backward motion of frame 1 points the other way round.
     let (back, visible) = scene.frames[1].backward.as_ref().unwrap();
     assert!(visible.iter().filter(|&&v| v).count() > checked / 2);
@@ -265,7 +269,11 @@ fn atlas_check_report_has_full_coverage_and_every_cell() {
         seed: 0,
         exemplar: "pattern".into(),
         seconds: 0.0,
-        scenes: vec![SceneReport::new(&scene, vec![mr], vec![("sheet".into(), "s.png".into())])],
+        scenes: vec![SceneReport::new(
+            &scene,
+            vec![mr],
+            vec![("sheet".into(), "s.png".into())],
+        )],
         not_measured: vec![],
     };
     let json: serde_json::Value = serde_json::to_value(&report).unwrap();
@@ -274,9 +282,18 @@ fn atlas_check_report_has_full_coverage_and_every_cell() {
     assert_eq!(cells[0]["key"], "coverage");
     assert_eq!(cells[0]["median"], 0.0);
     assert_eq!(cells[0]["pass"], true);
-    assert_eq!(json["scenes"][0]["methods"][0]["per_frame"].as_array().unwrap().len(), 3);
+    assert_eq!(
+        json["scenes"][0]["methods"][0]["per_frame"]
+            .as_array()
+            .unwrap()
+            .len(),
+        3
+    );
     let md = report.to_markdown();
-    assert!(md.contains("| atlas-check | 0 [0, 0] PASS | 0 [0, 0] PASS |"), "{md}");
+    assert!(
+        md.contains("| atlas-check | 0 [0, 0] PASS | 0 [0, 0] PASS |"),
+        "{md}"
+    );
     let html = report.to_html(&Thresholds::committed().unwrap());
     assert_eq!(html.matches("<svg").count(), PER_FRAME.len());
     assert!(html.contains("<img src=\"s.png\">"));
@@ -286,16 +303,39 @@ fn atlas_check_report_has_full_coverage_and_every_cell() {
 fn flow_fidelity_passes_a_moving_texture_and_fails_a_fixed_one() {
     let (scene, settings) = prepared("rigid-rotation", 16, 0..=3, 128, 96);
     let exemplar = pattern(128);
-    let good = run(&scene, &mut painted(&scene, &exemplar, true, false), &settings);
-    let fixed = run(&scene, &mut painted(&scene, &exemplar, false, false), &settings);
+    let good = run(
+        &scene,
+        &mut painted(&scene, &exemplar, true, false),
+        &settings,
+    );
+    let fixed = run(
+        &scene,
+        &mut painted(&scene, &exemplar, false, false),
+        &settings,
+    );
     let mut check = AtlasCheck::new(AtlasCheckParams::default()).unwrap();
     let checker = run(&scene, &mut check, &settings);
     let epe = |r: &MethodRun| r.summary(Metric::FlowEpe).unwrap().median;
-    assert_eq!(verdict(&good, Metric::FlowEpe), Verdict::Pass, "{}", epe(&good));
+    assert_eq!(
+        verdict(&good, Metric::FlowEpe),
+        Verdict::Pass,
+        "{}",
+        epe(&good)
+    );
     assert_eq!(verdict(&good, Metric::FlowAligned), Verdict::Pass);
-    assert_eq!(verdict(&fixed, Metric::FlowEpe), Verdict::Fail, "{}", epe(&fixed));
+    assert_eq!(
+        verdict(&fixed, Metric::FlowEpe),
+        Verdict::Fail,
+        "{}",
+        epe(&fixed)
+    );
     assert_eq!(verdict(&fixed, Metric::FlowAligned), Verdict::Fail);
-    assert_eq!(verdict(&checker, Metric::FlowEpe), Verdict::Fail, "{}", epe(&checker));
+    assert_eq!(
+        verdict(&checker, Metric::FlowEpe),
+        Verdict::Fail,
+        "{}",
+        epe(&checker)
+    );
     // A smooth texture that moves exactly does not pop; one that stays put
     // while the surface turns under it does.
     assert_eq!(verdict(&good, Metric::Popping), Verdict::Pass);
@@ -309,20 +349,44 @@ fn static_stop_counts_frames_that_change_after_the_fluid_stops() {
     let still: Vec<bool> = scene.frames.iter().map(|f| f.still).collect();
     assert_eq!(still, [false, false, true, true, true]);
     let exemplar = pattern(64);
-    let steady = run(&scene, &mut painted(&scene, &exemplar, false, false), &settings);
-    let flicker = run(&scene, &mut painted(&scene, &exemplar, false, true), &settings);
+    let steady = run(
+        &scene,
+        &mut painted(&scene, &exemplar, false, false),
+        &settings,
+    );
+    let flicker = run(
+        &scene,
+        &mut painted(&scene, &exemplar, false, true),
+        &settings,
+    );
     let s = steady.summary(Metric::StaticStop).unwrap();
     assert_eq!((s.median, s.verdict), (0.0, Verdict::Pass));
     let f = flicker.summary(Metric::StaticStop).unwrap();
     assert_eq!((f.median, f.verdict), (2.0, Verdict::Fail));
+    let note = |r: &MethodRun| {
+        r.notes
+            .iter()
+            .find(|n| n.starts_with("static stop"))
+            .cloned()
+    };
+    assert!(note(&flicker).unwrap().ends_with("[49, 50]"));
+    assert!(note(&steady).unwrap().ends_with("[]"));
 }
 
 #[test]
 fn evaluation_is_deterministic() {
     let (scene, settings) = prepared("rigid-rotation", 16, 0..=1, 64, 64);
     let exemplar = pattern(64);
-    let a = run(&scene, &mut painted(&scene, &exemplar, true, false), &settings);
-    let b = run(&scene, &mut painted(&scene, &exemplar, true, false), &settings);
+    let a = run(
+        &scene,
+        &mut painted(&scene, &exemplar, true, false),
+        &settings,
+    );
+    let b = run(
+        &scene,
+        &mut painted(&scene, &exemplar, true, false),
+        &settings,
+    );
     for (x, y) in a.frames.iter().zip(&b.frames) {
         let bits = |r: &FrameRecord| r.values.map(f64::to_bits);
         assert_eq!(bits(x), bits(y));
@@ -335,14 +399,23 @@ fn bad_frames_and_settings_are_named() {
     let t = Thresholds::committed().unwrap();
     let atlas = AtlasParams::square(64);
     let s = EvalSettings::default();
-    let e = prepare(scene.as_mut(), &[80, 90], &atlas, &s, &t).err().unwrap();
-    assert_eq!(e.to_string(), "scene stop: frame 90 is outside its range 0-84");
-    let e = prepare(scene.as_mut(), &[3, 2], &atlas, &s, &t).err().unwrap();
+    let e = prepare(scene.as_mut(), &[80, 90], &atlas, &s, &t)
+        .err()
+        .unwrap();
+    assert_eq!(
+        e.to_string(),
+        "scene stop: frame 90 is outside its range 0-84"
+    );
+    let e = prepare(scene.as_mut(), &[3, 2], &atlas, &s, &t)
+        .err()
+        .unwrap();
     assert!(e.to_string().contains("increasing"), "{e}");
     let bad = EvalSettings {
         render_size: 8,
         ..Default::default()
     };
-    let e = prepare(scene.as_mut(), &[0], &atlas, &bad, &t).err().unwrap();
+    let e = prepare(scene.as_mut(), &[0], &atlas, &bad, &t)
+        .err()
+        .unwrap();
     assert!(e.to_string().contains("render size = 8"), "{e}");
 }
