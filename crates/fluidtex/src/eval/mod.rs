@@ -18,8 +18,9 @@
 //!   once per sequence from the exemplar rescaled to the output's texel
 //!   scale, metrics/mod.rs);
 //! - on unlit renders from the fixed camera (colour looked up through the
-//!   mesh's atlas uv; source and exemplar uv from the atlas texels, see
-//!   [`pixels`]): flow fidelity against the true motion (provenance-based
+//!   mesh's atlas uv, supersampled and box-filtered so sub-pixel atlas
+//!   detail does not alias; source and exemplar uv from the atlas texels,
+//!   see [`pixels`]): flow fidelity against the true motion (provenance-based
 //!   where the method gives uv, image-based otherwise) and popping
 //!   (backward warp with the true motion, disoccluded pixels left out);
 //! - static stop: once every vertex velocity is exactly zero, the colour
@@ -252,7 +253,7 @@ impl MethodRun {
     }
 }
 
-/// Unlit and lit renders plus per-pixel provenance of one frame.
+/// The antialiased unlit render and per-pixel provenance of one frame.
 struct FrameView {
     colour: Texture,
     source: Vec<u32>,
