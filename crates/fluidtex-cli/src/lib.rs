@@ -38,6 +38,8 @@ pub enum Command {
     Scene(SceneArgs),
     /// Print per-stage timings on a generated surface
     Bench(BenchArgs),
+    /// Run methods on scenes and measure them: report.json, report.md, report.html
+    Compare(Box<commands::compare::CompareArgs>),
 }
 
 /// Runs the tool with `args` (the first element is the program name).
@@ -53,6 +55,7 @@ where
         Command::Demo(a) => commands::demo::demo(&a),
         Command::Scene(a) => commands::scene::scene(&a),
         Command::Bench(a) => commands::bench::bench(&a),
+        Command::Compare(a) => commands::compare::compare(&a),
     }
 }
 

@@ -17,9 +17,10 @@
 //! ```
 //!
 //! Modules, one per concept: [`mesh`], [`surface`], [`param`], [`atlas`],
-//! [`exemplar`], [`methods`], [`metrics`], [`render`], [`scenes`], [`io`], and [`texture`] (the float image type and texel convention).
+//! [`exemplar`], [`methods`], [`metrics`], [`eval`] (the evaluation harness), [`render`], [`scenes`], [`io`], and [`texture`] (the float image type and texel convention).
 
 pub mod atlas;
+pub mod eval;
 pub mod exemplar;
 pub mod io;
 pub mod mesh;

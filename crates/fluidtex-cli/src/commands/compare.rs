@@ -1,0 +1,362 @@
+//! `fluidtex compare`: every method on the same scenes, seed, exemplar and
+//! atlas size, measured by the evaluation harness (`fluidtex::eval`), with a
+//! report in JSON, Markdown and HTML plus pictures. See docs/compare.md.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use fluidtex::eval::report::{MethodReport, Report, SceneReport, contact_sheet};
+use fluidtex::eval::{self, EvalSettings, MethodRun};
+use fluidtex::io::FrameRange;
+use fluidtex::io::image::{PngOptions, encode_png};
+use fluidtex::metrics::Thresholds;
+use fluidtex::scenes;
+use fluidtex::texture::Texture;
+
+use super::run::{METHODS, build_exemplar, build_job, build_method};
+use crate::config::Config;
+
+/// Scenes compared by default.
+pub const DEFAULT_SCENES: &str = "vortex,differential-rotation,stop";
+/// Scene resolution cap of the default comparison (marching-cubes cells
+/// along the domain's longest side): small meshes, so the whole default
+/// comparison runs in minutes on two cores.
+pub const DEFAULT_RESOLUTION_CAP: u32 = 48;
+/// Frames per scene by default.
+pub const DEFAULT_FRAMES: i32 = 12;
+
+#[derive(Args, Debug)]
+pub struct CompareArgs {
+    /// Scenes, comma-separated (see `fluidtex scene --list`)
+    #[arg(long, default_value = DEFAULT_SCENES)]
+    pub scenes: String,
+    /// Methods, comma-separated [every method]
+    #[arg(long)]
+    pub methods: Option<String>,
+    /// Output folder for report.json, report.md, report.html and pictures
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Frame range A-B for every scene [per scene: its first 12 frames; stop: 40-55, across the stop]
+    #[arg(long)]
+    pub frames: Option<String>,
+    /// Atlas size in texels (square)
+    #[arg(long, default_value_t = 512)]
+    pub atlas: u32,
+    /// Scene resolution (marching-cubes cells) [the scene's default, at most 48]
+    #[arg(long)]
+    pub resolution: Option<u32>,
+    /// Side of the square evaluation renders in pixels
+    #[arg(long, default_value_t = 256)]
+    pub render: u32,
+    /// Seed of every random choice
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Colour exemplar (PNG, JPEG, EXR); default: built-in pebbles
+    #[arg(long)]
+    pub exemplar: Option<PathBuf>,
+    /// No progress lines
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+fn split_list(what: &str, text: &str) -> Result<Vec<String>> {
+    let items: Vec<String> = text
+        .split(',')
+        .map(|s| s.trim().to_string())
+        .filter(|s| !s.is_empty())
+        .collect();
+    if items.is_empty() {
+        bail!("--{what}: give at least one name");
+    }
+    Ok(items)
+}
+
+/// The frames evaluated on `scene` (first..last of its parameters).
+fn window(scene: &str, first: i32, last: i32, range: Option<FrameRange>) -> (i32, i32) {
+    match range {
+        Some(r) => (r.first, r.last),
+        // The stop scene is still from frame 48: straddle it.
+        None if scene == "stop" => (40.max(first), 55.min(last)),
+        None => (first, (first + DEFAULT_FRAMES - 1).min(last)),
+    }
+}
+
+/// The parameters of `method` in `config` (its own section, if it has one).
+fn method_parameters(config: &Config, method: &str) -> serde_json::Value {
+    let all = serde_json::to_value(config).unwrap_or_default();
+    let section = all
+        .get(method.replace('-', "_"))
+        .cloned()
+        .unwrap_or(serde_json::Value::Null);
+    serde_json::json!({
+        "method": method,
+        "seed": config.seed,
+        "atlas": config.atlas,
+        "exemplar": config.exemplar.as_ref().map(|p| p.display().to_string()),
+        "parameters": section,
+    })
+}
+
+pub fn compare(a: &CompareArgs) -> Result<()> {
+    let start = Instant::now();
+    let scene_names = split_list("scenes", &a.scenes)?;
+    for s in &scene_names {
+        scenes::default_params(s)?;
+    }
+    let method_names = match &a.methods {
+        Some(m) => split_list("methods", m)?,
+        None => METHODS.iter().map(|m| m.to_string()).collect(),
+    };
+    for m in &method_names {
+        if !METHODS.contains(&m.as_str()) {
+            bail!("unknown method {m}; available: {}", METHODS.join(", "));
+        }
+    }
+    let range = a
+        .frames
+        .as_deref()
+        .map(str::parse::<FrameRange>)
+        .transpose()?;
+    if !(32..=4096).contains(&a.render) {
+        bail!("--render {}: allowed 32 to 4096 pixels", a.render);
+    }
+    let base = Config {
+        atlas: Some(a.atlas),
+        seed: Some(a.seed),
+        exemplar: a.exemplar.clone(),
+        ..Default::default()
+    };
+    // Validates the atlas size and gives the atlas parameters `run` uses.
+    let job = build_job(&base, a.out.clone(), false)?;
+    let exemplar = build_exemplar(&base)?.colour;
+    let thresholds = Thresholds::committed()?;
+    // Build every method once up front so a bad configuration fails before
+    // any scene is generated.
+    for m in &method_names {
+        build_method(&Config {
+            method: Some(m.clone()),
+            ..base.clone()
+        })?;
+    }
+    std::fs::create_dir_all(&a.out)
+        .with_context(|| format!("{}: cannot create the output folder", a.out.display()))?;
+    let say = |msg: String| {
+        if !a.quiet {
+            eprintln!("{msg}");
+        }
+    };
+
+    // Every scene's parameters and window, checked before any work.
+    let mut plans = Vec::new();
+    for name in &scene_names {
+        let mut params = scenes::default_params(name)?;
+        params.resolution = match a.resolution {
+            Some(r) => r,
+            None => params.resolution.min(DEFAULT_RESOLUTION_CAP),
+        };
+        params.seed = a.seed;
+        params.validate()?;
+        let (first, last) = window(name, params.first, params.last, range);
+        if first < params.first || last > params.last {
+            bail!(
+                "--frames {first}-{last}: scene {name} has frames {}-{}",
+                params.first,
+                params.last
+            );
+        }
+        plans.push((name, params, first, last));
+    }
+
+    let mut scene_reports = Vec::new();
+    for (name, params, first, last) in plans {
+        let mut scene = scenes::by_name(name, Some(params))?;
+        let frames: Vec<i32> = (first..=last).collect();
+        let keep = picture_frames(&frames);
+        let settings = EvalSettings {
+            render_size: a.render,
+            view_dir: eval::default_view(name),
+            keep_renders: keep.clone(),
+            dilate_radius: job.atlas.gutter.max(1) * 2,
+            ..Default::default()
+        };
+        say(format!(
+            "{name}: preparing frames {first}-{last} (resolution {})",
+            params.resolution
+        ));
+        let prepared = eval::prepare(scene.as_mut(), &frames, &job.atlas, &settings, &thresholds)
+            .with_context(|| format!("scene {name}"))?;
+        let mut runs: Vec<MethodRun> = Vec::new();
+        let mut reports = Vec::new();
+        for m in &method_names {
+            let config = Config {
+                method: Some(m.clone()),
+                ..base.clone()
+            };
+            let mut method = build_method(&config)?;
+            let clock = Instant::now();
+            let run = eval::evaluate(
+                &prepared,
+                method.as_mut(),
+                &exemplar,
+                &settings,
+                &thresholds,
+            )
+            .with_context(|| format!("scene {name}, method {m}"))?;
+            say(format!(
+                "{name} / {m}: {} frames in {:.1} s",
+                run.frames.len(),
+                clock.elapsed().as_secs_f64()
+            ));
+            reports.push(MethodReport::new(&run, method_parameters(&config, m)));
+            runs.push(run);
+        }
+        let images = write_pictures(&a.out, name, &keep, &runs)?;
+        scene_reports.push(SceneReport::new(&prepared, reports, images));
+    }
+
+    let report = Report {
+        command: command_line(a, &method_names),
+        atlas_size: a.atlas,
+        seed: a.seed,
+        exemplar: a
+            .exemplar
+            .as_ref()
+            .map_or("built-in pebbles".into(), |p| p.display().to_string()),
+        seconds: start.elapsed().as_secs_f64(),
+        scenes: scene_reports,
+        not_measured: vec![
+            "exemplar-size cost (time with a 2048² exemplar / time with 256²): needs two \
+             extra runs per method and scene; not part of the per-scene report"
+                .into(),
+        ],
+    };
+    let json = serde_json::to_vec_pretty(&report)?;
+    write(&a.out.join("report.json"), &json)?;
+    write(&a.out.join("report.md"), report.to_markdown().as_bytes())?;
+    write(
+        &a.out.join("report.html"),
+        report.to_html(&thresholds).as_bytes(),
+    )?;
+    say(format!(
+        "compare: {} scenes x {} methods in {:.0} s -> {}",
+        scene_names.len(),
+        method_names.len(),
+        report.seconds,
+        a.out.join("report.html").display()
+    ));
+    Ok(())
+}
+
+fn command_line(a: &CompareArgs, methods: &[String]) -> String {
+    let mut s = format!(
+        "fluidtex compare --scenes {} --methods {} --atlas {} --render {} --seed {}",
+        a.scenes,
+        methods.join(","),
+        a.atlas,
+        a.render,
+        a.seed
+    );
+    if let Some(f) = &a.frames {
+        s.push_str(&format!(" --frames {f}"));
+    }
+    if let Some(r) = a.resolution {
+        s.push_str(&format!(" --resolution {r}"));
+    }
+    if let Some(e) = &a.exemplar {
+        s.push_str(&format!(" --exemplar {}", e.display()));
+    }
+    s
+}
+
+/// The frames shown in pictures: up to 6, evenly spread, first and last
+/// included.
+fn picture_frames(frames: &[i32]) -> Vec<i32> {
+    let n = frames.len();
+    if n <= 6 {
+        return frames.to_vec();
+    }
+    let mut out: Vec<i32> = (0..6).map(|k| frames[k * (n - 1) / 5]).collect();
+    out.dedup();
+    out
+}
+
+fn write(path: &Path, bytes: &[u8]) -> Result<()> {
+    fluidtex::io::write_atomic(path, |w| std::io::Write::write_all(w, bytes))?;
+    Ok(())
+}
+
+fn write_png(path: &Path, t: &Texture) -> Result<()> {
+    let bytes = encode_png(t, &PngOptions::default())
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    write(path, &bytes)
+}
+
+/// Side-by-side frames (methods left to right) for the first, middle and
+/// last kept frame, and a contact sheet (a row per method, a column per
+/// kept frame). Returns (caption, file name) pairs.
+fn write_pictures(
+    out: &Path,
+    scene: &str,
+    keep: &[i32],
+    runs: &[MethodRun],
+) -> Result<Vec<(String, String)>> {
+    let background = [0.12, 0.12, 0.14];
+    let mut images = Vec::new();
+    let names: Vec<&str> = runs.iter().map(|r| r.method.as_str()).collect();
+    let picks: Vec<i32> = match keep {
+        [] => Vec::new(),
+        [only] => vec![*only],
+        [first, .., last] => {
+            let mid = keep[keep.len() / 2];
+            let mut v = vec![*first, mid, *last];
+            v.dedup();
+            v
+        }
+    };
+    for f in picks {
+        let row: Vec<&Texture> = runs
+            .iter()
+            .filter_map(|r| r.renders.iter().find(|(n, _)| *n == f).map(|(_, t)| t))
+            .collect();
+        if row.is_empty() {
+            continue;
+        }
+        let file = format!("{scene}_frame{f:04}.png");
+        write_png(
+            &out.join(&file),
+            &fluidtex::render::side_by_side(&row, 8, background),
+        )?;
+        images.push((
+            format!("{scene}, frame {f}: {} (left to right)", names.join(" | ")),
+            file,
+        ));
+    }
+    let thumbs: Vec<Vec<Texture>> = runs
+        .iter()
+        .map(|r| {
+            r.renders
+                .iter()
+                .map(|(_, t)| fluidtex::metrics::rescale(t, 0.5).unwrap_or_else(|_| t.clone()))
+                .collect()
+        })
+        .collect();
+    let rows: Vec<Vec<&Texture>> = thumbs.iter().map(|r| r.iter().collect()).collect();
+    if rows.iter().any(|r| !r.is_empty()) {
+        let file = format!("{scene}_sheet.png");
+        write_png(&out.join(&file), &contact_sheet(&rows, 4, background))?;
+        images.push((
+            format!(
+                "{scene} contact sheet: rows {}, columns frames {}",
+                names.join(", "),
+                keep.iter()
+                    .map(|f| f.to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+            file,
+        ));
+    }
+    Ok(images)
+}

@@ -1,0 +1,85 @@
+//! `fluidtex compare` in-process: a tiny comparison writes the three
+//! reports and the pictures with the expected structure; bad input gives
+//! one clear line and no output.
+
+#![allow(clippy::unwrap_used)]
+
+use std::path::Path;
+
+fn compare(out: &Path, extra: &[&str]) -> anyhow::Result<()> {
+    let defaults = [
+        ("--scenes", "rigid-rotation"),
+        ("--methods", "atlas-check"),
+        ("--frames", "0-2"),
+        ("--atlas", "64"),
+        ("--resolution", "16"),
+        ("--render", "48"),
+    ];
+    let mut args: Vec<String> = vec!["fluidtex".into(), "compare".into(), "--quiet".into()];
+    // A flag given in `extra` replaces its default (clap refuses repeats).
+    for (flag, value) in defaults {
+        if !extra.contains(&flag) {
+            args.push(flag.into());
+            args.push(value.into());
+        }
+    }
+    args.push("--out".into());
+    args.push(out.display().to_string());
+    args.extend(extra.iter().map(|s| s.to_string()));
+    fluidtex_cli::run(args)
+}
+
+#[test]
+fn compare_writes_json_markdown_html_and_pictures() {
+    let dir = tempfile::tempdir().unwrap();
+    compare(dir.path(), &[]).unwrap();
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("report.json")).unwrap()).unwrap();
+    let scene = &json["scenes"][0];
+    assert_eq!(scene["name"], "rigid-rotation");
+    assert_eq!(scene["frames"], serde_json::json!([0, 1, 2]));
+    let method = &scene["methods"][0];
+    assert_eq!(method["name"], "atlas-check");
+    // The checker covers every chart texel.
+    let coverage = &method["metrics"][0];
+    assert_eq!(coverage["key"], "coverage");
+    assert_eq!(coverage["median"], 0.0);
+    assert_eq!(coverage["verdict"], "PASS");
+    assert_eq!(method["per_frame"].as_array().unwrap().len(), 3);
+    assert_eq!(
+        method["parameters"]["parameters"]["cells_per_diagonal"],
+        24.0
+    );
+    let md = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
+    assert!(md.contains("| atlas-check | 0 [0, 0] PASS |"), "{md}");
+    let html = std::fs::read_to_string(dir.path().join("report.html")).unwrap();
+    for file in ["rigid-rotation_sheet.png", "rigid-rotation_frame0000.png"] {
+        assert!(html.contains(file), "{file} not linked");
+        assert!(dir.path().join(file).is_file(), "{file} not written");
+    }
+}
+
+#[test]
+fn bad_compare_input_is_one_line_and_writes_nothing() {
+    let cases: [(&[&str], &str); 5] = [
+        (&["--scenes", "vortx"], "unknown scene 'vortx'"),
+        (
+            &["--methods", "erosion,magic"],
+            "unknown method magic; available: ",
+        ),
+        (&["--frames", "5-2"], "5-2"),
+        (
+            &["--frames", "0-500"],
+            "--frames 0-500: scene rigid-rotation has frames 0-96",
+        ),
+        (&["--atlas", "8"], "--atlas 8"),
+    ];
+    for (extra, expected) in cases {
+        let dir = tempfile::tempdir().unwrap();
+        let e = compare(dir.path(), extra).err().unwrap();
+        let line = fluidtex_cli::one_line(&e);
+        assert!(line.contains(expected), "{extra:?}: {line}");
+        assert!(!line.contains('\n'));
+        assert!(!dir.path().join("report.json").exists());
+    }
+}

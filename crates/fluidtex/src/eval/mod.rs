@@ -1,0 +1,693 @@
+//! The evaluation harness: runs a texturing method over a scene's frames in
+//! memory and measures it with [`crate::metrics`] (shared/EVALUATION.md).
+//!
+//! Two halves. [`prepare`] does everything that does not depend on the
+//! method, once per scene: the meshes, their atlases (the same
+//! [`Atlas::build`](crate::atlas::Atlas::build) as `pipeline::run`), the
+//! surface point of every atlas texel, one fixed camera framing every
+//! frame ([`Camera::framing`](crate::render::Camera::framing) on the
+//! window's bounding box), the G-buffers, the interior masks and the true
+//! motion per pixel ([`truth`]). [`evaluate`] then drives one method frame
+//! by frame exactly as `pipeline::run` does (same [`FrameContext`], previous
+//! frame, dt = 1/fps, gutter dilation) and measures, per frame:
+//!
+//! - on the atlas (per-texel provenance): coverage, ghost fraction (from
+//!   the method's layer counts; 0 by construction for methods that never
+//!   blend), contrast ρ over chart texels, distortion (exemplar uv against
+//!   the texel's surface point) and exemplar fidelity (SWD, reference built
+//!   once per sequence from the exemplar rescaled to the output's texel
+//!   scale, metrics/mod.rs);
+//! - on unlit renders from the fixed camera (colour looked up through the
+//!   mesh's atlas uv, supersampled and box-filtered so sub-pixel atlas
+//!   detail does not alias; source and exemplar uv from the atlas texels,
+//!   see [`pixels`]): flow fidelity against the true motion (provenance-based
+//!   where the method gives uv, image-based otherwise) and popping
+//!   (backward warp with the true motion, disoccluded pixels left out);
+//! - static stop: once every vertex velocity is exactly zero, the colour
+//!   atlas of every later frame must be bit-identical to the first still
+//!   frame's;
+//! - wall time of the method's step (plus dilation) and its patch count.
+//!
+//! Exemplar-size cost is not measured here (it needs two extra runs per
+//! method); the report marks it n/a.
+//!
+//! Everything is held in memory: meant for evaluation windows of tens of
+//! frames, not whole shots.
+
+pub mod pixels;
+pub mod prepare;
+pub mod report;
+pub mod truth;
+
+#[cfg(test)]
+mod tests;
+
+use std::time::Instant;
+
+use glam::{Vec2, Vec3};
+use thiserror::Error;
+
+use crate::atlas::AtlasError;
+use crate::methods::{FrameContext, Method, MethodError, PreviousFrame};
+use crate::metrics::{
+    self, FidelityReference, Metric, MetricsError, StaticStop, Summary, SurfaceSamples,
+    SwdSettings, Thresholds, chart_mask,
+};
+use crate::render::{self, Camera};
+use crate::scenes::SceneError;
+use crate::texture::Texture;
+
+pub use pixels::pixel_provenance;
+pub use prepare::{PreparedFrame, PreparedScene, prepare};
+pub use truth::{TruthMotion, trace, true_motion};
+
+/// Background of evaluation renders (mid grey: neither black nor white
+/// texture merges with it).
+pub const RENDER_BACKGROUND: [f32; 3] = [0.5, 0.5, 0.5];
+
+/// Settings of the harness (not of the metrics: those are the committed
+/// [`Thresholds`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct EvalSettings {
+    /// Side of the square evaluation renders, px [256], 32–4096.
+    pub render_size: u32,
+    /// Direction the camera looks along [see [`default_view`]].
+    pub view_dir: Vec3,
+    /// RK4 steps per frame when tracing the true motion [4], 1–64.
+    pub trace_substeps: u32,
+    /// Frames whose lit renders are kept for pictures.
+    pub keep_renders: Vec<i32>,
+    /// Measure exemplar fidelity every this many frames (1: all) [1]; it
+    /// is the slowest metric.
+    pub fidelity_every: u32,
+    /// Gutter dilation radius, texels, as `pipeline::run` uses it
+    /// (`2 · max(gutter, 1)`).
+    pub dilate_radius: u32,
+    /// Colour renders are drawn at this many samples per pixel side and
+    /// box-filtered [4], 1–8: what a viewer sees with antialiasing. Without
+    /// it, atlas detail finer than a pixel aliases, and the aliasing
+    /// changes under sub-pixel motion, which popping would charge to the
+    /// method. Provenance (flow) is read at one sample per pixel.
+    pub supersample: u32,
+}
+
+impl Default for EvalSettings {
+    fn default() -> Self {
+        EvalSettings {
+            render_size: 256,
+            view_dir: Vec3::new(-0.3, -1.0, -0.35),
+            trace_substeps: 4,
+            keep_renders: Vec::new(),
+            fidelity_every: 1,
+            dilate_radius: 8,
+            supersample: 4,
+        }
+    }
+}
+
+impl EvalSettings {
+    /// Checks every field.
+    pub fn validate(&self) -> Result<(), EvalError> {
+        let bad = |name: &'static str, value: String, allowed: &'static str| {
+            Err(EvalError::Setting {
+                name,
+                value,
+                allowed,
+            })
+        };
+        if !(32..=4096).contains(&self.render_size) {
+            return bad("render size", self.render_size.to_string(), "32 to 4096");
+        }
+        if !(self.view_dir.is_finite() && self.view_dir.length() > 0.0) {
+            return bad(
+                "view direction",
+                format!("{:?}", self.view_dir),
+                "a finite non-zero vector",
+            );
+        }
+        if !(1..=64).contains(&self.trace_substeps) {
+            return bad("trace substeps", self.trace_substeps.to_string(), "1 to 64");
+        }
+        if !(1..=8).contains(&self.supersample) {
+            return bad("supersample", self.supersample.to_string(), "1 to 8");
+        }
+        if self.fidelity_every == 0 {
+            return bad("fidelity_every", "0".into(), "1 or more");
+        }
+        Ok(())
+    }
+}
+
+/// The camera direction for a scene: from above for the flat flows in the
+/// xy plane (the vortex puck's top face, the shear plane), an oblique side
+/// view of the spheres (rotations about z move the equator, which a view
+/// from above would see edge-on).
+pub fn default_view(scene: &str) -> Vec3 {
+    match scene {
+        "vortex" | "stop" | "shear" => Vec3::new(0.05, 0.15, -1.0),
+        _ => Vec3::new(-0.3, -1.0, -0.35),
+    }
+}
+
+/// Errors of the harness.
+#[derive(Debug, Error)]
+pub enum EvalError {
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    #[error("frame {frame}: {message}")]
+    Mesh { frame: i32, message: String },
+    #[error("frame {frame}: {source}")]
+    Atlas { frame: i32, source: AtlasError },
+    #[error("{method}: {source}")]
+    Method { method: String, source: MethodError },
+    #[error("frame {frame}: {what}: {source}")]
+    Metrics {
+        frame: i32,
+        what: &'static str,
+        source: MetricsError,
+    },
+    #[error("method {method} returned no colour channel at frame {frame}")]
+    NoColour { method: String, frame: i32 },
+    #[error("{0}")]
+    Frames(String),
+    #[error("evaluation setting {name} = {value} is out of range (allowed: {allowed})")]
+    Setting {
+        name: &'static str,
+        value: String,
+        allowed: &'static str,
+    },
+}
+
+/// The key of a metric in JSON and file names.
+pub fn metric_key(m: Metric) -> &'static str {
+    match m {
+        Metric::Coverage => "coverage",
+        Metric::Ghosting => "ghosting",
+        Metric::Contrast => "contrast",
+        Metric::Distortion => "distortion",
+        Metric::Fidelity => "fidelity",
+        Metric::FlowEpe => "flow_epe",
+        Metric::FlowAligned => "flow_aligned",
+        Metric::Popping => "popping",
+        Metric::StaticStop => "static_stop",
+        Metric::SizeCost => "size_cost",
+    }
+}
+
+/// The metrics measured per frame (plotted over time).
+pub const PER_FRAME: [Metric; 8] = [
+    Metric::Coverage,
+    Metric::Ghosting,
+    Metric::Contrast,
+    Metric::Distortion,
+    Metric::Fidelity,
+    Metric::FlowEpe,
+    Metric::FlowAligned,
+    Metric::Popping,
+];
+
+/// One frame's numbers. Metrics with nothing to measure are NaN (flow and
+/// popping on the first frame: they need the frame before).
+#[derive(Clone, Debug, PartialEq)]
+pub struct FrameRecord {
+    pub frame: i32,
+    /// Wall time of the method's step and the gutter dilation (s).
+    pub seconds: f64,
+    /// The method's `patches_alive` statistic, where it has one.
+    pub patches: Option<f64>,
+    /// Per metric of [`PER_FRAME`], in that order.
+    pub values: [f64; PER_FRAME.len()],
+    /// Whether the fluid is still at this frame.
+    pub still: bool,
+}
+
+impl FrameRecord {
+    /// The value of `m` (NaN for metrics not measured per frame).
+    pub fn value(&self, m: Metric) -> f64 {
+        PER_FRAME
+            .iter()
+            .position(|&p| p == m)
+            .map_or(f64::NAN, |k| self.values[k])
+    }
+}
+
+/// A method's evaluation on one scene.
+#[derive(Clone, Debug)]
+pub struct MethodRun {
+    pub method: String,
+    pub frames: Vec<FrameRecord>,
+    /// One per [`Metric::ALL`], in that order.
+    pub summaries: Vec<Summary>,
+    /// What the reader must know to read the numbers (fallbacks taken).
+    pub notes: Vec<String>,
+    /// Lit renders of [`EvalSettings::keep_renders`], by frame.
+    pub renders: Vec<(i32, Texture)>,
+    /// Exemplar texels per atlas texel the fidelity reference was built at.
+    pub fidelity_scale: f64,
+}
+
+impl MethodRun {
+    /// The summary of `m`.
+    pub fn summary(&self, m: Metric) -> Option<&Summary> {
+        self.summaries.iter().find(|s| s.metric == m)
+    }
+}
+
+/// The antialiased unlit render and per-pixel provenance of one frame.
+struct FrameView {
+    colour: Texture,
+    source: Vec<u32>,
+    uv: Vec<Vec2>,
+    has_provenance: bool,
+}
+
+/// Runs `method` (fresh: its first step is the window's first frame) over
+/// `scene` and measures every frame. `exemplar` is the colour exemplar the
+/// method was built with.
+pub fn evaluate(
+    scene: &PreparedScene,
+    method: &mut dyn Method,
+    exemplar: &Texture,
+    settings: &EvalSettings,
+    thresholds: &Thresholds,
+) -> Result<MethodRun, EvalError> {
+    settings.validate()?;
+    let name = method.name().to_string();
+    let first_frame = scene.frames.first().map_or(0, |f| f.number);
+    let metric_err = |frame: i32, what: &'static str| {
+        move |source: MetricsError| EvalError::Metrics {
+            frame,
+            what,
+            source,
+        }
+    };
+    let sigma_ex = metrics::exemplar_sigma(exemplar);
+    if sigma_ex.is_nan() || sigma_ex <= 0.0 {
+        return Err(metric_err(first_frame, "exemplar")(MetricsError::Invalid {
+            name: "sigma_ex",
+            value: sigma_ex as f64,
+            allowed: "(0, inf): a flat exemplar has no contrast to keep",
+        }));
+    }
+    let swd = SwdSettings {
+        levels: thresholds.fidelity.levels,
+        patch_size: thresholds.fidelity.patch_size,
+        projections: thresholds.fidelity.projections,
+        patches_per_level: thresholds.fidelity.patches_per_level,
+        seed: thresholds.fidelity.seed,
+    };
+    let mut notes = Vec::new();
+    let mut fidelity: Option<FidelityReference> = None;
+    let mut fidelity_scale = f64::NAN;
+    let mut stop = StaticStop::new();
+    // Still frames that differ from the still frame before them: tells a
+    // method that settles late (a few changes, then identical) from one
+    // that never settles.
+    let mut previous_still: Option<Texture> = None;
+    let mut changed_from_previous = Vec::new();
+    let mut records = Vec::with_capacity(scene.frames.len());
+    let mut renders = Vec::new();
+    let mut previous_view: Option<FrameView> = None;
+    let mut image_flow_noted = false;
+
+    for (k, frame) in scene.frames.iter().enumerate() {
+        let number = frame.number;
+        let prev = k.checked_sub(1).and_then(|j| scene.frames.get(j));
+        let ctx = FrameContext {
+            number,
+            dt: scene.dt,
+            mesh: &frame.mesh,
+            index: &frame.index,
+            previous: prev.map(|p| PreviousFrame {
+                mesh: &p.mesh,
+                index: &p.index,
+            }),
+            atlas: &frame.atlas,
+        };
+        let clock = Instant::now();
+        let mut result = method.step(&ctx).map_err(|source| EvalError::Method {
+            method: name.clone(),
+            source,
+        })?;
+        for channel in &mut result.channels {
+            frame
+                .atlas
+                .dilate(channel, settings.dilate_radius)
+                .map_err(|source| EvalError::Atlas {
+                    frame: number,
+                    source,
+                })?;
+        }
+        let seconds = clock.elapsed().as_secs_f64();
+        let colour = result.channels.first().ok_or_else(|| EvalError::NoColour {
+            method: name.clone(),
+            frame: number,
+        })?;
+        let n_texels = frame.atlas.width as usize * frame.atlas.height as usize;
+        // Chart texels: from the method's provenance where it has one,
+        // else from the atlas itself.
+        let source: Option<&[u32]> = result.source.as_deref().filter(|s| s.len() == n_texels);
+        let charts = match source {
+            Some(s) => chart_mask(s),
+            None => frame.chart.iter().map(|&c| c != u32::MAX).collect(),
+        };
+        let uv: Option<&[Vec2]> = result.uv.as_deref().filter(|u| u.len() == n_texels);
+
+        let mut values = [f64::NAN; PER_FRAME.len()];
+        let mut set = |m: Metric, v: f64| {
+            if let Some(k) = PER_FRAME.iter().position(|&p| p == m) {
+                values[k] = v;
+            }
+        };
+        if let Some(s) = source {
+            set(Metric::Coverage, metrics::coverage(s).share());
+            let ghost = match &result.layers {
+                Some(layers) => metrics::ghosting(s, layers)
+                    .map_err(metric_err(number, "ghost fraction"))?
+                    .share(),
+                None => 0.0,
+            };
+            set(Metric::Ghosting, ghost);
+        }
+        if charts.iter().any(|&c| c) {
+            set(
+                Metric::Contrast,
+                metrics::contrast_ratio(colour, Some(&charts), sigma_ex)
+                    .map_err(metric_err(number, "contrast"))?,
+            );
+        }
+        let mut texel_scale = f64::NAN;
+        if let (Some(s), Some(u)) = (source, uv) {
+            let samples = SurfaceSamples {
+                width: frame.atlas.width,
+                height: frame.atlas.height,
+                source: s,
+                uv: u,
+                points: &frame.points,
+                chart: Some(&frame.chart),
+            };
+            let d = metrics::distortion(
+                &samples,
+                (exemplar.width, exemplar.height),
+                thresholds.distortion.quantile,
+            )
+            .map_err(metric_err(number, "distortion"))?;
+            set(Metric::Distortion, d.anisotropy);
+            texel_scale = d.exemplar_texels_per_texel;
+        }
+        if fidelity_scale.is_nan() {
+            let s = if texel_scale.is_finite() && texel_scale > 0.0 {
+                texel_scale
+            } else {
+                notes.push(
+                    "fidelity: no exemplar uv, the exemplar is compared at its own scale".into(),
+                );
+                1.0
+            };
+            let reference = if (s - 1.0).abs() < 1e-3 {
+                exemplar.clone()
+            } else {
+                metrics::rescale(exemplar, (1.0 / s) as f32)
+                    .map_err(metric_err(number, "fidelity reference"))?
+            };
+            match FidelityReference::new(&reference, &swd) {
+                Ok(r) => {
+                    fidelity = Some(r);
+                    fidelity_scale = s;
+                }
+                Err(e) => {
+                    notes.push(format!(
+                        "fidelity not measured: the exemplar at {s:.2} exemplar texels per \
+                         atlas texel is {}x{}: {e}",
+                        reference.width, reference.height
+                    ));
+                    fidelity_scale = s;
+                }
+            }
+        }
+        if let Some(reference) = &fidelity
+            && (k as u32).is_multiple_of(settings.fidelity_every)
+            && charts.iter().any(|&c| c)
+        {
+            // Too little chart area for the pyramid's patches is a frame
+            // without a value, not a failed evaluation.
+            match reference.measure(colour, Some(&charts)) {
+                Ok(f) => set(Metric::Fidelity, f.ratio),
+                Err(e @ (MetricsError::Empty(_) | MetricsError::TooSmall { .. })) => {
+                    let note = format!("fidelity not measured on some frames: {e}");
+                    if !notes.contains(&note) {
+                        notes.push(note);
+                    }
+                }
+                Err(e) => return Err(metric_err(number, "fidelity")(e)),
+            }
+        }
+
+        // Renders.
+        let gb = &frame.gbuffer;
+        let mesh = &frame.atlas.uv_mesh;
+        let unlit = if settings.supersample > 1 {
+            let k = settings.supersample;
+            let (fine, _) = fine_gbuffer(frame, &scene.camera, k);
+            let image = render::shade_textured(
+                &fine,
+                &mesh.triangles,
+                &mesh.uvs,
+                colour,
+                RENDER_BACKGROUND,
+            );
+            box_filter(&image, k)
+        } else {
+            render::shade_textured(gb, &mesh.triangles, &mesh.uvs, colour, RENDER_BACKGROUND)
+        };
+        let (px_source, px_uv) = match (source, uv) {
+            (Some(s), Some(u)) => pixel_provenance(gb, &frame.atlas, s, u),
+            _ => (Vec::new(), Vec::new()),
+        };
+        let view = FrameView {
+            colour: unlit,
+            has_provenance: !px_source.is_empty(),
+            source: px_source,
+            uv: px_uv,
+        };
+        if let (Some(p), Some(pv)) = (prev, &previous_view) {
+            let forward = p.forward.as_deref();
+            if let Some(truth) = forward {
+                let motion = if pv.has_provenance && view.has_provenance {
+                    metrics::provenance_motion(
+                        &metrics::ProvenanceFrame {
+                            width: gb.width,
+                            height: gb.height,
+                            source: &pv.source,
+                            uv: &pv.uv,
+                        },
+                        &metrics::ProvenanceFrame {
+                            width: gb.width,
+                            height: gb.height,
+                            source: &view.source,
+                            uv: &view.uv,
+                        },
+                        truth,
+                        &p.interior,
+                        &frame.interior,
+                        thresholds.flow.search_radius_px,
+                    )
+                } else {
+                    if !image_flow_noted {
+                        notes.push(
+                            "flow: no per-texel exemplar uv, motion measured by block matching \
+                             on the renders (image_motion)"
+                                .into(),
+                        );
+                        image_flow_noted = true;
+                    }
+                    metrics::image_motion(
+                        &pv.colour,
+                        &view.colour,
+                        truth,
+                        &p.interior,
+                        &frame.interior,
+                        thresholds.flow.search_radius_px,
+                        thresholds.flow.block_half_px,
+                    )
+                }
+                .map_err(metric_err(number, "flow"))?;
+                let stats = metrics::compare_motion(
+                    &motion,
+                    truth,
+                    thresholds.flow.min_speed_px,
+                    thresholds.flow.min_cos,
+                )
+                .map_err(metric_err(number, "flow"))?;
+                set(Metric::FlowEpe, stats.median_epe_px);
+                set(Metric::FlowAligned, stats.aligned_share);
+            }
+            if let Some((back, visible)) = &frame.backward {
+                let usable_next: Vec<bool> = frame
+                    .interior
+                    .iter()
+                    .zip(visible)
+                    .map(|(&a, &b)| a && b)
+                    .collect();
+                let pop = metrics::popping(
+                    &pv.colour,
+                    &view.colour,
+                    back,
+                    &p.interior,
+                    &usable_next,
+                    sigma_ex,
+                    thresholds.popping.sigma_factor,
+                )
+                .map_err(metric_err(number, "popping"))?;
+                set(Metric::Popping, pop.share());
+            }
+        }
+        if frame.still {
+            stop.push(colour);
+            if let Some(p) = &previous_still
+                && !metrics::bit_identical(p, colour)
+            {
+                changed_from_previous.push(number);
+            }
+            previous_still = Some(colour.clone());
+        }
+        if settings.keep_renders.contains(&number) {
+            renders.push((
+                number,
+                lit_render(frame, &scene.camera, colour, settings.supersample),
+            ));
+        }
+        let patches = result.stats.get("patches_alive").and_then(|v| v.as_f64());
+        records.push(FrameRecord {
+            frame: number,
+            seconds,
+            patches,
+            values,
+            still: frame.still,
+        });
+        previous_view = Some(view);
+    }
+
+    if stop.frames_after() > 0 {
+        notes.push(format!(
+            "static stop: {} of {} frames after the first still frame differ from it; \
+             still frames that differ from the frame before: {:?}",
+            stop.changed(),
+            stop.frames_after(),
+            changed_from_previous
+        ));
+    }
+    let mut summaries = Vec::with_capacity(Metric::ALL.len());
+    for m in Metric::ALL {
+        let values: Vec<f64> = match m {
+            Metric::StaticStop if stop.frames_after() > 0 => vec![stop.changed() as f64],
+            Metric::StaticStop | Metric::SizeCost => Vec::new(),
+            _ => records.iter().map(|r| r.value(m)).collect(),
+        };
+        summaries.push(thresholds.summarize(m, &values));
+    }
+    Ok(MethodRun {
+        method: name,
+        frames: records,
+        summaries,
+        notes,
+        renders,
+        fidelity_scale,
+    })
+}
+
+/// The G-buffer of `frame` seen by `camera` at `k` samples per pixel side
+/// (the same pinhole: pixel (x, y) of the fine image lies in pixel
+/// (x / k, y / k) of the coarse one), and that camera.
+fn fine_gbuffer(frame: &PreparedFrame, camera: &Camera, k: u32) -> (render::GBuffer, Camera) {
+    let fine = Camera {
+        width: camera.width * k,
+        height: camera.height * k,
+        ..*camera
+    };
+    let mesh = &frame.atlas.uv_mesh;
+    (
+        render::rasterize(&mesh.positions, &mesh.triangles, &fine),
+        fine,
+    )
+}
+
+/// Mean of each `k`×`k` block (a box filter and decimation).
+fn box_filter(image: &Texture, k: u32) -> Texture {
+    let (w, h, c) = (image.width / k, image.height / k, image.channels);
+    let mut out = Texture::filled(w, h, c, 0.0);
+    let norm = 1.0 / (k * k) as f32;
+    for y in 0..h {
+        for x in 0..w {
+            let mut sum = [0.0f32; 4];
+            for sy in 0..k {
+                for sx in 0..k {
+                    let t = image.texel(x * k + sx, y * k + sy);
+                    for (s, v) in sum.iter_mut().zip(t) {
+                        *s += v;
+                    }
+                }
+            }
+            for (o, s) in out.texel_mut(x, y).iter_mut().zip(sum) {
+                *o = s * norm;
+            }
+        }
+    }
+    out
+}
+
+/// A lit render of the colour atlas for pictures (antialiased like the
+/// metric renders).
+fn lit_render(frame: &PreparedFrame, camera: &Camera, colour: &Texture, k: u32) -> Texture {
+    let mesh = &frame.atlas.uv_mesh;
+    let normals = frame.mesh.vertex_normals();
+    let normals: Vec<Vec3> = mesh
+        .source_vertex
+        .iter()
+        .map(|&v| normals.get(v as usize).copied().unwrap_or(Vec3::Z))
+        .collect();
+    let background = [0.12, 0.12, 0.14];
+    if k > 1 {
+        let (gb, fine) = fine_gbuffer(frame, camera, k);
+        let image = render::shade_lit(
+            &gb,
+            &mesh.triangles,
+            &normals,
+            &mesh.uvs,
+            colour,
+            &fine,
+            background,
+        );
+        box_filter(&image, k)
+    } else {
+        render::shade_lit(
+            &frame.gbuffer,
+            &mesh.triangles,
+            &normals,
+            &mesh.uvs,
+            colour,
+            camera,
+            background,
+        )
+    }
+}
+
+/// Median, min and max over a method's frames of the wall time per frame (s).
+pub fn seconds_per_frame(run: &MethodRun) -> (f64, f64, f64) {
+    let mut s: Vec<f64> = run.frames.iter().map(|r| r.seconds).collect();
+    s.sort_unstable_by(f64::total_cmp);
+    match (s.first(), s.last()) {
+        (Some(&lo), Some(&hi)) => (s[(s.len() - 1) / 2], lo, hi),
+        _ => (f64::NAN, f64::NAN, f64::NAN),
+    }
+}
+
+/// Median, min and max of the patch counts, where the method reports them.
+pub fn patch_counts(run: &MethodRun) -> Option<(f64, f64, f64)> {
+    let mut s: Vec<f64> = run.frames.iter().filter_map(|r| r.patches).collect();
+    s.sort_unstable_by(f64::total_cmp);
+    match (s.first(), s.last()) {
+        (Some(&lo), Some(&hi)) => Some((s[(s.len() - 1) / 2], lo, hi)),
+        _ => None,
+    }
+}

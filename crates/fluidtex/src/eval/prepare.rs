@@ -1,0 +1,255 @@
+//! The method-independent half of an evaluation: meshes, atlases, per-texel
+//! surface points, the fixed camera, G-buffers, interior masks and the true
+//! motion per pixel. Built once per scene and shared by every method, so
+//! that all methods see bit-identical inputs.
+
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+
+use super::truth::{TruthMotion, true_motion};
+use super::{EvalError, EvalSettings};
+use crate::atlas::{Atlas, AtlasParams};
+use crate::mesh::TriMesh;
+use crate::metrics::{Thresholds, interior_mask};
+use crate::render::{BACKGROUND, Camera, GBuffer, rasterize};
+use crate::scenes::{Scene, SceneInfo};
+use crate::surface::{SurfaceIndex, SurfacePoint};
+
+/// One frame of a prepared scene.
+pub struct PreparedFrame {
+    /// The scene's frame number.
+    pub number: i32,
+    /// Scene time of the frame (s).
+    pub time: f64,
+    pub mesh: TriMesh,
+    pub index: SurfaceIndex,
+    pub atlas: Atlas,
+    /// Surface point per atlas texel (NaN outside charts).
+    pub points: Vec<Vec3>,
+    /// Chart id per atlas texel (`u32::MAX` outside charts).
+    pub chart: Vec<u32>,
+    /// Every vertex velocity is exactly zero: the fluid is still.
+    pub still: bool,
+    /// What the evaluation camera sees.
+    pub gbuffer: GBuffer,
+    /// Pixels away from silhouettes, depth edges and the image border.
+    pub interior: Vec<bool>,
+    /// True motion to the next frame (px), per pixel of this frame; `None`
+    /// for the last frame.
+    pub forward: Option<Vec<Vec2>>,
+    /// True motion from the previous frame (px) per pixel of this frame
+    /// (where the pixel's point was at the previous frame, relative to
+    /// where it is now, negated: the displacement over the frame), and
+    /// whether that point was visible then. `None` for the first frame.
+    pub backward: Option<(Vec<Vec2>, Vec<bool>)>,
+}
+
+/// A scene's frames ready for evaluation.
+pub struct PreparedScene {
+    pub info: SceneInfo,
+    /// Seconds per frame.
+    pub dt: f32,
+    pub camera: Camera,
+    pub frames: Vec<PreparedFrame>,
+    /// How the true motion was obtained (for the report).
+    pub truth: TruthMotion,
+}
+
+/// Generates `frames` (increasing, inside the scene's range) of `scene`,
+/// with atlases of `atlas` and renders of `settings`.
+pub fn prepare(
+    scene: &mut dyn Scene,
+    frames: &[i32],
+    atlas: &AtlasParams,
+    settings: &EvalSettings,
+    thresholds: &Thresholds,
+) -> Result<PreparedScene, EvalError> {
+    settings.validate()?;
+    let info = scene.info();
+    if frames.is_empty() {
+        return Err(EvalError::Frames(format!("scene {}: no frames", info.name)));
+    }
+    if frames.windows(2).any(|w| w[1] <= w[0]) {
+        return Err(EvalError::Frames(format!(
+            "scene {}: frames must be increasing",
+            info.name
+        )));
+    }
+    if let Some(&f) = frames.iter().find(|&&f| f < info.first || f > info.last) {
+        return Err(EvalError::Frames(format!(
+            "scene {}: frame {f} is outside its range {}-{}",
+            info.name, info.first, info.last
+        )));
+    }
+    let dt = (1.0 / info.fps) as f32;
+    let mut meshes = Vec::with_capacity(frames.len());
+    for &f in frames {
+        let mut mesh = scene.frame(f)?;
+        crate::mesh::validate(&mut mesh).map_err(|e| EvalError::Mesh {
+            frame: f,
+            message: e.to_string(),
+        })?;
+        meshes.push(mesh);
+    }
+    // One camera for the whole window, framing every frame's surface, so
+    // a surface that travels stays in view.
+    let (lo, hi) = meshes.iter().filter_map(TriMesh::bounding_box).fold(
+        (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
+        |(l, h), (a, b)| (l.min(a), h.max(b)),
+    );
+    let (lo, hi) = if lo.x <= hi.x {
+        (lo, hi)
+    } else {
+        (Vec3::ZERO, Vec3::ONE)
+    };
+    let camera = Camera::framing(
+        lo,
+        hi,
+        settings.view_dir,
+        settings.render_size,
+        settings.render_size,
+    );
+    let mut out: Vec<PreparedFrame> = Vec::with_capacity(frames.len());
+    for (&number, mesh) in frames.iter().zip(meshes) {
+        let time = (f64::from(number - info.first)) / info.fps;
+        let index = SurfaceIndex::new(&mesh);
+        let a = Atlas::build(&mesh, atlas).map_err(|source| EvalError::Atlas {
+            frame: number,
+            source,
+        })?;
+        let (points, chart) = texel_points(&mesh, &a);
+        let still = mesh
+            .velocity()
+            .is_some_and(|v| !v.is_empty() && v.iter().all(|v| *v == Vec3::ZERO));
+        let gbuffer = rasterize(&a.uv_mesh.positions, &a.uv_mesh.triangles, &camera);
+        let foreground: Vec<bool> = gbuffer.triangle.iter().map(|&t| t != BACKGROUND).collect();
+        let interior = interior_mask(
+            gbuffer.width,
+            gbuffer.height,
+            &foreground,
+            Some(&gbuffer.depth),
+            &thresholds.silhouette,
+        )
+        .map_err(|source| EvalError::Metrics {
+            frame: number,
+            what: "interior mask",
+            source,
+        })?;
+        out.push(PreparedFrame {
+            number,
+            time,
+            mesh,
+            index,
+            atlas: a,
+            points,
+            chart,
+            still,
+            gbuffer,
+            interior,
+            forward: None,
+            backward: None,
+        });
+    }
+    let truth = TruthMotion::of(&*scene, settings.trace_substeps);
+    for k in 1..out.len() {
+        let (before, after) = out.split_at_mut(k);
+        let (prev, next) = (&mut before[k - 1], &mut after[0]);
+        let step = (next.number - prev.number) as f64 * f64::from(dt);
+        prev.forward = Some(
+            true_motion(
+                &*scene,
+                &truth,
+                &prev.mesh,
+                &prev.gbuffer,
+                &camera,
+                prev.time,
+                step,
+            )
+            .0,
+        );
+        let (back, depth) = true_motion(
+            &*scene,
+            &truth,
+            &next.mesh,
+            &next.gbuffer,
+            &camera,
+            next.time,
+            -step,
+        );
+        // `back` is where the point was minus where it is; the metrics want
+        // the displacement over the frame, and whether the point was seen.
+        let visible = visible_before(&back, &depth, &next.gbuffer, &prev.gbuffer, thresholds);
+        next.backward = Some((back.into_iter().map(|m| -m).collect(), visible));
+    }
+    Ok(PreparedScene {
+        info,
+        dt,
+        camera,
+        frames: out,
+        truth,
+    })
+}
+
+/// Surface point and chart id per atlas texel.
+fn texel_points(mesh: &TriMesh, atlas: &Atlas) -> (Vec<Vec3>, Vec<u32>) {
+    let tri = atlas.triangle_map();
+    let w = atlas.width as usize;
+    let mut points = vec![Vec3::NAN; tri.len()];
+    for band in atlas.bands() {
+        for span in &band.spans {
+            let row = span.y as usize * w;
+            for (x, bary) in atlas.span_barycentrics(span) {
+                if let Some(p) = points.get_mut(row + x as usize) {
+                    *p = SurfacePoint::new(span.triangle, bary)
+                        .interpolate(&mesh.triangles, &mesh.positions);
+                }
+            }
+        }
+    }
+    let chart = tri
+        .iter()
+        .map(|&t| {
+            atlas
+                .chart_of_triangle
+                .get(t as usize)
+                .copied()
+                .unwrap_or(u32::MAX)
+        })
+        .collect();
+    (points, chart)
+}
+
+/// Per pixel of the later frame: was its point, moved back to the earlier
+/// frame, the surface the earlier frame shows there (not hidden behind
+/// another part of it, not off the surface)?
+fn visible_before(
+    back_px: &[Vec2],
+    back_depth: &[f32],
+    next: &GBuffer,
+    prev: &GBuffer,
+    thresholds: &Thresholds,
+) -> Vec<bool> {
+    let (w, h) = (next.width as usize, next.height as usize);
+    let jump = thresholds.silhouette.relative_depth_jump;
+    (0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            if next.triangle[i] == BACKGROUND {
+                return false;
+            }
+            let m = back_px[i];
+            if !m.is_finite() {
+                return false;
+            }
+            let p = Vec2::new((i % w) as f32 + 0.5, (i / w) as f32 + 0.5) + m;
+            if p.x < 0.0 || p.y < 0.0 || p.x >= w as f32 || p.y >= h as f32 {
+                return false;
+            }
+            let j = p.y as usize * w + p.x as usize;
+            let d = back_depth[i];
+            // Hidden: the earlier frame shows something nearer there (or
+            // nothing). The tolerance is the silhouette test's depth jump.
+            prev.triangle[j] != BACKGROUND && d <= prev.depth[j] * (1.0 + jump)
+        })
+        .collect()
+}
