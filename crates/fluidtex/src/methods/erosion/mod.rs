@@ -67,7 +67,8 @@ pub struct ErosionParams {
     pub normal_dot: f32,
     /// RK4 steps per frame [1].
     pub substeps: u32,
-    /// Random rotation of each patch at creation [true] (seeded per patch id).
+    /// Random rotation of each patch at creation [true] (seeded per patch id,
+    /// or per creation point for patches the update adds).
     pub random_rotation: bool,
     /// New-patch placement [local]: `local` (the paper) or `global`.
     pub placement: Placement,
@@ -178,14 +179,23 @@ pub(crate) fn mix(seed: u64, stream: u64, index: u64) -> u64 {
     z ^ (z >> 31)
 }
 
-/// The seeded random rotation of patch `id` (radians), or 0 when disabled.
-fn rotation_for(seed: u64, random: bool, id: u32) -> f32 {
+/// The seeded random rotation (radians) for `key`, or 0 when disabled.
+/// Patches of the initial distribution are keyed by id; patches the update
+/// creates by where they are created ([`location_key`]), so that a fluid at
+/// rest that keeps asking for a patch at the same texel gets the same one.
+fn rotation_for(seed: u64, random: bool, key: u64) -> f32 {
     if random {
-        let bits = mix(seed, 1, id as u64);
+        let bits = mix(seed, 1, key);
         (bits >> 40) as f32 / (1u64 << 24) as f32 * std::f32::consts::TAU
     } else {
         0.0
     }
+}
+
+/// A key of a surface location: its triangle and barycentric bits.
+fn location_key(at: crate::surface::SurfacePoint) -> u64 {
+    let [a, b, _] = at.bary.map(f32::to_bits);
+    mix(at.triangle as u64, a as u64, b as u64)
 }
 
 impl Erosion {
@@ -363,7 +373,7 @@ impl Method for Erosion {
                             &surface,
                             s.location,
                             &shape,
-                            rotation_for(seed, random, id),
+                            rotation_for(seed, random, id as u64),
                         )
                     })
                     .collect();
@@ -423,7 +433,7 @@ impl Method for Erosion {
                 tolerance,
             };
             let (seed, random) = (self.seed, self.params.random_rotation);
-            let rotation = move |id: u32| rotation_for(seed, random, id);
+            let rotation = move |at| rotation_for(seed, random, location_key(at));
             let inputs = update::UpdateInputs {
                 surface: &surface,
                 index: ctx.index,

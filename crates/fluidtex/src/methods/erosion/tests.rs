@@ -688,7 +688,7 @@ fn frames_after_the_flow_stops_are_bit_identical() {
     let mut params = crate::scenes::default_params("stop").expect("scene");
     params.resolution = 24;
     let mut scene = crate::scenes::by_name("stop", Some(params)).expect("scene");
-    let frames: Vec<i32> = (44..=51).collect();
+    let frames: Vec<i32> = (44..=59).collect();
     let meshes: Vec<TriMesh> = frames
         .iter()
         .map(|&f| scene.frame(f).expect("frame"))

@@ -61,7 +61,8 @@ pub struct UpdateInputs<'a> {
     /// Normal agreement below which Poisson disks do not block (0.9).
     pub normal_dot: f32,
     /// Rotation of the patch with a given id.
-    pub rotation: &'a (dyn Fn(u32) -> f32 + Sync),
+    /// Rotation of a new patch created at a surface point.
+    pub rotation: &'a (dyn Fn(crate::surface::SurfacePoint) -> f32 + Sync),
 }
 
 /// Covers every texel in `uncovered`, appending new patches to `patches`.
@@ -128,7 +129,7 @@ pub fn cover(
                     inputs.surface,
                     point(&uncovered[s]),
                     &inputs.shape,
-                    (inputs.rotation)(id),
+                    (inputs.rotation)(point(&uncovered[s])),
                 )
                 .map(|p| (p, s))
             })
