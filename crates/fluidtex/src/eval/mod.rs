@@ -195,16 +195,10 @@ pub fn metric_key(m: Metric) -> &'static str {
 }
 
 /// The metrics measured per frame (plotted over time).
-pub const PER_FRAME: [Metric; 8] = [
-    Metric::Coverage,
-    Metric::Ghosting,
-    Metric::Contrast,
-    Metric::Distortion,
-    Metric::Fidelity,
-    Metric::FlowEpe,
-    Metric::FlowAligned,
-    Metric::Popping,
-];
+/// Every metric but the two that are not per frame (static stop, exemplar
+/// size cost), which [`Metric::ALL`] lists last.
+pub const PER_FRAME: &[Metric] = Metric::ALL.split_at(8).0;
+const _: () = assert!(PER_FRAME.len() == 8 && matches!(PER_FRAME[7], Metric::Popping));
 
 /// One frame's numbers. Metrics with nothing to measure are NaN (flow and
 /// popping on the first frame: they need the frame before).
@@ -216,7 +210,7 @@ pub struct FrameRecord {
     /// The method's `patches_alive` statistic, where it has one.
     pub patches: Option<f64>,
     /// Per metric of [`PER_FRAME`], in that order.
-    pub values: [f64; PER_FRAME.len()],
+    pub values: [f64; 8],
     /// Whether the fluid is still at this frame.
     pub still: bool,
 }
@@ -353,7 +347,7 @@ pub fn evaluate(
         };
         let uv: Option<&[Vec2]> = result.uv.as_deref().filter(|u| u.len() == n_texels);
 
-        let mut values = [f64::NAN; PER_FRAME.len()];
+        let mut values = [f64::NAN; 8];
         let mut set = |m: Metric, v: f64| {
             if let Some(k) = PER_FRAME.iter().position(|&p| p == m) {
                 values[k] = v;

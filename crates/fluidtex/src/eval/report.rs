@@ -223,17 +223,7 @@ fn spread_text(s: &Spread) -> String {
 }
 
 /// Columns of the tables: every metric but exemplar-size cost.
-const COLUMNS: [Metric; 9] = [
-    Metric::Coverage,
-    Metric::Ghosting,
-    Metric::Contrast,
-    Metric::Distortion,
-    Metric::Fidelity,
-    Metric::FlowEpe,
-    Metric::FlowAligned,
-    Metric::Popping,
-    Metric::StaticStop,
-];
+const COLUMNS: &[Metric] = Metric::ALL.split_at(9).0;
 
 impl Report {
     /// The Markdown report.
@@ -265,7 +255,7 @@ impl Report {
             );
             let mut head = String::from("| method |");
             let mut rule = String::from("| --- |");
-            for m in COLUMNS {
+            for &m in COLUMNS {
                 let _ = write!(head, " {} |", m.name());
                 rule.push_str(" --- |");
             }
@@ -274,7 +264,7 @@ impl Report {
             let _ = writeln!(s, "{head}\n{rule}");
             for m in &scene.methods {
                 let mut row = format!("| {} |", m.name);
-                for c in COLUMNS {
+                for &c in COLUMNS {
                     let text = m.cell(metric_key(c)).map_or("n/a".into(), cell_text);
                     let _ = write!(row, " {text} |");
                 }
@@ -358,13 +348,13 @@ impl Report {
                 esc(&scene.truth_motion)
             );
             s.push_str("<table><tr><th>method</th>");
-            for m in COLUMNS {
+            for &m in COLUMNS {
                 let _ = write!(s, "<th>{}</th>", esc(m.name()));
             }
             s.push_str("<th>s/frame</th><th>patches</th></tr>\n");
             for m in &scene.methods {
                 let _ = write!(s, "<tr><th>{}</th>", esc(&m.name));
-                for c in COLUMNS {
+                for &c in COLUMNS {
                     match m.cell(metric_key(c)) {
                         Some(cell) if cell.frames > 0 => {
                             let class = if cell.pass { "pass" } else { "fail" };
@@ -388,7 +378,7 @@ impl Report {
                 }
             }
             s.push_str("<div class=\"plots\">");
-            for m in PER_FRAME {
+            for &m in PER_FRAME {
                 s.push_str(&plot(scene, m, threshold_of(thresholds, m)));
             }
             s.push_str("</div>\n");

@@ -13,7 +13,9 @@
 use glam::Vec2;
 use rayon::prelude::*;
 
-use super::fill::{Candidates, FillBuffers, FillContext, UNCOVERED, Uncovered, walk_band};
+use super::fill::{
+    Candidates, FillBuffers, FillContext, UNCOVERED, Uncovered, patch_groups, walk_band,
+};
 use crate::atlas::Atlas;
 
 /// Layers below this normalised weight are not counted as visible layers
@@ -69,23 +71,12 @@ pub fn fill(
             walk_band(ctx, atlas, candidates, band, |texel, cands| {
                 let t = texel.t;
                 found.clear();
-                let mut start = 0;
-                while start < cands.len() {
-                    let i = cands[start].patch;
-                    let mut end = start + 1;
-                    while end < cands.len() && cands[end].patch == i {
-                        end += 1;
-                    }
-                    let tris = cands[start..end]
-                        .iter()
-                        .filter(|c| c.lo <= texel.k && texel.k <= c.hi)
-                        .map(|c| c.tri);
+                for (i, tris) in patch_groups(cands, texel.k) {
                     if let Some((uv, weight)) = ctx.locate(i, tris, texel.p, texel.n)
                         && weight > 0.0
                     {
                         found.push((i, uv, weight));
                     }
-                    start = end;
                 }
                 let total: f32 = found.iter().map(|l| l.2).sum();
                 if found.is_empty() || total <= 0.0 {

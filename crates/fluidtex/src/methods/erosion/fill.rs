@@ -270,22 +270,11 @@ impl FillContext<'_> {
     /// texel there is not eroded.
     #[inline]
     pub fn resolve(&self, candidates: &[(u32, u32)], x: Vec3, n: Vec3) -> Option<Hit> {
-        let mut k = 0;
-        while k < candidates.len() {
-            let i = candidates[k].0;
-            let mut end = k + 1;
-            while end < candidates.len() && candidates[end].0 == i {
-                end += 1;
-            }
-            let tris = candidates[k..end].iter().map(|c| c.1);
-            if let Some((uv, w)) = self.locate(i, tris, x, n)
-                && self.kept(uv, w)
-            {
-                return Some(Hit { patch: i, uv });
-            }
-            k = end;
-        }
-        None
+        candidates.chunk_by(|a, b| a.0 == b.0).find_map(|group| {
+            let i = group[0].0;
+            let (uv, w) = self.locate(i, group.iter().map(|c| c.1), x, n)?;
+            self.kept(uv, w).then_some(Hit { patch: i, uv })
+        })
     }
 }
 
@@ -425,26 +414,26 @@ impl FillContext<'_> {
     /// pruned candidates.
     #[inline]
     fn resolve_in_span(&self, cands: &[SpanCandidate], k: u32, x: Vec3, n: Vec3) -> Option<Hit> {
-        let mut start = 0;
-        while start < cands.len() {
-            let i = cands[start].patch;
-            let mut end = start + 1;
-            while end < cands.len() && cands[end].patch == i {
-                end += 1;
-            }
-            let tris = cands[start..end]
-                .iter()
-                .filter(|c| c.lo <= k && k <= c.hi)
-                .map(|c| c.tri);
-            if let Some((uv, w)) = self.locate(i, tris, x, n)
-                && self.kept(uv, w)
-            {
-                return Some(Hit { patch: i, uv });
-            }
-            start = end;
-        }
-        None
+        patch_groups(cands, k).find_map(|(i, tris)| {
+            let (uv, w) = self.locate(i, tris, x, n)?;
+            self.kept(uv, w).then_some(Hit { patch: i, uv })
+        })
     }
+}
+
+/// A span's candidates grouped by patch (in candidate order: oldest
+/// first), each with the triangles whose interval holds texel `k`.
+pub(crate) fn patch_groups(
+    cands: &[SpanCandidate],
+    k: u32,
+) -> impl Iterator<Item = (u32, impl Iterator<Item = u32> + '_)> + '_ {
+    cands.chunk_by(|a, b| a.patch == b.patch).map(move |group| {
+        let tris = group
+            .iter()
+            .filter(move |c| c.lo <= k && k <= c.hi)
+            .map(|c| c.tri);
+        (group[0].patch, tris)
+    })
 }
 
 /// One chart texel as [`walk_band`] hands it over.
