@@ -20,7 +20,7 @@ use glam::Vec2;
 use rayon::prelude::*;
 
 use super::flow::Motion;
-use super::{MetricsError, check_len, check_texture, luminance};
+use super::{MetricsError, check_frame_pair, luminance};
 use crate::texture::Texture;
 
 /// Lucas–Kanade iterations after the integer search.
@@ -40,21 +40,14 @@ pub fn image_motion(
     search_radius_px: u32,
     block_half_px: u32,
 ) -> Result<Vec<Motion>, MetricsError> {
-    if (next.width, next.height) != (prev.width, prev.height) {
-        return Err(MetricsError::Size {
-            what: "next frame",
-            width: prev.width,
-            height: prev.height,
-            got_width: next.width,
-            got_height: next.height,
-        });
-    }
-    check_texture("previous frame", prev)?;
-    check_texture("next frame", next)?;
-    let (w, h) = (prev.width, prev.height);
-    check_len("predicted motion", predicted, w, h)?;
-    check_len("previous frame's mask", usable_prev, w, h)?;
-    check_len("next frame's mask", usable_next, w, h)?;
+    let (w, h) = check_frame_pair(
+        prev,
+        next,
+        "predicted motion",
+        predicted,
+        usable_prev,
+        usable_next,
+    )?;
     let a = luminance(prev);
     let b = luminance(next);
     let img = Images {

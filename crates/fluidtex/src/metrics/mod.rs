@@ -188,6 +188,34 @@ pub(crate) fn check_texture(
     }
 }
 
+/// Checks a pair of consecutive frames with a per-pixel motion and a mask
+/// for each (the inputs of the two-frame metrics); returns the size.
+pub(crate) fn check_frame_pair<M>(
+    prev: &crate::texture::Texture,
+    next: &crate::texture::Texture,
+    motion_name: &'static str,
+    motion: &[M],
+    usable_prev: &[bool],
+    usable_next: &[bool],
+) -> Result<(u32, u32), MetricsError> {
+    if (next.width, next.height) != (prev.width, prev.height) {
+        return Err(MetricsError::Size {
+            what: "next frame",
+            width: prev.width,
+            height: prev.height,
+            got_width: next.width,
+            got_height: next.height,
+        });
+    }
+    check_texture("previous frame", prev)?;
+    check_texture("next frame", next)?;
+    let (w, h) = (prev.width, prev.height);
+    check_len(motion_name, motion, w, h)?;
+    check_len("previous frame's mask", usable_prev, w, h)?;
+    check_len("next frame's mask", usable_next, w, h)?;
+    Ok((w, h))
+}
+
 /// The nearest periodic image of a uv difference (see the module doc).
 #[inline]
 pub(crate) fn wrap_delta(d: glam::Vec2) -> glam::Vec2 {

@@ -17,7 +17,7 @@
 
 use glam::Vec2;
 
-use super::{MetricsError, check_len, check_texture, luminance};
+use super::{MetricsError, check_frame_pair, luminance};
 use crate::texture::Texture;
 
 /// Popping in one frame pair.
@@ -51,21 +51,7 @@ pub fn popping(
     sigma_ex: f32,
     sigma_factor: f32,
 ) -> Result<Popping, MetricsError> {
-    if (next.width, next.height) != (prev.width, prev.height) {
-        return Err(MetricsError::Size {
-            what: "next frame",
-            width: prev.width,
-            height: prev.height,
-            got_width: next.width,
-            got_height: next.height,
-        });
-    }
-    check_texture("previous frame", prev)?;
-    check_texture("next frame", next)?;
-    let (w, h) = (prev.width, prev.height);
-    check_len("motion", motion_back, w, h)?;
-    check_len("previous frame's mask", usable_prev, w, h)?;
-    check_len("next frame's mask", usable_next, w, h)?;
+    let (w, h) = check_frame_pair(prev, next, "motion", motion_back, usable_prev, usable_next)?;
     let limit = sigma_factor * sigma_ex;
     if !(limit.is_finite() && limit > 0.0) {
         return Err(MetricsError::Invalid {
