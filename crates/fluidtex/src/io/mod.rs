@@ -212,6 +212,27 @@ pub(crate) fn fan(polygon: &[u32], out: &mut Vec<[u32; 3]>) -> bool {
     true
 }
 
+/// Test helper of every reader: `parse` must return (an error is fine) on
+/// every prefix of `good` and on `good` with any one byte replaced by a
+/// few troublesome values, never panic.
+#[cfg(test)]
+pub(crate) fn assert_no_panic_on_damage<T>(good: &[u8], parse: impl Fn(&[u8]) -> T) {
+    for n in 0..good.len() {
+        let mut cases = vec![good[..n].to_vec()];
+        for b in [0u8, 0xff, 0x7f, b'9', b' ', b'\n', b'-'] {
+            let mut c = good.to_vec();
+            c[n] = b;
+            cases.push(c);
+        }
+        for c in cases {
+            let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                let _ = parse(&c);
+            }));
+            assert!(r.is_ok(), "panicked on {:?}", String::from_utf8_lossy(&c));
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
