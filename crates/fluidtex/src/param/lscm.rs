@@ -293,8 +293,9 @@ fn solve(points: &[DVec3], tris: &[[u32; 3]]) -> Result<Vec<DVec2>, ParamError> 
     let unknowns = 2 * free;
 
     let mut rhs = Mat::<c64>::zeros(free, 1);
-    let result = if unknowns <= DENSE_MAX_UNKNOWNS {
-        let mut h = Mat::<c64>::zeros(free, free);
+    // Visits every free-free term (r, c, value) of MᴴM; moves the pinned
+    // terms to the right-hand side.
+    let assemble = |rhs: &mut Mat<c64>, entry: &mut dyn FnMut(usize, usize, c64)| {
         for tri in tris {
             let w = corner_weights(tri.map(|v| points[v as usize]));
             for i in 0..3 {
@@ -308,33 +309,24 @@ fn solve(points: &[DVec3], tris: &[[u32; 3]]) -> Result<Vec<DVec2>, ParamError> 
                     if c == usize::MAX {
                         rhs[(r, 0)] -= wi * w[j] * pinned(tri[j] as usize);
                     } else {
-                        h[(r, c)] += wi * w[j];
+                        entry(r, c, wi * w[j]);
                     }
                 }
             }
         }
+    };
+    let result = if unknowns <= DENSE_MAX_UNKNOWNS {
+        let mut h = Mat::<c64>::zeros(free, free);
+        assemble(&mut rhs, &mut |r, c, v| h[(r, c)] += v);
         solve_dense(h, &mut rhs)
     } else {
         let mut entries: Vec<Triplet<usize, usize, c64>> = Vec::with_capacity(tris.len() * 6);
-        for tri in tris {
-            let w = corner_weights(tri.map(|v| points[v as usize]));
-            for i in 0..3 {
-                let r = slot[tri[i] as usize];
-                if r == usize::MAX {
-                    continue;
-                }
-                let wi = w[i].conj();
-                for j in 0..3 {
-                    let c = slot[tri[j] as usize];
-                    if c == usize::MAX {
-                        rhs[(r, 0)] -= wi * w[j] * pinned(tri[j] as usize);
-                    } else if r >= c {
-                        // Lower triangle only; the factorization reads that side.
-                        entries.push(Triplet::new(r, c, wi * w[j]));
-                    }
-                }
+        assemble(&mut rhs, &mut |r, c, v| {
+            // Lower triangle only; the factorization reads that side.
+            if r >= c {
+                entries.push(Triplet::new(r, c, v));
             }
-        }
+        });
         solve_sparse(free, &entries, &mut rhs)
     };
     result.map_err(|reason| ParamError::Factorization { unknowns, reason })?;
