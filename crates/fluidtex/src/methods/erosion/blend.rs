@@ -72,7 +72,7 @@ pub fn fill(
                 let t = texel.t;
                 found.clear();
                 for (i, tris) in patch_groups(cands, texel.k) {
-                    if let Some((uv, weight)) = ctx.locate(i, tris, texel.p, texel.n)
+                    if let Some((uv, weight, _)) = ctx.locate(i, tris, texel.p, texel.n)
                         && weight > 0.0
                     {
                         found.push((i, uv, weight));

@@ -22,10 +22,10 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 use super::erode::ErosionTest;
+use super::feature_levels::FeatureLevelSampler;
 use super::patch::Patch;
 use crate::atlas::Atlas;
 use crate::exemplar::Exemplar;
-use crate::exemplar::feature::FeatureSampler;
 use crate::mesh::TriMesh;
 use crate::surface::SurfaceIndex;
 
@@ -200,7 +200,7 @@ pub struct FillContext<'a> {
     pub patches: &'a [Patch],
     pub frames: &'a [Vec<Option<TriFrame>>],
     pub exemplar: &'a Exemplar,
-    pub feature: FeatureSampler<'a>,
+    pub feature: &'a FeatureLevelSampler<'a>,
     pub test: ErosionTest,
     pub tolerance: LocateTolerance,
 }
@@ -224,7 +224,7 @@ impl FillContext<'_> {
         tris: impl Iterator<Item = u32>,
         x: Vec3,
         n: Vec3,
-    ) -> Option<(Vec2, f32)> {
+    ) -> Option<(Vec2, f32, f32)> {
         let frames = &self.frames[i as usize];
         let mut best: Option<(u32, [f32; 3], f32)> = None;
         for j in tris {
@@ -255,13 +255,15 @@ impl FillContext<'_> {
         let w = patch.weight[t[0] as usize] * b[0]
             + patch.weight[t[1] as usize] * b[1]
             + patch.weight[t[2] as usize] * b[2];
-        Some((uv, w))
+        let lod = patch.lod.get(j as usize).copied().unwrap_or(0.0);
+        Some((uv, w, lod))
     }
 
-    /// True when patch uv `uv` with weight `w` survives erosion.
+    /// True when patch uv `uv` with weight `w` survives erosion, the
+    /// feature map read at level `lod` (see [`super::feature_levels`]).
     #[inline]
-    pub fn kept(&self, uv: Vec2, w: f32) -> bool {
-        let f = self.feature.sample(uv.x, uv.y);
+    pub fn kept(&self, uv: Vec2, w: f32, lod: f32) -> bool {
+        let f = self.feature.sample(uv.x, uv.y, lod);
         !self.test.eroded(f, uv.x, uv.y, w)
     }
 
@@ -272,8 +274,8 @@ impl FillContext<'_> {
     pub fn resolve(&self, candidates: &[(u32, u32)], x: Vec3, n: Vec3) -> Option<Hit> {
         candidates.chunk_by(|a, b| a.0 == b.0).find_map(|group| {
             let i = group[0].0;
-            let (uv, w) = self.locate(i, group.iter().map(|c| c.1), x, n)?;
-            self.kept(uv, w).then_some(Hit { patch: i, uv })
+            let (uv, w, lod) = self.locate(i, group.iter().map(|c| c.1), x, n)?;
+            self.kept(uv, w, lod).then_some(Hit { patch: i, uv })
         })
     }
 }
@@ -415,8 +417,8 @@ impl FillContext<'_> {
     #[inline]
     fn resolve_in_span(&self, cands: &[SpanCandidate], k: u32, x: Vec3, n: Vec3) -> Option<Hit> {
         patch_groups(cands, k).find_map(|(i, tris)| {
-            let (uv, w) = self.locate(i, tris, x, n)?;
-            self.kept(uv, w).then_some(Hit { patch: i, uv })
+            let (uv, w, lod) = self.locate(i, tris, x, n)?;
+            self.kept(uv, w, lod).then_some(Hit { patch: i, uv })
         })
     }
 }

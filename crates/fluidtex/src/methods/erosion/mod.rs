@@ -16,6 +16,7 @@
 pub mod blend;
 pub mod distortion;
 pub mod erode;
+pub mod feature_levels;
 pub mod fill;
 pub mod patch;
 pub mod update;
@@ -72,6 +73,66 @@ pub struct ErosionParams {
     pub random_rotation: bool,
     /// New-patch placement [local]: `local` (the paper) or `global`.
     pub placement: Placement,
+    /// How vertex weights w_V evolve over time [progressive] (see [`WeightMode`]).
+    pub weights: WeightMode,
+    /// Progressive weights: the largest decrease of w_V per second of
+    /// animation [2.4, i.e. 0.1 per frame at 24 fps], so a patch takes at
+    /// least 1/rate seconds to erode from whole to nothing.
+    pub erosion_rate: f32,
+    /// Reach of the centre falloff D(u, v) of the erosion test (Sec. 5.2)
+    /// [footprint] (see [`Falloff`]).
+    pub falloff: Falloff,
+    /// Orientation of the exemplar on new patches [random] (see [`Orientation`]).
+    pub orientation: Orientation,
+    /// World direction the exemplar's up follows with `orientation = aligned` [0, 1, 0].
+    pub up_axis: [f32; 3],
+    /// The default r is never below this many median edge lengths of the
+    /// first frame [4]: a patch must hold enough fluid triangles that
+    /// re-meshing noise does not dominate its shape.
+    pub radius_edges: f32,
+}
+
+/// How the vertex weights w_V of Eq. 3 evolve from frame to frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum WeightMode {
+    /// w_V never increases and falls by at most `erosion_rate` per second
+    /// towards Q_V·B_V: an eroded texel never comes back, and a patch erodes
+    /// progressively instead of losing a large part of itself in one frame
+    /// (re-meshing jitters Q_V, and a new boundary drops B_V to 0 at once).
+    #[default]
+    Progressive,
+    /// The paper's: w_V = Q_V·B_V recomputed from scratch every frame.
+    Paper,
+}
+
+/// Where D(u, v) of the erosion test reaches 0.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Falloff {
+    /// At the patch's own footprint, uv distance r/S from the centre: every
+    /// patch is eroded along the features from its creation on, whatever S.
+    #[default]
+    Footprint,
+    /// The paper's formula: at uv distance 0.5, the edge of the exemplar
+    /// square. With S = 2.6 r the patch ends at uv distance ≈ 0.385, so D
+    /// stays ≥ 0.23 on the patch and an undistorted patch keeps its
+    /// polygonal border.
+    Paper,
+}
+
+/// Orientation of the exemplar on a new patch.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Orientation {
+    /// A seeded random rotation per patch: right for stochastic exemplars
+    /// (pebbles, gravel, foam).
+    #[default]
+    Random,
+    /// The exemplar's up follows `up_axis` projected on the tangent plane at
+    /// the patch centre, then is carried (deformed) with the patch: right for
+    /// oriented exemplars (bricks, streaks).
+    Aligned,
 }
 
 impl Default for ErosionParams {
@@ -89,6 +150,12 @@ impl Default for ErosionParams {
             substeps: 1,
             random_rotation: true,
             placement: Placement::Local,
+            weights: WeightMode::Progressive,
+            erosion_rate: 2.4,
+            falloff: Falloff::Footprint,
+            orientation: Orientation::Random,
+            up_axis: [0.0, 1.0, 0.0],
+            radius_edges: 4.0,
         }
     }
 }
@@ -122,6 +189,22 @@ impl ErosionParams {
         check_range("centre_fraction", self.centre_fraction, 0.0, 1.0, "[0, 1]")?;
         check_range("normal_dot", self.normal_dot, -1.0, 1.0, "[-1, 1]")?;
         check_range("substeps", self.substeps as f32, 1.0, 64.0, "1..=64")?;
+        check_range(
+            "erosion_rate",
+            self.erosion_rate,
+            1e-3,
+            1e6,
+            "[0.001, 1e6] per second",
+        )?;
+        check_range("radius_edges", self.radius_edges, 0.0, 1000.0, "[0, 1000]")?;
+        let axis = glam::Vec3::from(self.up_axis);
+        if !axis.is_finite() || axis.length() < 1e-6 {
+            return Err(MethodError::InvalidParameter {
+                name: "up_axis",
+                value: format!("{:?}", self.up_axis),
+                allowed: "a finite, non-zero direction",
+            });
+        }
         Ok(())
     }
 }
@@ -159,7 +242,10 @@ pub struct Erosion {
     variant: Variant,
     params: ErosionParams,
     exemplar: Arc<Exemplar>,
-    test: ErosionTest,
+    /// Built once r and S are known (the footprint falloff needs r/S).
+    test: Option<ErosionTest>,
+    /// The feature map filtered to the atlas texel's footprint.
+    feature_levels: feature_levels::FeatureLevels,
     seed: u64,
     state: ErosionState,
     /// Patches dropped by [`Erosion::reset`] since the last step (counted
@@ -215,17 +301,12 @@ impl Erosion {
         seed: u64,
     ) -> Result<Erosion, MethodError> {
         params.validate()?;
-        let test = match variant {
-            Variant::Erode => {
-                ErosionTest::new(exemplar.feature.erosion_normaliser(), params.epsilon)
-            }
-            Variant::Advect | Variant::Blend => ErosionTest::never(),
-        };
         Ok(Erosion {
             variant,
             params,
+            feature_levels: feature_levels::FeatureLevels::new(&exemplar.feature),
             exemplar,
-            test,
+            test: None,
             seed,
             state: ErosionState::default(),
             dropped_by_reset: 0,
@@ -245,8 +326,27 @@ impl Erosion {
         self.state.patches.clear();
     }
 
-    fn shape(&self, radius: f32, exemplar_size: f32) -> PatchShape {
+    /// The erosion test for patches of uv radius `footprint` = r/S.
+    fn erosion_test(&self, footprint: f32) -> ErosionTest {
+        if self.variant != Variant::Erode {
+            return ErosionTest::never();
+        }
+        let reach = match self.params.falloff {
+            Falloff::Paper => erode::PAPER_REACH,
+            // Patches larger than the exemplar square cannot reach further than it.
+            Falloff::Footprint => footprint.clamp(1e-3, erode::PAPER_REACH),
+        };
+        ErosionTest::with_reach(&self.exemplar.feature.map, self.params.epsilon, reach)
+    }
+
+    fn shape(&self, radius: f32, exemplar_size: f32, atlas: &crate::atlas::Atlas) -> PatchShape {
         PatchShape {
+            texel_size: if atlas.scale > 0.0 {
+                (1.0 / atlas.scale) as f32
+            } else {
+                0.0
+            },
+            feature_width: self.feature_levels.width() as f32,
             radius,
             exemplar_size,
             delta_max: self.params.delta_max,
@@ -283,6 +383,7 @@ impl Method for Erosion {
         let mut blend_used: Option<Vec<u32>> = None;
         // `advect` carries what it has; it only places patches on a fresh start.
         let mut carried = false;
+        let mut radius_rule: Option<String> = None;
 
         if mesh.is_empty() {
             // The fluid vanished: nothing to project onto, every patch goes.
@@ -296,18 +397,36 @@ impl Method for Erosion {
                     method: self.name(),
                 });
             }
-            let radius = *self.state.radius.get_or_insert_with(|| {
-                let (lo, hi) = mesh.bounding_box().unwrap_or_default();
-                self.params
-                    .radius
-                    .unwrap_or(self.params.radius_fraction * lo.distance(hi))
-            });
+            let radius = match self.state.radius {
+                Some(r) => r,
+                None => {
+                    let (r, rule) = match self.params.radius {
+                        Some(r) => (r, "given".to_string()),
+                        None => default_radius(mesh, &self.params),
+                    };
+                    radius_rule = Some(rule);
+                    self.state.radius = Some(r);
+                    r
+                }
+            };
             let exemplar_size = *self.state.exemplar_size.get_or_insert(
                 self.params
                     .exemplar_size
                     .unwrap_or(self.params.exemplar_scale * radius),
             );
-            let shape = self.shape(radius, exemplar_size);
+            let shape = self.shape(radius, exemplar_size, atlas);
+            let align = (self.params.orientation == Orientation::Aligned)
+                .then(|| glam::Vec3::from(self.params.up_axis).normalize_or_zero());
+            if self.test.is_none() {
+                self.test = Some(self.erosion_test(radius / exemplar_size));
+            }
+            let test = self.test.unwrap_or_else(ErosionTest::never);
+            let max_drop = match (self.variant, self.params.weights) {
+                (Variant::Erode, WeightMode::Progressive) => {
+                    Some(self.params.erosion_rate * ctx.dt)
+                }
+                _ => None,
+            };
 
             // 1. Advection and projection (Sec. 4).
             let before = self.state.patches.len();
@@ -374,6 +493,7 @@ impl Method for Erosion {
                             s.location,
                             &shape,
                             rotation_for(seed, random, id as u64),
+                            align,
                         )
                     })
                     .collect();
@@ -387,7 +507,7 @@ impl Method for Erosion {
             self.state
                 .patches
                 .par_iter_mut()
-                .for_each(|p| p.update_weights(&shape));
+                .for_each(|p| p.update_weights(&shape, max_drop));
             clock.lap("weights");
 
             // 3. Lapped fill.
@@ -395,6 +515,7 @@ impl Method for Erosion {
                 min_bary: -0.05,
                 max_plane_distance: 0.125 * radius,
             };
+            let feature = self.feature_levels.samplers();
             let frames = fill::patch_frames(&self.state.patches);
             let candidates =
                 Candidates::build(mesh, ctx.index, &self.state.patches, &frames, tolerance);
@@ -403,8 +524,8 @@ impl Method for Erosion {
                 patches: &self.state.patches,
                 frames: &frames,
                 exemplar: &self.exemplar,
-                feature: self.exemplar.feature.sampler(),
-                test: self.test,
+                feature: &feature,
+                test,
                 tolerance,
             };
             let uncovered = if self.variant == Variant::Blend {
@@ -428,8 +549,8 @@ impl Method for Erosion {
                 patches: &[],
                 frames: &[],
                 exemplar: &exemplar,
-                feature: exemplar.feature.sampler(),
-                test: self.test,
+                feature: &feature,
+                test,
                 tolerance,
             };
             let (seed, random) = (self.seed, self.params.random_rotation);
@@ -441,6 +562,7 @@ impl Method for Erosion {
                 placement: self.params.placement,
                 normal_dot: self.params.normal_dot,
                 rotation: &rotation,
+                align,
             };
             if !carried {
                 let stats = update::cover(
@@ -509,6 +631,9 @@ impl Method for Erosion {
         if let Some(r) = self.state.radius {
             stats.insert("radius".into(), serde_json::json!(r));
         }
+        if let Some(rule) = radius_rule {
+            stats.insert("radius_rule".into(), serde_json::json!(rule));
+        }
         if let Some(s) = self.state.exemplar_size {
             stats.insert("exemplar_size".into(), serde_json::json!(s));
         }
@@ -527,6 +652,56 @@ impl Method for Erosion {
         self.state = postcard::from_bytes(bytes).map_err(|e| MethodError::State(e.to_string()))?;
         Ok(())
     }
+}
+
+/// The default patch radius (DESIGN §1, refined): `radius_fraction` × the
+/// first frame's bounding-box diagonal, but never below `radius_edges`
+/// median edge lengths, so that a patch spans enough fluid triangles for
+/// its shape and its far-vertex test (r/4) to stand above the re-meshing
+/// noise of the surface. Returns r and a sentence saying which rule won.
+pub fn default_radius(mesh: &crate::mesh::TriMesh, params: &ErosionParams) -> (f32, String) {
+    let (lo, hi) = mesh.bounding_box().unwrap_or_default();
+    let diagonal = lo.distance(hi);
+    let by_extent = params.radius_fraction * diagonal;
+    let edge = median_edge_length(mesh);
+    let by_edges = params.radius_edges * edge;
+    if by_edges > by_extent {
+        (
+            by_edges,
+            format!(
+                "r = {by_edges:.4} = {} × the median edge length {edge:.4} of the first frame \
+                 (larger than {} × its bounding-box diagonal = {by_extent:.4})",
+                params.radius_edges, params.radius_fraction
+            ),
+        )
+    } else {
+        (
+            by_extent,
+            format!(
+                "r = {by_extent:.4} = {} × the first frame's bounding-box diagonal {diagonal:.4} \
+                 (at least {} median edge lengths = {by_edges:.4})",
+                params.radius_fraction, params.radius_edges
+            ),
+        )
+    }
+}
+
+/// Median length of the mesh's triangle edges (each interior edge counted
+/// twice, which does not move the median of a closed or nearly closed mesh).
+pub fn median_edge_length(mesh: &crate::mesh::TriMesh) -> f32 {
+    let mut lengths: Vec<f32> = (0..mesh.triangle_count())
+        .flat_map(|t| {
+            let [a, b, c] = mesh.corners(t);
+            [a.distance(b), b.distance(c), c.distance(a)]
+        })
+        .filter(|l| l.is_finite())
+        .collect();
+    if lengths.is_empty() {
+        return 0.0;
+    }
+    let mid = lengths.len() / 2;
+    let (_, m, _) = lengths.select_nth_unstable_by(mid, f32::total_cmp);
+    *m
 }
 
 /// De-interleaves the fill's values into one texture per exemplar channel.

@@ -32,6 +32,11 @@ pub struct PatchShape {
     pub far_distance: f32,
     /// B_V = 1 for vertices within this rest distance of p (r/4, Eq. 2).
     pub centre_radius: f32,
+    /// World size of one atlas texel this frame (0: no footprint, the
+    /// feature map is point-sampled at level 0).
+    pub texel_size: f32,
+    /// Width of the feature map in texels.
+    pub feature_width: f32,
 }
 
 /// One deformable patch.
@@ -48,9 +53,20 @@ pub struct Patch {
     /// the corners of the triangle that held p, so the texel that created
     /// the patch is never eroded by it (the paper's own guard, made exact).
     pub pinned: Vec<bool>,
-    /// w_V = Q_V · B_V (Eq. 3), refreshed by [`Patch::update_weights`].
-    #[serde(skip)]
+    /// w_V = Q_V · B_V (Eq. 3), refreshed by [`Patch::update_weights`];
+    /// kept across frames (and in the saved state) because progressive
+    /// weights depend on the previous frame's.
     pub weight: Vec<f32>,
+    /// Per triangle: the feature-map level matching one atlas texel's
+    /// footprint on it (log2 of feature texels per atlas texel along the
+    /// most compressed direction), refreshed with the weights.
+    #[serde(skip)]
+    pub lod: Vec<f32>,
+    /// True when the last advection left every vertex exactly in place:
+    /// progressive weights then hold still too, so a fluid at rest gives
+    /// identical frames (erosion is driven by deformation, and there is none).
+    #[serde(skip)]
+    pub still: bool,
 }
 
 /// Per-creation inputs from the current frame, built once per frame.
@@ -74,6 +90,7 @@ impl Patch {
         at: SurfacePoint,
         shape: &PatchShape,
         rotation: f32,
+        align: Option<Vec3>,
     ) -> Option<Patch> {
         let mesh = surface.mesh;
         let seed = at.triangle;
@@ -142,6 +159,15 @@ impl Patch {
         let p_flat = flat[ia as usize] * at.bary[0]
             + flat[ib as usize] * at.bary[1]
             + flat[ic as usize] * at.bary[2];
+        let rotation = match align {
+            Some(axis) => {
+                let [a, b, c] = sub.triangles[seed_local].map(|v| v as usize);
+                let corners = [sub.positions[a], sub.positions[b], sub.positions[c]];
+                let flat_corners = [flat[a], flat[b], flat[c]];
+                aligned_rotation(corners, flat_corners, n_p, axis).unwrap_or(rotation)
+            }
+            None => rotation,
+        };
         let (sin, cos) = rotation.sin_cos();
         let rest: Vec<Vec2> = flat
             .iter()
@@ -165,8 +191,10 @@ impl Patch {
             triangles: sub.triangles,
             pinned,
             weight: Vec::new(),
+            lod: Vec::new(),
+            still: false,
         };
-        patch.update_weights(shape);
+        patch.update_weights(shape, None);
         Some(patch)
     }
 
@@ -186,14 +214,22 @@ impl Patch {
         // frame, and a fluid at rest would never give identical frames. A
         // vertex that did not move and already lies on the surface stays.
         let on_surface = 1e-5 * shape.radius;
+        let mut still = true;
         for (i, x) in self.positions.iter_mut().enumerate() {
             let moved = flow.advect(*x);
             match next.closest(moved, shape.far_distance) {
                 Some(hit) if moved == *x && hit.distance <= on_surface => {}
-                Some(hit) => *x = hit.point,
-                None => keep[i] = false,
+                Some(hit) => {
+                    still &= hit.point == *x;
+                    *x = hit.point;
+                }
+                None => {
+                    keep[i] = false;
+                    still = false;
+                }
             }
         }
+        self.still = still;
         if keep.iter().all(|&k| k) {
             return !self.triangles.is_empty();
         }
@@ -229,32 +265,60 @@ impl Patch {
             .filter(pick)
             .map(|i| self.pinned[i])
             .collect();
+        if self.weight.len() == used.len() {
+            self.weight = (0..used.len())
+                .filter(pick)
+                .map(|i| self.weight[i])
+                .collect();
+        } else {
+            self.weight.clear();
+        }
         for t in &mut self.triangles {
             *t = t.map(|v| remap[v as usize]);
         }
-        self.weight.clear();
     }
 
     /// Recomputes w_V = Q_V · B_V (Eqs. 1–3): Q_T from the triangle's
     /// distortion δ_t between rest shape (rest × S) and current positions,
     /// Q_V the mean of Q_T over the vertex's triangles, B_V = 1 inside the
     /// current patch mesh and near p, 0 on the rest of its boundary.
-    pub fn update_weights(&mut self, shape: &PatchShape) {
+    ///
+    /// With `max_drop` (progressive weights) the new weight is the target
+    /// Q_V·B_V limited to [w_prev − max_drop, w_prev]: a weight never rises
+    /// again (an eroded texel does not come back on top of a younger patch)
+    /// and falls at a bounded rate (erosion advances a little every frame
+    /// instead of in jumps when re-meshing jitters Q_V or vertex removal
+    /// makes a new boundary). Without it, or on the first call, it is the
+    /// paper's w_V.
+    pub fn update_weights(&mut self, shape: &PatchShape, max_drop: Option<f32>) {
         let n = self.positions.len();
         let mut sum = vec![0.0f64; n];
         let mut count = vec![0u32; n];
         let s = shape.exemplar_size;
+        // uv per world unit of rest shape × feature texels per uv × world per atlas texel.
+        let base = shape.texel_size / s * shape.feature_width;
+        self.lod.clear();
         for t in &self.triangles {
             let rest = t.map(|v| self.rest[v as usize] * s);
             let q = t.map(|v| self.positions[v as usize]);
-            let quality = triangle_quality(distortion(rest, q).delta, shape.delta_max as f64);
+            let d = distortion(rest, q);
+            // Current length / rest length is at least γ: one atlas texel
+            // spans at most 1/γ of rest shape.
+            let footprint = base as f64 / d.gamma_min.max(1e-6);
+            self.lod.push(if footprint > 1.0 {
+                footprint.log2() as f32
+            } else {
+                0.0
+            });
+            let quality = triangle_quality(d.delta, shape.delta_max as f64);
             for &v in t {
                 sum[v as usize] += quality;
                 count[v as usize] += 1;
             }
         }
         let topology = Topology::new(n, &self.triangles);
-        self.weight = (0..n)
+        let previous = std::mem::take(&mut self.weight);
+        let mut target: Vec<f32> = (0..n)
             .map(|v| {
                 let q_v = if count[v] > 0 {
                     sum[v] / count[v] as f64
@@ -269,7 +333,52 @@ impl Patch {
                 (q_v * b_v) as f32
             })
             .collect();
+        if max_drop.is_some() && self.still && previous.len() == n {
+            self.weight = previous;
+            return;
+        }
+        if let Some(drop) = max_drop
+            && previous.len() == n
+        {
+            for (w, &before) in target.iter_mut().zip(&previous) {
+                *w = w.min(before).max(before - drop);
+            }
+        }
+        self.weight = target;
     }
+}
+
+/// The rotation (radians, applied to the flattened patch) that turns the
+/// exemplar's up, −v in uv (v points down), to `axis` projected on the
+/// tangent plane of `normal`, carried into the flat patch through the
+/// linear map of the seed triangle (3-D corners to flat corners). Where the
+/// axis is nearly normal to the surface, a fixed perpendicular axis stands in.
+/// `None` for a degenerate seed triangle.
+fn aligned_rotation(corners: [Vec3; 3], flat: [Vec2; 3], normal: Vec3, axis: Vec3) -> Option<f32> {
+    let n = normal.normalize_or_zero();
+    let project = |a: Vec3| a - n * a.dot(n);
+    let mut along = project(axis.normalize_or_zero());
+    if along.length() < 0.2 {
+        along = project(axis.any_orthonormal_vector());
+    }
+    // Linear map of the seed triangle: 3-D edge e_k ↦ flat edge f_k; a
+    // tangent vector t = α e1 + β e2 maps to α f1 + β f2.
+    let (e1, e2) = (corners[1] - corners[0], corners[2] - corners[0]);
+    let (f1, f2) = (flat[1] - flat[0], flat[2] - flat[0]);
+    let (g11, g12, g22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+    let det = g11 * g22 - g12 * g12;
+    if det <= f32::EPSILON * g11 * g22 {
+        return None;
+    }
+    let (r1, r2) = (along.dot(e1), along.dot(e2));
+    let alpha = (g22 * r1 - g12 * r2) / det;
+    let beta = (g11 * r2 - g12 * r1) / det;
+    let d = f1 * alpha + f2 * beta;
+    if d.length_squared() == 0.0 || !d.is_finite() {
+        return None;
+    }
+    // Rotate d onto (0, −1).
+    Some(-std::f32::consts::FRAC_PI_2 - d.y.atan2(d.x))
 }
 
 /// Flattens one connected patch: LSCM, or, should it fail (degenerate

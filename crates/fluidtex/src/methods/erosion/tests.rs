@@ -52,6 +52,8 @@ fn shape(radius: f32) -> PatchShape {
         delta_max: 3.0,
         far_distance: radius / 4.0,
         centre_radius: radius / 4.0,
+        texel_size: 0.0,
+        feature_width: 1.0,
     }
 }
 
@@ -63,7 +65,7 @@ fn create_on(mesh: &TriMesh, at: SurfacePoint, shape: &PatchShape, rotation: f32
         topology: &topology,
         vertex_normals: &normals,
     };
-    Patch::create(0, &surface, at, shape, rotation).expect("valid triangle")
+    Patch::create(0, &surface, at, shape, rotation, None).expect("valid triangle")
 }
 
 #[test]
@@ -156,6 +158,8 @@ fn weights_follow_eqs_1_to_3_on_a_hand_built_patch() {
         delta_max: 3.0,
         far_distance: 0.25,
         centre_radius: 0.0,
+        texel_size: 0.0,
+        feature_width: 1.0,
     };
     let rest: Vec<Vec2> = mesh.positions.iter().map(|p| p.truncate()).collect();
     // Stretch vertex 8 (corner) along x by 1: only triangles using it deform.
@@ -167,8 +171,10 @@ fn weights_follow_eqs_1_to_3_on_a_hand_built_patch() {
         triangles: mesh.triangles.clone(),
         pinned: (0..9).map(|v| v == 0).collect(),
         weight: Vec::new(),
+        lod: Vec::new(),
+        still: false,
     };
-    patch.update_weights(&s);
+    patch.update_weights(&s, None);
     let q_t: Vec<f64> = mesh
         .triangles
         .iter()
@@ -272,7 +278,12 @@ fn lapped_fill_matches_a_brute_force_reference() {
         min_bary: -0.05,
         max_plane_distance: 0.125 * radius,
     };
-    let test = ErosionTest::new(ex.feature.erosion_normaliser(), 0.1);
+    let exemplar_size = method.state().exemplar_size.expect("resolved");
+    // The method's defaults: D reaches 0 at the footprint r/S, and F_m is
+    // read at each patch triangle's footprint level.
+    let test = ErosionTest::with_reach(&ex.feature.map, 0.1, radius / exemplar_size);
+    let levels = super::feature_levels::FeatureLevels::new(&ex.feature);
+    let feature = levels.samplers();
     let source = sources(last);
     let uv = last.uv.as_deref().expect("uv");
     let mut checked = 0;
@@ -315,7 +326,8 @@ fn lapped_fill_matches_a_brute_force_reference() {
                         let w: f32 = (0..3)
                             .map(|i| patch.weight[tri[i] as usize] * (bb[i] / sum))
                             .sum();
-                        if !test.eroded(ex.feature.sample(puv.x, puv.y), puv.x, puv.y, w) {
+                        let f = feature.sample(puv.x, puv.y, patch.lod[j]);
+                        if !test.eroded(f, puv.x, puv.y, w) {
                             want = Some((patch.id + 1, puv));
                             break 'patches;
                         }
@@ -525,6 +537,7 @@ fn blend_fill_is_the_weight_normalised_mix_of_every_covering_patch() {
     b.id = 1;
     let patches = vec![a, b];
     let ex = exemplar();
+    let levels = super::feature_levels::FeatureLevels::new(&ex.feature);
     let frames = fill::patch_frames(&patches);
     let tolerance = LocateTolerance {
         min_bary: -0.05,
@@ -535,7 +548,7 @@ fn blend_fill_is_the_weight_normalised_mix_of_every_covering_patch() {
         patches: &patches,
         frames: &frames,
         exemplar: &ex,
-        feature: ex.feature.sampler(),
+        feature: &levels.samplers(),
         test: ErosionTest::never(),
         tolerance,
     };
@@ -560,7 +573,7 @@ fn blend_fill_is_the_weight_normalised_mix_of_every_covering_patch() {
                         let all = 0..patches[i as usize].triangles.len() as u32;
                         ctx.locate(i, all, p, n)
                             .filter(|l| l.1 > 0.0)
-                            .map(|(uv, w)| (i, uv, w))
+                            .map(|(uv, w, _)| (i, uv, w))
                     })
                     .collect();
                 let total: f32 = layers.iter().map(|l| l.2).sum();
@@ -720,5 +733,171 @@ fn frames_after_the_flow_stops_are_bit_identical() {
             "frame {} sources changed",
             frames[k]
         );
+    }
+}
+
+/// The 3-D direction of the exemplar's up (−v in uv) at the patch centre:
+/// the patch triangle holding uv (0.5, 0.5) maps uv to positions affinely.
+fn exemplar_up_at_centre(patch: &Patch) -> Vec3 {
+    let c = Vec2::splat(0.5);
+    for t in &patch.triangles {
+        let [a, b, d] = t.map(|v| patch.rest[v as usize]);
+        let Some(bary) = crate::surface::barycentric_2d(c, a, b, d) else {
+            continue;
+        };
+        if bary.iter().all(|&x| x >= -1e-4) {
+            let [pa, pb, pd] = t.map(|v| patch.positions[v as usize]);
+            // d(position)/d(uv) by the triangle's two edges.
+            let (e1, e2) = (b - a, d - a);
+            let (q1, q2) = (pb - pa, pd - pa);
+            let det = e1.perp_dot(e2);
+            let up = Vec2::new(0.0, -1.0);
+            let alpha = up.perp_dot(e2) / det;
+            let beta = e1.perp_dot(up) / det;
+            return (q1 * alpha + q2 * beta).normalize();
+        }
+    }
+    panic!("no triangle holds the patch centre");
+}
+
+#[test]
+fn aligned_orientation_follows_the_axis_and_rides_a_rigid_rotation() {
+    // A bumpy sheet in the xz-plane (normal ≈ y), so the up axis z is
+    // mostly tangent; creation points spread over it.
+    let mut mesh = grid(24, 0.05);
+    for p in &mut mesh.positions {
+        let (x, y) = (p.x, p.y);
+        *p = Vec3::new(x, 0.05 * (4.0 * x).sin() * (3.0 * y).cos(), y);
+    }
+    let mut s = shape(0.2);
+    s.centre_radius = 0.05;
+    let axis = Vec3::Z;
+    let topology = Topology::new(mesh.vertex_count(), &mesh.triangles);
+    let normals = mesh.vertex_normals();
+    let surface = FrameSurface {
+        mesh: &mesh,
+        topology: &topology,
+        vertex_normals: &normals,
+    };
+    let field = |n: Vec3| (axis - n * axis.dot(n)).normalize();
+    let angle = |a: Vec3, b: Vec3| a.dot(b).clamp(-1.0, 1.0).acos().to_degrees();
+    let mut checked = 0;
+    for (k, tri) in [300u32, 450, 611, 820, 1000].into_iter().enumerate() {
+        let at = SurfacePoint::new(tri, [0.3, 0.3, 0.4]);
+        // The random rotation is ignored when aligning.
+        let patch =
+            Patch::create(k as u32, &surface, at, &s, 1.0 + k as f32, Some(axis)).expect("patch");
+        let n = at.interpolate(&mesh.triangles, &normals).normalize();
+        let up = exemplar_up_at_centre(&patch);
+        let want = field(n);
+        assert!(angle(up, want) < 5.0, "patch {k}: {}°", angle(up, want));
+        // Carried by a rigid rotation about the axis, the field (the axis
+        // projected on the tangent plane) turns with the surface, and so
+        // does the patch.
+        let rot = glam::Quat::from_axis_angle(axis, 0.7);
+        let mut moved = patch.clone();
+        for p in &mut moved.positions {
+            *p = rot * *p;
+        }
+        let up2 = exemplar_up_at_centre(&moved);
+        assert!(angle(up2, rot * want) < 5.0);
+        // Control: a random rotation points anywhere.
+        let random = Patch::create(k as u32, &surface, at, &s, 1.0 + k as f32, None).expect("p");
+        assert!(angle(exemplar_up_at_centre(&random), want) > 5.0);
+        checked += 1;
+    }
+    assert_eq!(checked, 5);
+}
+
+#[test]
+fn progressive_weights_never_rise_and_fall_at_the_set_rate() {
+    let mesh = grid(10, 0.1);
+    let s = shape(0.3);
+    let at = SurfacePoint::new(101, [0.3, 0.3, 0.4]);
+    let rest_positions = create_on(&mesh, at, &s, 0.0).positions.clone();
+    let stretch = |patch: &mut Patch, k: f32| {
+        for (p, q) in patch.positions.iter_mut().zip(&rest_positions) {
+            *p = Vec3::new(q.x * k, q.y, q.z);
+        }
+        patch.still = false;
+    };
+    for mode in [WeightMode::Progressive, WeightMode::Paper] {
+        let drop = match mode {
+            WeightMode::Progressive => Some(0.1),
+            WeightMode::Paper => None,
+        };
+        let mut patch = create_on(&mesh, at, &s, 0.0);
+        let initial = patch.weight.clone();
+        // Stretch 2.5× (δ = 2.5, Q_T = 0.25): the target weight collapses.
+        stretch(&mut patch, 2.5);
+        patch.update_weights(&s, drop);
+        let stretched = patch.weight.clone();
+        for (v, (&w0, &w1)) in initial.iter().zip(&stretched).enumerate() {
+            match mode {
+                WeightMode::Progressive => {
+                    assert!(w1 <= w0 && w1 >= w0 - 0.1 - 1e-6, "vertex {v}: {w0} → {w1}");
+                }
+                WeightMode::Paper => assert!(w1 <= 0.25 + 1e-5, "vertex {v}: {w1}"),
+            }
+        }
+        // Back to the rest shape: the paper's weights come back, the
+        // progressive ones stay where they were (eroded texels stay eroded).
+        stretch(&mut patch, 1.0);
+        patch.update_weights(&s, drop);
+        match mode {
+            WeightMode::Progressive => assert_eq!(patch.weight, stretched),
+            WeightMode::Paper => assert_eq!(patch.weight, initial),
+        }
+        // A patch that did not move keeps its weights exactly.
+        let before = patch.weight.clone();
+        stretch(&mut patch, 3.0);
+        patch.still = true;
+        patch.update_weights(&s, drop);
+        if mode == WeightMode::Progressive {
+            assert_eq!(patch.weight, before);
+        } else {
+            assert_ne!(patch.weight, before);
+        }
+    }
+}
+
+#[test]
+fn the_default_radius_never_falls_below_a_few_edges() {
+    // A 10×10 grid of 0.1 cells: diagonal √2, median edge 0.1.
+    let mesh = grid(10, 0.1);
+    let params = ErosionParams::default();
+    let (r, rule) = default_radius(&mesh, &params);
+    assert!((r - 0.4).abs() < 1e-5, "{r}");
+    assert!(rule.contains("median edge"), "{rule}");
+    // A fine mesh of the same extent: the diagonal rule wins.
+    let fine = grid(100, 0.01);
+    let (r, rule) = default_radius(&fine, &params);
+    assert!((r - 2f32.sqrt() / 25.0).abs() < 1e-4, "{r}");
+    assert!(rule.contains("diagonal"), "{rule}");
+    assert!((median_edge_length(&fine) - 0.01).abs() < 1e-6);
+}
+
+#[test]
+fn the_footprint_falloff_erodes_the_rim_of_an_undistorted_patch() {
+    // A flat feature map: F = 0.5 everywhere. At w = 1 the paper's D keeps
+    // the rim (uv distance 0.385 from the centre), the footprint D erodes
+    // it; both keep the centre.
+    let map = crate::texture::Texture {
+        width: 8,
+        height: 8,
+        channels: 1,
+        data: vec![0.0; 64],
+    };
+    let footprint = ErosionTest::with_reach(&map, 0.1, 1.0 / 2.6);
+    let paper = ErosionTest::with_reach(&map, 0.1, 0.5);
+    let rim = 0.5 + 0.999 / 2.6;
+    assert!(footprint.eroded(0.0, rim, 0.5, 1.0));
+    assert!(!paper.eroded(0.0, rim, 0.5, 1.0));
+    assert!(!footprint.eroded(0.0, 0.5, 0.5, 1.0));
+    // with_reach(0.5) is the paper's test exactly.
+    let classic = ErosionTest::new(super::erode::normaliser(&map, 0.5), 0.1);
+    for (u, v, w) in [(0.2, 0.7, 0.3), (0.5, 0.5, 0.9), (0.8, 0.4, 0.6)] {
+        assert_eq!(paper.lhs(0.0, u, v), classic.lhs(0.0, u, v));
+        assert_eq!(paper.eroded(0.0, u, v, w), classic.eroded(0.0, u, v, w));
     }
 }

@@ -60,9 +60,10 @@ pub struct UpdateInputs<'a> {
     pub placement: Placement,
     /// Normal agreement below which Poisson disks do not block (0.9).
     pub normal_dot: f32,
-    /// Rotation of the patch with a given id.
     /// Rotation of a new patch created at a surface point.
     pub rotation: &'a (dyn Fn(crate::surface::SurfacePoint) -> f32 + Sync),
+    /// The world axis the exemplar's up follows (aligned orientation).
+    pub align: Option<glam::Vec3>,
 }
 
 /// Covers every texel in `uncovered`, appending new patches to `patches`.
@@ -130,6 +131,7 @@ pub fn cover(
                     point(&uncovered[s]),
                     &inputs.shape,
                     (inputs.rotation)(point(&uncovered[s])),
+                    inputs.align,
                 )
                 .map(|p| (p, s))
             })
