@@ -12,7 +12,7 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use fluidtex::methods::atlas_check::AtlasCheckParams;
 use fluidtex::methods::dual_rest::DualRestParams;
-use fluidtex::methods::erosion::{ErosionParams, Placement};
+use fluidtex::methods::erosion::{ErosionParams, Falloff, Orientation, Placement, WeightMode};
 use fluidtex::pipeline::OutputOptions;
 use serde::{Deserialize, Serialize};
 
@@ -180,6 +180,24 @@ pub struct RunFlags {
     /// New patch placement: local (the paper) or global
     #[arg(long)]
     pub placement: Option<String>,
+    /// Weights over time: progressive (monotone, rate-limited) or paper
+    #[arg(long)]
+    pub weights: Option<String>,
+    /// Progressive weights: largest fall of w per second [2.4]
+    #[arg(long)]
+    pub erosion_rate: Option<f32>,
+    /// Where the erosion falloff D reaches 0: footprint (r/S) or paper (0.5)
+    #[arg(long)]
+    pub falloff: Option<String>,
+    /// Exemplar orientation on new patches: random or aligned (with --up-axis)
+    #[arg(long)]
+    pub orientation: Option<String>,
+    /// World direction the exemplar's up follows with --orientation aligned [0,1,0]
+    #[arg(long, value_delimiter = ',', num_args = 3, allow_hyphen_values = true)]
+    pub up_axis: Option<Vec<f32>>,
+    /// Default r is never below this many median edge lengths [4]
+    #[arg(long)]
+    pub radius_edges: Option<f32>,
     /// dual-rest: frames between two resets of a layer [24]
     #[arg(long)]
     pub period: Option<u32>,
@@ -268,6 +286,39 @@ impl RunFlags {
                 "global" => Placement::Global,
                 other => bail!("--placement {other}: expected local or global"),
             };
+        }
+        if let Some(w) = &self.weights {
+            e.weights = match w.as_str() {
+                "progressive" => WeightMode::Progressive,
+                "paper" => WeightMode::Paper,
+                other => bail!("--weights {other}: expected progressive or paper"),
+            };
+        }
+        if let Some(v) = self.erosion_rate {
+            e.erosion_rate = v;
+        }
+        if let Some(f) = &self.falloff {
+            e.falloff = match f.as_str() {
+                "footprint" => Falloff::Footprint,
+                "paper" => Falloff::Paper,
+                other => bail!("--falloff {other}: expected footprint or paper"),
+            };
+        }
+        if let Some(o) = &self.orientation {
+            e.orientation = match o.as_str() {
+                "random" => Orientation::Random,
+                "aligned" => Orientation::Aligned,
+                other => bail!("--orientation {other}: expected random or aligned"),
+            };
+        }
+        if let Some(a) = &self.up_axis {
+            let [x, y, z] = a.as_slice() else {
+                bail!("--up-axis needs three numbers, e.g. 0,1,0");
+            };
+            e.up_axis = [*x, *y, *z];
+        }
+        if let Some(v) = self.radius_edges {
+            e.radius_edges = v;
         }
         if let Some(p) = self.period {
             config.dual_rest.period = p;
