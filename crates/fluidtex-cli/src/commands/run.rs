@@ -80,7 +80,11 @@ pub fn execute(
         Event::Start { number, .. } => progress.set_message(format!("frame {number}")),
         Event::Done { stats } => {
             // Say once which patch radius the method chose, and why.
-            if let Some(rule) = stats.method_stats.get("radius_rule").and_then(|r| r.as_str()) {
+            if let Some(rule) = stats
+                .method_stats
+                .get("radius_rule")
+                .and_then(|r| r.as_str())
+            {
                 progress.info(&format!("patch radius: {rule}"));
             }
             let patches = stats

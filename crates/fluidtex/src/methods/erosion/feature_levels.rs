@@ -28,8 +28,7 @@ pub struct FeatureLevels {
 impl FeatureLevels {
     pub fn new(map: &FeatureMap) -> FeatureLevels {
         let mut levels = vec![map.clone()];
-        loop {
-            let Some(last) = levels.last() else { break };
+        while let Some(last) = levels.last() {
             let t = &last.map;
             if t.width < 2 || t.height < 2 {
                 break;
@@ -95,7 +94,7 @@ impl FeatureLevelSampler<'_> {
     #[inline]
     pub fn sample(&self, u: f32, v: f32, lod: f32) -> f32 {
         let top = self.levels.len().saturating_sub(1);
-        if !(lod > 0.0) || top == 0 {
+        if lod.is_nan() || lod <= 0.0 || top == 0 {
             return self.levels.first().map_or(0.0, |s| s.sample(u, v));
         }
         let lod = lod.min(top as f32);
