@@ -225,11 +225,12 @@ fn filtering_lowers_popping_on_a_rigid_rotation() {
     let contrast = |r: &crate::eval::MethodRun| r.summary(Metric::Contrast).unwrap().min;
     eprintln!(
         "rigid rotation, pebbles at 8 texels/texel: popping {:.4} filtered vs {:.4} level 0; \
-         contrast {:.3} vs {:.3}",
+         contrast {:.3} vs {:.3} (sigma shown by lod in quarters {:.3?})",
         popping(&filtered),
         popping(&point),
         contrast(&filtered),
-        contrast(&point)
+        contrast(&point),
+        crate::metrics::exemplar_sigma_by_lod(&colour)
     );
     assert!(
         popping(&filtered) < 0.5 * popping(&point),
