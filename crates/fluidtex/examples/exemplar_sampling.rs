@@ -95,6 +95,16 @@ fn main() {
              feature sample {feat:.1} ns (checksum {acc:.0})"
         );
     }
+    for size in [256u32, 2048] {
+        let t4 = Texture::filled(size, size, 4, 0.5);
+        let t = Instant::now();
+        let levels = fluidtex::exemplar::mip_levels(&t4);
+        println!(
+            "mip pyramid of a {size}x{size} 4-channel texture: {:.1} ms ({} levels)",
+            t.elapsed().as_secs_f64() * 1e3,
+            levels.len()
+        );
+    }
     for _ in 0..3 {
         let t = Instant::now();
         let p = builtin_pebbles(512, 1);
