@@ -239,3 +239,79 @@ fn filtering_lowers_popping_on_a_rigid_rotation() {
         popping(&point)
     );
 }
+
+/// The minified checker through the erosion method itself: the chart
+/// texels' mean stays within 1 % of the checker's and their variance
+/// collapses; read at level 0 (the control) they keep most of it.
+#[test]
+fn erosion_atlas_of_a_minified_checker_keeps_its_mean() {
+    use crate::atlas::{Atlas, AtlasParams};
+    use crate::methods::erosion::{Erosion, ErosionParams};
+    use crate::methods::{FrameContext, Method, PreviousFrame};
+    use crate::surface::SurfaceIndex;
+
+    let name = "rigid-rotation";
+    let mut params = crate::scenes::default_params(name).unwrap();
+    params.resolution = 16;
+    params.last = params.first + 1;
+    let mut scene = crate::scenes::by_name(name, Some(params)).unwrap();
+    let meshes: Vec<_> = (params.first..=params.last)
+        .map(|f| scene.frame(f).unwrap())
+        .collect();
+    let indices: Vec<_> = meshes.iter().map(SurfaceIndex::new).collect();
+    let atlases: Vec<_> = meshes
+        .iter()
+        .map(|m| Atlas::build(m, &AtlasParams::square(128)).unwrap())
+        .collect();
+    // 256² checker of 2-texel squares at 8 exemplar texels per atlas texel.
+    let erosion = ErosionParams {
+        exemplar_size: Some(32.0 / atlases[0].scale as f32),
+        ..Default::default()
+    };
+    let run = |filter: ExemplarFilter| {
+        let ex = Arc::new(checker(256, 2).with_filter(filter));
+        let mut m = Erosion::new(erosion.clone(), ex, 4).unwrap();
+        let mut last = None;
+        for k in 0..meshes.len() {
+            let ctx = FrameContext {
+                number: k as i32,
+                dt: 1.0 / 24.0,
+                mesh: &meshes[k],
+                index: &indices[k],
+                previous: (k > 0).then(|| PreviousFrame {
+                    mesh: &meshes[k - 1],
+                    index: &indices[k - 1],
+                }),
+                atlas: &atlases[k],
+            };
+            last = Some(m.step(&ctx).unwrap());
+        }
+        let r = last.unwrap();
+        let source = r.source.as_deref().unwrap();
+        let values: Vec<f32> = source
+            .iter()
+            .zip(&r.channels[0].data)
+            .filter(|(s, _)| **s != OUTSIDE)
+            .map(|(_, &v)| v)
+            .collect();
+        let lods: Vec<f32> = r.exemplar_lod.iter().flatten().copied().collect();
+        (mean_var(&values), lods)
+    };
+    let ((mean, var), lods) = run(ExemplarFilter::Trilinear);
+    let ((point_mean, point_var), none) = run(ExemplarFilter::Unfiltered);
+    let mut finite: Vec<f32> = lods.into_iter().filter(|l| l.is_finite()).collect();
+    finite.sort_by(f32::total_cmp);
+    let median = finite[finite.len() / 2];
+    eprintln!(
+        "erosion, checker at 8 texels/texel: median lod {median:.2}; filtered mean {mean:.4} \
+         var {var:.2e}; level 0 mean {point_mean:.4} var {point_var:.4}"
+    );
+    assert!(none.is_empty(), "unfiltered runs report no levels");
+    assert!((median - 3.0).abs() < 0.25, "median lod {median}");
+    assert!((mean - 0.5).abs() < 0.005, "mean {mean}");
+    assert!(point_var > 0.08, "level-0 variance {point_var}");
+    assert!(
+        var < 0.05 * point_var,
+        "filtered variance {var} vs {point_var}"
+    );
+}
