@@ -42,6 +42,10 @@ pub struct Config {
     pub feature: Option<PathBuf>,
     /// How to derive a missing feature map: auto, luminance, distance [auto].
     pub feature_method: Option<String>,
+    /// How minified exemplar texels are read: trilinear, none [trilinear].
+    /// Left out of the file when unset, so fingerprints of older runs hold.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub exemplar_filter: Option<String>,
     /// Extra channels: name = image.
     pub channels: BTreeMap<String, PathBuf>,
     /// Names of the three velocity properties in PLY files.
@@ -147,6 +151,10 @@ pub struct RunFlags {
     /// How to derive a missing feature map: auto, luminance, distance
     #[arg(long)]
     pub feature_method: Option<String>,
+    /// Exemplar filtering where it is shown minified: trilinear (mip
+    /// pyramid at each texel's footprint) or none (bilinear, aliases)
+    #[arg(long, value_name = "trilinear|none")]
+    pub exemplar_filter: Option<String>,
     /// Extra channel NAME=IMG, written as NAME.F.png|exr (repeatable)
     #[arg(long = "channel", value_name = "NAME=IMG")]
     pub channels: Vec<String>,
@@ -232,7 +240,8 @@ impl RunFlags {
             seed,
             exemplar,
             feature,
-            feature_method
+            feature_method,
+            exemplar_filter
         );
         for spec in &self.channels {
             let Some((name, path)) = spec.split_once('=') else {

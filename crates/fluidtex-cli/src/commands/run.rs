@@ -6,7 +6,7 @@ use std::sync::Arc;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use fluidtex::atlas::AtlasParams;
-use fluidtex::exemplar::{Exemplar, FeatureMethod, builtin_pebbles};
+use fluidtex::exemplar::{Exemplar, ExemplarFilter, FeatureMethod, builtin_pebbles};
 use fluidtex::io::ReadOptions;
 use fluidtex::methods::Method;
 use fluidtex::methods::atlas_check::AtlasCheck;
@@ -139,30 +139,28 @@ pub fn build_exemplar(config: &Config) -> Result<Exemplar> {
         Some("distance") => FeatureMethod::DistanceTransform,
         Some(other) => bail!("feature method {other}: expected auto, luminance or distance"),
     };
+    let filter = match config.exemplar_filter.as_deref() {
+        None | Some("trilinear") => ExemplarFilter::Trilinear,
+        Some("none") => ExemplarFilter::Unfiltered,
+        Some(other) => bail!("exemplar filter {other}: expected trilinear or none"),
+    };
     let channels: Vec<(String, PathBuf)> = config
         .channels
         .iter()
         .map(|(k, v)| (k.clone(), v.clone()))
         .collect();
-    match &config.exemplar {
-        Some(path) => Ok(Exemplar::load(
-            path,
-            &channels,
-            config.feature.as_deref(),
-            method,
-        )?),
+    let exemplar = match &config.exemplar {
+        Some(path) => Exemplar::load(path, &channels, config.feature.as_deref(), method)?,
         None => {
             if !channels.is_empty() || config.feature.is_some() {
                 bail!(
                     "--channel and --feature need --exemplar (the built-in pebbles carry their own)"
                 );
             }
-            Ok(builtin_pebbles(
-                BUILTIN_EXEMPLAR_SIZE,
-                config.seed.unwrap_or(0),
-            ))
+            builtin_pebbles(BUILTIN_EXEMPLAR_SIZE, config.seed.unwrap_or(0))
         }
-    }
+    };
+    Ok(exemplar.with_filter(filter))
 }
 
 /// The method the config names.
@@ -225,4 +223,30 @@ pub fn build_job(config: &Config, out: PathBuf, resume: bool) -> Result<Job> {
         resume,
         fingerprint: config.fingerprint(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exemplar_filter_is_trilinear_unless_asked_otherwise() {
+        let with = |value: Option<&str>| {
+            build_exemplar(&Config {
+                exemplar_filter: value.map(str::to_string),
+                ..Default::default()
+            })
+        };
+        assert_eq!(with(None).expect("valid").filter, ExemplarFilter::Trilinear);
+        assert_eq!(
+            with(Some("trilinear")).expect("valid").filter,
+            ExemplarFilter::Trilinear
+        );
+        assert_eq!(
+            with(Some("none")).expect("valid").filter,
+            ExemplarFilter::Unfiltered
+        );
+        let err = with(Some("bicubic")).expect_err("unknown filter");
+        assert!(err.to_string().contains("trilinear or none"), "{err}");
+    }
 }

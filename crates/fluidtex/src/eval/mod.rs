@@ -13,10 +13,11 @@
 //!
 //! - on the atlas (per-texel provenance): coverage, ghost fraction (from
 //!   the method's layer counts; 0 by construction for methods that never
-//!   blend), contrast ρ over chart texels, distortion (exemplar uv against
-//!   the texel's surface point) and exemplar fidelity (SWD, reference built
-//!   once per sequence from the exemplar rescaled to the output's texel
-//!   scale, metrics/mod.rs);
+//!   blend), contrast ρ over chart texels (against the exemplar filtered
+//!   to the mip levels the method reports, [`metrics::shown_sigma`]),
+//!   distortion (exemplar uv against the texel's surface point) and
+//!   exemplar fidelity (SWD, reference built once per sequence from the
+//!   exemplar rescaled to the output's texel scale, metrics/mod.rs);
 //! - on unlit renders from the fixed camera (colour looked up through the
 //!   mesh's atlas uv, supersampled and box-filtered so sub-pixel atlas
 //!   detail does not alias; source and exemplar uv from the atlas texels,
@@ -291,6 +292,7 @@ pub fn evaluate(
         seed: thresholds.fidelity.seed,
     };
     let mut notes = Vec::new();
+    let mut sigma_by_lod: Option<Vec<f32>> = None;
     let mut fidelity: Option<FidelityReference> = None;
     let mut fidelity_scale = f64::NAN;
     let mut stop = StaticStop::new();
@@ -364,9 +366,20 @@ pub fn evaluate(
             set(Metric::Ghosting, ghost);
         }
         if charts.iter().any(|&c| c) {
+            // A filtered output is compared with the exemplar filtered to
+            // the levels it shows (metrics::contrast doc).
+            let shown = match result.exemplar_lod.as_deref() {
+                Some(lod) if lod.len() == n_texels => {
+                    let table = sigma_by_lod
+                        .get_or_insert_with(|| metrics::exemplar_sigma_by_lod(exemplar));
+                    metrics::shown_sigma(table, lod, Some(&charts))
+                        .map_err(metric_err(number, "contrast"))?
+                }
+                _ => sigma_ex,
+            };
             set(
                 Metric::Contrast,
-                metrics::contrast_ratio(colour, Some(&charts), sigma_ex)
+                metrics::contrast_ratio(colour, Some(&charts), shown)
                     .map_err(metric_err(number, "contrast"))?,
             );
         }

@@ -14,9 +14,14 @@
 //! - [`Exemplar::sample_all`] is the lookup of the lapped fill: every
 //!   channel at one `(u, v)`, tiled ([`crate::texture::Wrap::Repeat`]), with
 //!   the texel convention of [`crate::texture`].
+//! - [`Exemplar::sample_all_lod`] reads the same channels through a mip
+//!   pyramid ([`mip`], built once with the exemplar), trilinear, for atlas
+//!   texels that show the exemplar minified; [`Exemplar::filter`] says
+//!   whether methods use it ([`ExemplarFilter`]).
 
 pub mod decode;
 pub mod feature;
+pub mod mip;
 pub mod openexr;
 pub mod pebbles;
 mod sampling;
@@ -26,10 +31,25 @@ use std::path::{Path, PathBuf};
 use thiserror::Error;
 
 pub use feature::{DistanceParams, FeatureMap, FeatureMethod, FeatureOrigin};
+pub use mip::mip_levels;
 pub use pebbles::builtin_pebbles;
 
 use crate::texture::Texture;
-use sampling::{Lattice, blend};
+use sampling::{Lattice, blend, blend_levels};
+
+/// How methods read the exemplar at an atlas texel.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum ExemplarFilter {
+    /// Trilinear through the mip pyramid, at the level of the texel's uv
+    /// footprint ([`crate::methods::footprint`]); bilinear where the
+    /// exemplar is magnified. The default: a minified exemplar read at one
+    /// point per texel aliases into noise that changes every frame.
+    #[default]
+    Trilinear,
+    /// Bilinear at level 0 whatever the footprint (the lapped fill's own
+    /// lookup, left as it is): sharper, and aliased where minified.
+    Unfiltered,
+}
 
 /// How a channel's samples were stored, and so how its atlas is written.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -126,6 +146,10 @@ pub struct Exemplar {
     /// Extra channels, in order; same size as `colour`.
     pub channels: Vec<ExtraChannel>,
     pub feature: FeatureMap,
+    /// Whether methods filter minified lookups [trilinear]. Chosen by the
+    /// user at load (`--exemplar-filter`); it changes no texel of the
+    /// exemplar, only which lookup the methods' post-pass makes.
+    pub filter: ExemplarFilter,
     packed: Packed,
 }
 
@@ -136,6 +160,8 @@ struct Packed {
     lattice: Lattice,
     stride: usize,
     data: Vec<f32>,
+    /// Levels 1, 2, ... of the mip pyramid of `data` ([`mip`]).
+    mips: Vec<mip::Level>,
 }
 
 impl Exemplar {
@@ -166,10 +192,12 @@ impl Exemplar {
             colour_format,
             channels,
             feature,
+            filter: ExemplarFilter::default(),
             packed: Packed {
                 lattice: Lattice::new(1, 1),
                 stride: 0,
                 data: Vec::new(),
+                mips: Vec::new(),
             },
         };
         e.pack();
@@ -226,9 +254,11 @@ impl Exemplar {
                 }
             }
         }
+        let (w, h) = (self.colour.width, self.colour.height);
         self.packed = Packed {
-            lattice: Lattice::new(self.colour.width, self.colour.height),
+            lattice: Lattice::new(w, h),
             stride,
+            mips: mip::build(&data, stride, w, h),
             data,
         };
     }
@@ -299,6 +329,49 @@ impl Exemplar {
     pub fn sample_all(&self, u: f32, v: f32, out: &mut [f32]) {
         let p = &self.packed;
         blend(&p.data, p.stride, &p.lattice.footprint(u, v), out);
+    }
+
+    /// Every channel at `(u, v)` filtered to mip level `lod` (0: the
+    /// exemplar; each level halves the resolution): trilinear between the
+    /// two levels around `lod`, bilinear and repeating within each.
+    /// `lod` ≤ 0 (or NaN) is exactly [`Exemplar::sample_all`]; `lod` above
+    /// [`Exemplar::max_lod`] reads the 1 × 1 level, the exemplar's mean.
+    #[inline]
+    pub fn sample_all_lod(&self, u: f32, v: f32, lod: f32, out: &mut [f32]) {
+        let p = &self.packed;
+        if lod.is_nan() || lod <= 0.0 || p.mips.is_empty() {
+            self.sample_all(u, v, out);
+            return;
+        }
+        let lod = lod.min(p.mips.len() as f32);
+        // `lod` is positive and at most the level count: the cast floors.
+        let k = lod as usize;
+        let t = lod - k as f32;
+        let level = |k: usize| match k.checked_sub(1).and_then(|i| p.mips.get(i)) {
+            Some(l) => (l.data.as_slice(), l.lattice),
+            None => (p.data.as_slice(), p.lattice),
+        };
+        let (fine, fine_lattice) = level(k);
+        let f = fine_lattice.footprint(u, v);
+        if t == 0.0 || k == p.mips.len() {
+            blend(fine, p.stride, &f, out);
+        } else {
+            let (coarse, coarse_lattice) = level(k + 1);
+            let c = coarse_lattice.footprint(u, v);
+            blend_levels((fine, &f), (coarse, &c), p.stride, t, out);
+        }
+    }
+
+    /// The coarsest mip level (1 × 1): the largest useful `lod`.
+    #[inline]
+    pub fn max_lod(&self) -> f32 {
+        self.packed.mips.len() as f32
+    }
+
+    /// The exemplar with `filter` as its [`Exemplar::filter`].
+    pub fn with_filter(mut self, filter: ExemplarFilter) -> Exemplar {
+        self.filter = filter;
+        self
     }
 
     /// Colour channels plus all extra channels.

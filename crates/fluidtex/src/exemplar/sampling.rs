@@ -116,6 +116,30 @@ pub(crate) fn blend(data: &[f32], stride: usize, f: &Footprint, out: &mut [f32])
     }
 }
 
+/// Trilinear blend: the bilinear lookups `fine` and `coarse` (each its
+/// level's texels and footprint) mixed with weight `t` on the coarse one.
+#[inline(always)]
+pub(crate) fn blend_levels(
+    fine: (&[f32], &Footprint),
+    coarse: (&[f32], &Footprint),
+    stride: usize,
+    t: f32,
+    out: &mut [f32],
+) {
+    let bilinear = |data: &'_ [f32], f: &Footprint, c: usize| {
+        let at = |i: usize| data.get(i * stride + c).copied().unwrap_or(0.0);
+        let [a, b, cc, d] = f.texels.map(at);
+        let top = a + (b - a) * f.fx;
+        let bottom = cc + (d - cc) * f.fx;
+        top + (bottom - top) * f.fy
+    };
+    for (c, o) in out.iter_mut().take(stride).enumerate() {
+        let a = bilinear(fine.0, fine.1, c);
+        let b = bilinear(coarse.0, coarse.1, c);
+        *o = a + (b - a) * t;
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

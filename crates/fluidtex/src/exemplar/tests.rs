@@ -112,6 +112,143 @@ fn erosion_normaliser_of_constant_map() {
     assert!((f.erosion_normaliser() - (0.25 + d).sqrt()).abs() < 1e-6);
 }
 
+// ------------------------------------------------------------ mip pyramid
+
+/// A random exemplar with a 3-channel colour and a 1-channel extra.
+fn noisy_exemplar(w: u32, h: u32, seed: u64) -> Exemplar {
+    let mut rng = Pcg64::seed_from_u64(seed);
+    let mut random = |c: usize| {
+        let data = (0..w as usize * h as usize * c)
+            .map(|_| rng.random::<f32>())
+            .collect();
+        Texture::from_data(w, h, c, data).expect("sizes match")
+    };
+    let extra = ExtraChannel {
+        name: "height".into(),
+        texture: random(1),
+        format: SampleFormat::F32,
+    };
+    Exemplar::new(
+        random(3),
+        SampleFormat::U8,
+        vec![extra],
+        flat_feature(w, h, 0.5),
+    )
+    .expect("valid exemplar")
+}
+
+#[test]
+fn lod_zero_is_the_bilinear_lookup_exactly() {
+    let mut rng = Pcg64::seed_from_u64(21);
+    for (w, h) in [(64, 64), (37, 20), (1, 5)] {
+        let e = noisy_exemplar(w, h, 3);
+        let (mut a, mut b) = ([0.0f32; 4], [0.0f32; 4]);
+        for _ in 0..300 {
+            let (u, v) = (rng.random_range(-2.0..2.0), rng.random_range(-2.0..2.0));
+            e.sample_all(u, v, &mut a);
+            for lod in [0.0, -0.0, -3.0, f32::NAN, f32::NEG_INFINITY] {
+                e.sample_all_lod(u, v, lod, &mut b);
+                assert_eq!(
+                    a.map(f32::to_bits),
+                    b.map(f32::to_bits),
+                    "{w}x{h} lod {lod}"
+                );
+            }
+            // Continuous at 0: a tiny positive level is almost level 0.
+            e.sample_all_lod(u, v, 1e-6, &mut b);
+            for k in 0..4 {
+                assert!((a[k] - b[k]).abs() < 1e-5);
+            }
+        }
+    }
+}
+
+#[test]
+fn pyramid_levels_keep_the_mean_and_end_at_one_texel() {
+    for (w, h) in [(256, 256), (37, 20), (5, 3), (1, 6)] {
+        let e = noisy_exemplar(w, h, 5);
+        let levels = mip_levels(&e.colour);
+        let base = e.colour.mean_std();
+        let last = levels.last().expect("levels");
+        assert_eq!((last.width, last.height), (1, 1), "{w}x{h}");
+        assert_eq!(levels.len() as f32, e.max_lod() + 1.0);
+        for (k, l) in levels.iter().enumerate() {
+            assert_eq!(l.width, (w >> k).max(1));
+            assert_eq!(l.height, (h >> k).max(1));
+            for (c, (m, _)) in l.mean_std().iter().enumerate() {
+                assert!(
+                    (m - base[c].0).abs() < 1e-5,
+                    "{w}x{h} level {k} channel {c}: {m}"
+                );
+            }
+        }
+        // The coarsest lookup is the mean of every channel, anywhere.
+        let mut out = [0.0f32; 4];
+        e.sample_all_lod(0.3, 0.8, 1000.0, &mut out);
+        for c in 0..3 {
+            assert!((f64::from(out[c]) - base[c].0).abs() < 1e-5);
+        }
+        let height = e.channels[0].texture.mean_std()[0].0;
+        assert!((f64::from(out[3]) - height).abs() < 1e-5);
+    }
+}
+
+#[test]
+fn a_level_averages_the_texels_it_covers() {
+    // 4x2 -> 2x1 -> 1x1; and an odd 3x1 -> 1x1 weighs all three equally.
+    let t = Texture::from_data(4, 2, 1, vec![0., 1., 2., 3., 4., 5., 6., 7.]).expect("sizes");
+    let l = mip_levels(&t);
+    assert_eq!(l[1].data, vec![2.5, 4.5]);
+    assert_eq!(l[2].data, vec![3.5]);
+    let t = Texture::from_data(3, 1, 1, vec![0., 3., 9.]).expect("sizes");
+    assert_eq!(mip_levels(&t)[1].data, vec![4.0]);
+    // 5 -> 2: each coarse texel takes 2.5 fine ones.
+    let t = Texture::from_data(5, 1, 1, vec![2., 2., 4., 6., 6.]).expect("sizes");
+    let d = &mip_levels(&t)[1].data;
+    assert!(
+        (d[0] - 2.4).abs() < 1e-6 && (d[1] - 5.6).abs() < 1e-6,
+        "{d:?}"
+    );
+}
+
+#[test]
+fn trilinear_mixes_the_two_levels_around_lod_and_tiles() {
+    let e = noisy_exemplar(32, 16, 8);
+    let levels = mip_levels(&e.colour);
+    let mut rng = Pcg64::seed_from_u64(4);
+    let (mut got, mut fine, mut coarse) = ([0.0f32; 4], [0.0f32; 3], [0.0f32; 3]);
+    for _ in 0..200 {
+        let (u, v) = (rng.random_range(-1.0..2.0), rng.random_range(-1.0..2.0));
+        let lod = rng.random_range(0.01f32..4.0);
+        let k = lod.floor() as usize;
+        let t = lod - k as f32;
+        e.sample_all_lod(u, v, lod, &mut got);
+        levels[k].sample_bilinear(u, v, crate::texture::Wrap::Repeat, &mut fine);
+        levels[k + 1].sample_bilinear(u, v, crate::texture::Wrap::Repeat, &mut coarse);
+        for c in 0..3 {
+            let want = fine[c] + (coarse[c] - fine[c]) * t;
+            assert!((got[c] - want).abs() < 1e-5, "lod {lod} at ({u}, {v})");
+        }
+        // Every level repeats like the exemplar.
+        let mut shifted = [0.0f32; 4];
+        e.sample_all_lod(u + 1.0, v - 2.0, lod, &mut shifted);
+        for c in 0..4 {
+            assert!((shifted[c] - got[c]).abs() < 1e-4);
+        }
+    }
+}
+
+#[test]
+fn filter_defaults_to_trilinear() {
+    let e = noisy_exemplar(8, 8, 1);
+    assert_eq!(e.filter, ExemplarFilter::Trilinear);
+    assert_eq!(
+        e.with_filter(ExemplarFilter::Unfiltered).filter,
+        ExemplarFilter::Unfiltered
+    );
+    assert_eq!(builtin_pebbles(32, 0).filter, ExemplarFilter::Trilinear);
+}
+
 // ----------------------------------------------------------------- loading
 
 fn save(img: DynamicImage, dir: &Path, name: &str) -> PathBuf {

@@ -208,6 +208,20 @@ fn cross_fade(a: FrameResult, b: FrameResult, wa: f32) -> FrameResult {
         ),
         _ => None,
     };
+    // The level of the layer whose uv is reported: the one that dominates.
+    let exemplar_lod = match (&a.exemplar_lod, &b.exemplar_lod) {
+        (Some(la), Some(lb)) => Some(
+            shares
+                .iter()
+                .enumerate()
+                .map(|(t, &(xa, xb))| {
+                    let l = if xb > xa { lb } else { la };
+                    l.get(t).copied().unwrap_or(f32::NAN)
+                })
+                .collect(),
+        ),
+        _ => None,
+    };
     let mut stats = std::collections::BTreeMap::new();
     for (prefix, r) in [("a", &a), ("b", &b)] {
         for (k, v) in &r.stats {
@@ -243,6 +257,7 @@ fn cross_fade(a: FrameResult, b: FrameResult, wa: f32) -> FrameResult {
         source: Some(source),
         uv,
         layers: Some(layers),
+        exemplar_lod,
         stats,
         timings,
     }

@@ -8,10 +8,14 @@
 //!
 //! - [`erosion`]: eroded deformable lapped textures, Gagnon et al. 2021 (default).
 //! - [`atlas_check`]: a world-space checker, to look at the atlas chain itself.
+//!
+//! [`footprint`] is a post-pass of the lapped methods: minified exemplar
+//! texels are re-read through the exemplar's mip pyramid.
 
 pub mod atlas_check;
 pub mod dual_rest;
 pub mod erosion;
+pub mod footprint;
 
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -60,6 +64,10 @@ pub struct FrameResult {
     /// (the ghost-fraction input). `None` for methods that never blend:
     /// every covered texel has exactly one layer.
     pub layers: Option<Vec<u8>>,
+    /// Per texel, the exemplar mip level its channels were read at
+    /// ([`footprint`]; NaN where no source). `None`: every texel was read
+    /// at level 0 (unfiltered or blended), as far as the method knows.
+    pub exemplar_lod: Option<Vec<f32>>,
     /// Method statistics for `stats.F.json` (patches alive, created, ...).
     pub stats: BTreeMap<String, serde_json::Value>,
     /// Seconds per stage, in order.

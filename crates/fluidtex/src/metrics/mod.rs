@@ -12,7 +12,7 @@
 //! | --- | --- | --- | --- | --- |
 //! | coverage | [`coverage()`] | share of chart texels with no source | worst | `= 0` |
 //! | ghost fraction | [`ghosting()`] | share of chart texels with ≥ 2 layers of weight ≥ 0.05 | worst | `= 0` |
-//! | contrast ratio ρ | [`contrast_ratio`] | σ(output)/σ_ex of luminance | min | `≥ 0.90` |
+//! | contrast ratio ρ | [`contrast_ratio`] | σ(output)/σ_ex of luminance (σ_ex of the mip levels shown: [`shown_sigma`]) | min | `≥ 0.90` |
 //! | distortion | [`distortion()`] | area-weighted p95 of σ₁/σ₂ | worst | `≤ 3` |
 //! | exemplar fidelity | [`FidelityReference::measure`] | mean over levels of SWD(output, exemplar)/SWD(half, half) | worst | `≤ 2.5` |
 //! | flow fidelity | [`provenance_motion`] (or [`image_motion`]), then [`compare_motion`] | median EPE (px), share with cos > 0.9 | median | `≤ 0.25 px`, `≥ 90%` |
@@ -81,7 +81,7 @@ mod controls;
 
 use thiserror::Error;
 
-pub use contrast::{contrast_ratio, exemplar_sigma};
+pub use contrast::{contrast_ratio, exemplar_sigma, exemplar_sigma_by_lod, shown_sigma};
 pub use coverage::{Coverage, Ghosting, coverage, ghosting, layers_from_weights};
 pub use distortion::{Distortion, SurfaceSamples, anisotropy_map, distortion};
 pub use fidelity::{

@@ -607,11 +607,16 @@ impl Method for Erosion {
         }
         let unused = alive_before - self.state.patches.len();
         clock.lap("delete");
+        let exemplar_lod = (self.variant != Variant::Blend)
+            .then(|| super::footprint::apply_footprint_filtering(&mut out, &self.exemplar))
+            .flatten();
+        clock.lap("exemplar filter");
 
         let texels_in_charts = out.source.iter().filter(|&&s| s != fill::OUTSIDE).count();
         let uncovered_after = out.source.iter().filter(|&&s| s == fill::UNCOVERED).count();
         let mut result = FrameResult {
             channels: split_channels(&out, &self.exemplar),
+            exemplar_lod,
             ..Default::default()
         };
         let stats = &mut result.stats;

@@ -351,6 +351,7 @@ fn every_chart_texel_has_one_source_and_the_exemplar_value_there() {
     for (k, r) in step_all(&mut method, &c).iter().enumerate() {
         let source = sources(r);
         let uv = r.uv.as_deref().expect("uv");
+        let lod = r.exemplar_lod.as_deref().expect("mip levels");
         let map = c.atlases[k].triangle_map();
         let mut out = vec![0.0; ex.total_channels()];
         for t in 0..source.len() {
@@ -360,7 +361,7 @@ fn every_chart_texel_has_one_source_and_the_exemplar_value_there() {
                 continue;
             }
             assert_ne!(source[t], SOURCE_UNCOVERED, "frame {k} texel {t} uncovered");
-            ex.sample_all(uv[t].x, uv[t].y, &mut out);
+            ex.sample_all_lod(uv[t].x, uv[t].y, lod[t], &mut out);
             assert_eq!(
                 &r.channels[0].data[t * 3..t * 3 + 3],
                 &out[..3],
@@ -654,9 +655,10 @@ fn advect_carries_the_first_frame_patches_and_never_renews_them() {
         assert!(r.layers.is_none());
         // Still lapped: every covered texel is the exemplar at its uv.
         let (source, uv) = (sources(r), r.uv.as_deref().expect("uv"));
+        let lod = r.exemplar_lod.as_deref().expect("mip levels");
         let mut value = vec![0.0; ex.total_channels()];
         for t in (0..source.len()).filter(|&t| source[t] != SOURCE_OUTSIDE && source[t] != 0) {
-            ex.sample_all(uv[t].x, uv[t].y, &mut value);
+            ex.sample_all_lod(uv[t].x, uv[t].y, lod[t], &mut value);
             assert_eq!(&r.channels[0].data[t * 3..t * 3 + 3], &value[..3]);
         }
     }

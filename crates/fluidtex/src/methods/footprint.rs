@@ -1,0 +1,118 @@
+//! Footprint filtering: a post-pass over a lapped fill that re-reads each
+//! covered texel's exemplar channels at the mip level of its uv footprint
+//! ([`Exemplar::sample_all_lod`]), so that an exemplar shown minified is
+//! averaged over what the texel covers instead of point-sampled.
+//!
+//! **Footprint.** A texel's footprint is estimated from finite differences
+//! of the patch uv to its atlas neighbours, like a GPU's quad derivatives,
+//! but only to neighbours with the *same source*: across a patch border the
+//! uv jumps to another patch's space and means nothing. Per axis the
+//! forward and the backward neighbour are both tried and the shorter
+//! difference is kept: two atlas neighbours in different charts can share
+//! a patch yet lie far apart on the surface (a chart seam), and that jump
+//! is always the longer one. An axis with no such neighbour takes the other
+//! axis' length; a texel alone in its patch keeps level 0. Lengths are in
+//! level-0 exemplar texels (u scaled by the width, v by the height) and
+//! `lod = log2(max(|∂uv/∂x|, |∂uv/∂y|))`, the isotropic choice of GPU
+//! trilinear filtering: under anisotropic stretch the short axis is
+//! blurred more than it needs.
+//!
+//! Magnified texels (`lod` ≤ 0) keep the fill's bilinear value untouched,
+//! so an exemplar shown at or above its resolution gives the same atlas as
+//! without the pass. Rows are processed in parallel, each writing only its
+//! own row from read-only uv and sources: bit-identical for any thread
+//! count.
+
+use glam::Vec2;
+use rayon::prelude::*;
+
+use super::erosion::fill::{FillBuffers, OUTSIDE, UNCOVERED};
+use crate::exemplar::{Exemplar, ExemplarFilter};
+
+/// Re-samples every covered texel of `out` at the level of its uv
+/// footprint when `exemplar.filter` is [`ExemplarFilter::Trilinear`], and
+/// returns the level per texel (≥ 0; NaN where the texel has no source).
+/// Leaves `out` as it is and returns `None` for
+/// [`ExemplarFilter::Unfiltered`].
+pub fn apply_footprint_filtering(out: &mut FillBuffers, exemplar: &Exemplar) -> Option<Vec<f32>> {
+    if exemplar.filter == ExemplarFilter::Unfiltered {
+        return None;
+    }
+    let FillBuffers {
+        width,
+        height,
+        channels,
+        values,
+        source,
+        uv,
+    } = out;
+    let (w, c) = (*width as usize, *channels);
+    let n = w * *height as usize;
+    let mut lods = vec![f32::NAN; n];
+    if n == 0 || c == 0 || source.len() != n || uv.len() != n || values.len() != n * c {
+        return Some(lods);
+    }
+    let (ew, eh) = exemplar.size();
+    let texels = Vec2::new(ew as f32, eh as f32);
+    let (source, uv) = (source.as_slice(), uv.as_slice());
+    values
+        .par_chunks_mut(w * c)
+        .zip(lods.par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(y, (row, row_lod))| {
+            for (x, lod_out) in row_lod.iter_mut().enumerate() {
+                let Some(lod) = texel_lod(source, uv, w, x, y, texels) else {
+                    continue;
+                };
+                *lod_out = lod;
+                if lod > 0.0 {
+                    let p = uv[y * w + x];
+                    exemplar.sample_all_lod(p.x, p.y, lod, &mut row[x * c..(x + 1) * c]);
+                }
+            }
+        });
+    Some(lods)
+}
+
+/// The mip level (≥ 0) of texel `(x, y)` of a `width`-wide atlas from its
+/// uv differences to same-source neighbours (module doc), with uv scaled to
+/// exemplar texels by `texels`. `None` for a texel without a source or a
+/// finite uv.
+pub fn texel_lod(
+    source: &[u32],
+    uv: &[Vec2],
+    width: usize,
+    x: usize,
+    y: usize,
+    texels: Vec2,
+) -> Option<f32> {
+    let t = y * width + x;
+    let s = *source.get(t)?;
+    let p = *uv.get(t)?;
+    if s == OUTSIDE || s == UNCOVERED || !p.is_finite() {
+        return None;
+    }
+    let step = |q: Option<usize>| {
+        let q = q?;
+        let o = *uv.get(q)?;
+        (source.get(q) == Some(&s) && o.is_finite()).then(|| ((o - p) * texels).length())
+    };
+    let axis =
+        |forward: Option<usize>, backward: Option<usize>| match (step(forward), step(backward)) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        };
+    let across = axis((x + 1 < width).then(|| t + 1), (x > 0).then(|| t - 1));
+    let down = axis(Some(t + width), y.checked_sub(1).map(|_| t - width));
+    let longest = match (across, down) {
+        (Some(a), Some(b)) => a.max(b),
+        (Some(a), None) | (None, Some(a)) => a,
+        (None, None) => return Some(0.0),
+    };
+    // Below one texel (and for zero-length steps, log2 = −inf) the
+    // exemplar is magnified: level 0.
+    Some(if longest > 1.0 { longest.log2() } else { 0.0 })
+}
+
+#[cfg(test)]
+mod tests;

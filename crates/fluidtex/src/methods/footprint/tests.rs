@@ -1,0 +1,317 @@
+//! Tests of the footprint post-pass: the level of known uv maps, a
+//! minified checker that must keep its mean and lose its aliasing, thread
+//! independence, and less popping on a rigid rotation through the erosion
+//! method.
+
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use std::sync::Arc;
+
+use glam::{Mat2, Vec2};
+
+use super::*;
+use crate::exemplar::{ExemplarFilter, FeatureMap, FeatureOrigin, SampleFormat};
+use crate::texture::Texture;
+
+/// A `size`² grey checker of `square`-texel squares, 0 and 1.
+fn checker(size: u32, square: u32) -> Exemplar {
+    let data = (0..size * size)
+        .map(|i| (((i % size) / square + (i / size) / square) % 2) as f32)
+        .collect();
+    let colour = Texture::from_data(size, size, 1, data).expect("sizes");
+    let feature = FeatureMap::new(
+        Texture::filled(size, size, 1, 0.5),
+        FeatureOrigin::Builtin,
+        "test",
+    )
+    .expect("valid");
+    Exemplar::new(colour, SampleFormat::U8, Vec::new(), feature).expect("valid")
+}
+
+/// Fill buffers of a `w × h` atlas covered by source 1 with the affine uv
+/// map `uv = origin + m · (x + ½, y + ½)` and the values the lapped fill
+/// writes there (bilinear at level 0).
+fn affine(w: u32, h: u32, m: Mat2, origin: Vec2, ex: &Exemplar) -> FillBuffers {
+    let mut out = FillBuffers::new(w, h, ex.total_channels());
+    let c = out.channels;
+    for y in 0..h as usize {
+        for x in 0..w as usize {
+            let t = y * w as usize + x;
+            let uv = origin + m * Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+            out.uv[t] = uv;
+            out.source[t] = 1;
+            ex.sample_all(uv.x, uv.y, &mut out.values[t * c..(t + 1) * c]);
+        }
+    }
+    out
+}
+
+fn mean_var(values: &[f32]) -> (f64, f64) {
+    let n = values.len() as f64;
+    let mean = values.iter().map(|&v| f64::from(v)).sum::<f64>() / n;
+    let var = values
+        .iter()
+        .map(|&v| (f64::from(v) - mean).powi(2))
+        .sum::<f64>()
+        / n;
+    (mean, var)
+}
+
+#[test]
+fn footprint_of_an_affine_map_gives_its_level() {
+    let ex = checker(256, 2);
+    // Columns of the Jacobian in exemplar texels per atlas texel: lengths
+    // 8 (rotated) and 2, so the level is log2(8) = 3 everywhere.
+    let (s, co) = 0.3f32.sin_cos();
+    let m = Mat2::from_cols(Vec2::new(co, s) * 8.0, Vec2::new(-s, co) * 2.0) / 256.0;
+    let mut out = affine(16, 12, m, Vec2::new(0.1, 0.7), &ex);
+    let lod = apply_footprint_filtering(&mut out, &ex).expect("trilinear by default");
+    for (t, &l) in lod.iter().enumerate() {
+        assert!((l - 3.0).abs() < 1e-3, "texel {t}: {l}");
+    }
+    // Magnified (half a texel per atlas texel): level 0.
+    let mut out = affine(8, 8, Mat2::IDENTITY * (0.5 / 256.0), Vec2::ZERO, &ex);
+    let lod = apply_footprint_filtering(&mut out, &ex).expect("trilinear");
+    assert!(lod.iter().all(|&l| l == 0.0), "{lod:?}");
+}
+
+#[test]
+fn footprint_ignores_other_sources_and_seams() {
+    let ex = checker(64, 2);
+    let m = Mat2::IDENTITY * (4.0 / 64.0);
+    let mut out = affine(12, 6, m, Vec2::ZERO, &ex);
+    let w = 12;
+    // Columns 6.. are another chart showing the same patch far away (a
+    // seam: the uv jumps by 0.37), and row 0 belongs to another patch
+    // whose uv is unrelated.
+    for y in 0..6 {
+        for x in 6..12 {
+            out.uv[y * w + x] += Vec2::new(0.37, 0.0);
+        }
+    }
+    for x in 0..w {
+        out.source[x] = 2;
+        out.uv[x] = Vec2::new(0.9, 0.1) * x as f32;
+    }
+    // A texel outside the charts, and one alone in its patch.
+    out.source[5 * w + 11] = OUTSIDE;
+    out.source[3 * w] = 3;
+    let lod = apply_footprint_filtering(&mut out, &ex).expect("trilinear");
+    for y in 1..6 {
+        for x in 0..w {
+            let t = y * w + x;
+            match (out.source[t], x, y) {
+                (OUTSIDE, ..) => assert!(lod[t].is_nan()),
+                (3, ..) => assert_eq!(lod[t], 0.0, "isolated texel"),
+                _ => assert!((lod[t] - 2.0).abs() < 1e-4, "texel ({x}, {y}): {}", lod[t]),
+            }
+        }
+    }
+    // Row 0 (its own patch, one row high) takes its horizontal step for
+    // the missing vertical one: |(0.9, 0.1)| · 64 texels.
+    let want = (Vec2::new(0.9, 0.1) * 64.0).length().log2();
+    for (x, l) in lod[..w].iter().enumerate() {
+        assert!((l - want).abs() < 1e-4, "row 0, x {x}: {l}");
+    }
+}
+
+/// A 256² checker of 2-texel squares shown at 8 exemplar texels per atlas
+/// texel (rotated, so point samples do not fall on a lattice of the
+/// checker): the filtered atlas keeps the checker's mean within 1 % and
+/// has almost no per-texel variance left; read at level 0 the same atlas
+/// is aliased noise.
+#[test]
+fn minified_checker_keeps_its_mean_and_loses_its_aliasing() {
+    let ex = checker(256, 2);
+    let (s, co) = 0.37f32.sin_cos();
+    let m = Mat2::from_cols(Vec2::new(co, s), Vec2::new(-s, co)) * (8.0 / 256.0);
+    let mut out = affine(96, 96, m, Vec2::new(0.013, 0.029), &ex);
+    let (point_mean, point_var) = mean_var(&out.values);
+    apply_footprint_filtering(&mut out, &ex).expect("trilinear");
+    let (mean, var) = mean_var(&out.values);
+    eprintln!(
+        "checker at 8 texels/texel: level 0 mean {point_mean:.4} var {point_var:.4}; \
+         filtered mean {mean:.4} var {var:.2e}"
+    );
+    assert!((mean - 0.5).abs() < 0.005, "mean {mean}");
+    // The control aliases: bilinear point samples of this checker have a
+    // variance of ≈ 0.11 wherever they fall.
+    assert!(point_var > 0.08, "level-0 variance {point_var}");
+    assert!(
+        var < 0.01 * point_var,
+        "filtered variance {var} vs {point_var}"
+    );
+}
+
+#[test]
+fn unfiltered_exemplars_are_left_as_the_fill_wrote_them() {
+    let ex = checker(64, 2).with_filter(ExemplarFilter::Unfiltered);
+    let m = Mat2::IDENTITY * (8.0 / 64.0);
+    let mut out = affine(10, 10, m, Vec2::ZERO, &ex);
+    let before = out.values.clone();
+    assert_eq!(apply_footprint_filtering(&mut out, &ex), None);
+    assert_eq!(out.values, before);
+}
+
+#[test]
+fn one_and_two_threads_give_identical_results() {
+    let ex = crate::exemplar::builtin_pebbles(128, 3);
+    let m = Mat2::from_cols(Vec2::new(3.0, 1.0), Vec2::new(-0.5, 2.0)) / 128.0;
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("pool");
+        pool.install(|| {
+            let mut out = affine(64, 48, m, Vec2::new(0.2, 0.4), &ex);
+            let lod = apply_footprint_filtering(&mut out, &ex).expect("trilinear");
+            (
+                out.values,
+                lod.iter().map(|l| l.to_bits()).collect::<Vec<_>>(),
+            )
+        })
+    };
+    assert!(run(1) == run(2));
+}
+
+/// A minified exemplar on the rigid rotation, through the erosion method
+/// and the harness: read at level 0 the atlas is noise that changes every
+/// frame; filtered, popping (changes under the true motion) must drop.
+#[test]
+fn filtering_lowers_popping_on_a_rigid_rotation() {
+    use crate::eval::{EvalSettings, evaluate, prepare};
+    use crate::methods::erosion::{Erosion, ErosionParams};
+    use crate::metrics::{Metric, Thresholds};
+
+    let name = "rigid-rotation";
+    let mut params = crate::scenes::default_params(name).unwrap();
+    params.resolution = 16;
+    params.first = 0;
+    params.last = 3;
+    let mut scene = crate::scenes::by_name(name, Some(params)).unwrap();
+    let settings = EvalSettings {
+        render_size: 96,
+        view_dir: crate::eval::default_view(name),
+        fidelity_every: 100,
+        ..Default::default()
+    };
+    let thresholds = Thresholds::committed().unwrap();
+    let atlas = crate::atlas::AtlasParams::square(128);
+    let prepared = prepare(
+        scene.as_mut(),
+        &[0, 1, 2, 3],
+        &atlas,
+        &settings,
+        &thresholds,
+    )
+    .unwrap();
+    let pebbles = crate::exemplar::builtin_pebbles(512, 1);
+    let colour = pebbles.colour.clone();
+    // The exemplar spans a small world size: ~8 exemplar texels per atlas
+    // texel.
+    let texel = 1.0 / prepared.frames[0].atlas.scale as f32;
+    let erosion = ErosionParams {
+        exemplar_size: Some(512.0 / 8.0 * texel),
+        ..Default::default()
+    };
+    let run = |filter: ExemplarFilter| {
+        let ex = Arc::new(pebbles.clone().with_filter(filter));
+        let mut m = Erosion::new(erosion.clone(), ex, 0).unwrap();
+        evaluate(&prepared, &mut m, &colour, &settings, &thresholds).unwrap()
+    };
+    let filtered = run(ExemplarFilter::Trilinear);
+    let point = run(ExemplarFilter::Unfiltered);
+    let popping = |r: &crate::eval::MethodRun| r.summary(Metric::Popping).unwrap().mean;
+    let contrast = |r: &crate::eval::MethodRun| r.summary(Metric::Contrast).unwrap().min;
+    eprintln!(
+        "rigid rotation, pebbles at 8 texels/texel: popping {:.4} filtered vs {:.4} level 0; \
+         contrast {:.3} vs {:.3} (sigma shown by lod in quarters {:.3?})",
+        popping(&filtered),
+        popping(&point),
+        contrast(&filtered),
+        contrast(&point),
+        crate::metrics::exemplar_sigma_by_lod(&colour)
+    );
+    assert!(
+        popping(&filtered) < 0.5 * popping(&point),
+        "{} vs {}",
+        popping(&filtered),
+        popping(&point)
+    );
+}
+
+/// The minified checker through the erosion method itself: the chart
+/// texels' mean stays within 1 % of the checker's and their variance
+/// collapses; read at level 0 (the control) they keep most of it.
+#[test]
+fn erosion_atlas_of_a_minified_checker_keeps_its_mean() {
+    use crate::atlas::{Atlas, AtlasParams};
+    use crate::methods::erosion::{Erosion, ErosionParams};
+    use crate::methods::{FrameContext, Method, PreviousFrame};
+    use crate::surface::SurfaceIndex;
+
+    let name = "rigid-rotation";
+    let mut params = crate::scenes::default_params(name).unwrap();
+    params.resolution = 16;
+    params.last = params.first + 1;
+    let mut scene = crate::scenes::by_name(name, Some(params)).unwrap();
+    let meshes: Vec<_> = (params.first..=params.last)
+        .map(|f| scene.frame(f).unwrap())
+        .collect();
+    let indices: Vec<_> = meshes.iter().map(SurfaceIndex::new).collect();
+    let atlases: Vec<_> = meshes
+        .iter()
+        .map(|m| Atlas::build(m, &AtlasParams::square(128)).unwrap())
+        .collect();
+    // 256² checker of 2-texel squares at 8 exemplar texels per atlas texel.
+    let erosion = ErosionParams {
+        exemplar_size: Some(32.0 / atlases[0].scale as f32),
+        ..Default::default()
+    };
+    let run = |filter: ExemplarFilter| {
+        let ex = Arc::new(checker(256, 2).with_filter(filter));
+        let mut m = Erosion::new(erosion.clone(), ex, 4).unwrap();
+        let mut last = None;
+        for k in 0..meshes.len() {
+            let ctx = FrameContext {
+                number: k as i32,
+                dt: 1.0 / 24.0,
+                mesh: &meshes[k],
+                index: &indices[k],
+                previous: (k > 0).then(|| PreviousFrame {
+                    mesh: &meshes[k - 1],
+                    index: &indices[k - 1],
+                }),
+                atlas: &atlases[k],
+            };
+            last = Some(m.step(&ctx).unwrap());
+        }
+        let r = last.unwrap();
+        let source = r.source.as_deref().unwrap();
+        let values: Vec<f32> = source
+            .iter()
+            .zip(&r.channels[0].data)
+            .filter(|(s, _)| **s != OUTSIDE)
+            .map(|(_, &v)| v)
+            .collect();
+        let lods: Vec<f32> = r.exemplar_lod.iter().flatten().copied().collect();
+        (mean_var(&values), lods)
+    };
+    let ((mean, var), lods) = run(ExemplarFilter::Trilinear);
+    let ((point_mean, point_var), none) = run(ExemplarFilter::Unfiltered);
+    let mut finite: Vec<f32> = lods.into_iter().filter(|l| l.is_finite()).collect();
+    finite.sort_by(f32::total_cmp);
+    let median = finite[finite.len() / 2];
+    eprintln!(
+        "erosion, checker at 8 texels/texel: median lod {median:.2}; filtered mean {mean:.4} \
+         var {var:.2e}; level 0 mean {point_mean:.4} var {point_var:.4}"
+    );
+    assert!(none.is_empty(), "unfiltered runs report no levels");
+    assert!((median - 3.0).abs() < 0.25, "median lod {median}");
+    assert!((mean - 0.5).abs() < 0.005, "mean {mean}");
+    assert!(point_var > 0.08, "level-0 variance {point_var}");
+    assert!(
+        var < 0.05 * point_var,
+        "filtered variance {var} vs {point_var}"
+    );
+}
