@@ -45,6 +45,7 @@ pub fn apply_footprint_filtering(out: &mut FillBuffers, exemplar: &Exemplar) -> 
         values,
         source,
         uv,
+        ..
     } = out;
     let (w, c) = (*width as usize, *channels);
     let n = w * *height as usize;
@@ -65,10 +66,11 @@ pub fn apply_footprint_filtering(out: &mut FillBuffers, exemplar: &Exemplar) -> 
                     continue;
                 };
                 *lod_out = lod;
-                if lod > 0.0 {
-                    let p = uv[y * w + x];
-                    exemplar.sample_all_lod(p.x, p.y, lod, &mut row[x * c..(x + 1) * c]);
-                }
+                // Every covered texel: the fill may have deferred its
+                // values to this pass; at lod 0 this is the fill's own
+                // bilinear read, bit for bit.
+                let p = uv[y * w + x];
+                exemplar.sample_all_lod(p.x, p.y, lod, &mut row[x * c..(x + 1) * c]);
             }
         });
     Some(lods)

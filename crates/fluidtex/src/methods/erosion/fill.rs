@@ -300,6 +300,12 @@ pub struct FillBuffers {
     pub source: Vec<u32>,
     /// Patch uv per texel (exemplar coordinates), NaN where no patch.
     pub uv: Vec<Vec2>,
+    /// When set, the fill records only source and uv and leaves `values`
+    /// to a later pass that samples every covered texel once, at its
+    /// footprint's level ([`crate::methods::footprint`]): a level-0 read
+    /// that is overwritten anyway would cost most of the frame with a
+    /// large exemplar.
+    pub defer_values: bool,
 }
 
 impl FillBuffers {
@@ -312,6 +318,7 @@ impl FillBuffers {
             values: vec![0.0; n * channels],
             source: vec![OUTSIDE; n],
             uv: vec![Vec2::NAN; n],
+            defer_values: false,
         }
     }
 
@@ -319,7 +326,9 @@ impl FillBuffers {
     #[inline]
     pub fn write(&mut self, t: usize, hit: Hit, id: u32, exemplar: &Exemplar) {
         let c = self.channels;
-        exemplar.sample_all(hit.uv.x, hit.uv.y, &mut self.values[t * c..(t + 1) * c]);
+        if !self.defer_values {
+            exemplar.sample_all(hit.uv.x, hit.uv.y, &mut self.values[t * c..(t + 1) * c]);
+        }
         self.source[t] = id + 1;
         self.uv[t] = hit.uv;
     }
@@ -513,6 +522,7 @@ pub fn fill(
     let band_rows = (first.y1 - first.y0) as usize;
     let w = atlas.width as usize;
     let c = out.channels;
+    let defer = out.defer_values;
     let mut uncovered: Vec<Uncovered> = out
         .values
         .par_chunks_mut(band_rows * w * c)
@@ -526,11 +536,13 @@ pub fn fill(
                 let t = texel.t;
                 match ctx.resolve_in_span(cands, texel.k, texel.p, texel.n) {
                     Some(hit) => {
-                        ctx.exemplar.sample_all(
-                            hit.uv.x,
-                            hit.uv.y,
-                            &mut values[t * c..(t + 1) * c],
-                        );
+                        if !defer {
+                            ctx.exemplar.sample_all(
+                                hit.uv.x,
+                                hit.uv.y,
+                                &mut values[t * c..(t + 1) * c],
+                            );
+                        }
                         source[t] = ctx.patches[hit.patch as usize].id + 1;
                         uvs[t] = hit.uv;
                     }

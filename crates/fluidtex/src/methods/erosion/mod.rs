@@ -375,6 +375,9 @@ impl Method for Erosion {
         let atlas = ctx.atlas;
         let channels = self.exemplar.total_channels();
         let mut out = FillBuffers::new(atlas.width, atlas.height, channels);
+        // The footprint pass samples every covered texel (blends excepted).
+        out.defer_values = self.variant != Variant::Blend
+            && self.exemplar.filter == crate::exemplar::ExemplarFilter::Trilinear;
         let deleted_before;
         let mut created = 0usize;
         let mut forced = 0usize;
