@@ -251,7 +251,7 @@ pub fn hostname() -> String {
         .or_else(|| std::env::var("COMPUTERNAME").ok())
         .unwrap_or_default();
     // One token: the lock file is `key value` lines.
-    let name: String = name.trim().split_whitespace().collect::<Vec<_>>().join("_");
+    let name: String = name.split_whitespace().collect::<Vec<_>>().join("_");
     if name.is_empty() {
         "unknown".into()
     } else {
