@@ -480,16 +480,19 @@ pub fn load_state_bytes(
 }
 
 fn parse_state(path: &Path, bytes: &[u8]) -> Result<SavedState, PipelineError> {
-    let saved: SavedState = postcard::from_bytes(bytes).map_err(|e| {
+    let damaged = |e: postcard::Error| {
         PipelineError::Resume(format!("{}: damaged state file ({e})", path.display()))
-    })?;
-    if saved.version != STATE_VERSION {
+    };
+    // The version first (the file's first field): a file of another
+    // version has another layout, and would otherwise read as damaged.
+    let (version, _) = postcard::take_from_bytes::<u32>(bytes).map_err(damaged)?;
+    if version != STATE_VERSION {
         return Err(PipelineError::Resume(format!(
-            "{}: state version {} is not {STATE_VERSION}",
+            "{}: state version {version} is not {STATE_VERSION}",
             path.display(),
-            saved.version
         )));
     }
+    let saved: SavedState = postcard::from_bytes(bytes).map_err(damaged)?;
     if crc32fast::hash(&saved.method_state) != saved.checksum {
         return Err(PipelineError::Resume(format!(
             "{}: damaged state file (checksum mismatch)",

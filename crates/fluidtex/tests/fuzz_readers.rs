@@ -202,6 +202,27 @@ fn fuzz_state_file() {
     )
     .unwrap();
     assert_eq!(last, 2);
+    // Known bad: an older version is named as such, not as damage; a
+    // flipped bit in the method state fails the checksum.
+    let load = |b: &[u8]| {
+        fluidtex::pipeline::load_state_bytes(Path::new("state.bin"), b, &mut *method.borrow_mut())
+            .unwrap_err()
+            .to_string()
+    };
+    let mut old = fixtures[0].clone();
+    assert_eq!(old[0], 2, "postcard writes version 2 as one byte");
+    old[0] = 1;
+    assert_eq!(
+        load(&old),
+        "cannot resume: state.bin: state version 1 is not 2"
+    );
+    let mut flipped = fixtures[0].clone();
+    let mid = flipped.len() / 2;
+    flipped[mid] ^= 4;
+    assert_eq!(
+        load(&flipped),
+        "cannot resume: state.bin: damaged state file (checksum mismatch)"
+    );
     fuzz("state.bin", CI_STATE_CASES, fixtures, |b| {
         one_line(
             fluidtex::pipeline::load_state_bytes(
