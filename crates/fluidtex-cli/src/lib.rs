@@ -4,6 +4,7 @@
 
 pub mod config;
 pub mod progress;
+pub mod test_hooks;
 
 mod commands;
 

@@ -40,11 +40,35 @@ fn compare_writes_json_markdown_html_and_pictures() {
     assert_eq!(scene["frames"], serde_json::json!([0, 1, 2]));
     let method = &scene["methods"][0];
     assert_eq!(method["name"], "atlas-check");
-    // The checker covers every chart texel.
-    let coverage = &method["metrics"][0];
-    assert_eq!(coverage["key"], "coverage");
-    assert_eq!(coverage["median"], 0.0);
-    assert_eq!(coverage["verdict"], "PASS");
+    // Every metric's verdict on this known case: a world-space checker on a
+    // rigidly rotating sphere (the eval's known-bad control for flow).
+    let expected = [
+        // Every chart texel gets a checker colour; no texel has two layers.
+        ("coverage", "PASS"),
+        ("ghosting", "PASS"),
+        // A two-tone checker has far more contrast than the reference.
+        ("contrast", "PASS"),
+        // No patch uv to measure and no exemplar to compare with.
+        ("distortion", "n/a"),
+        ("fidelity", "n/a"),
+        // The checker stays put in world space while the surface turns:
+        // the texture does not follow the flow, and warping the previous
+        // frame along the true motion does not predict the next one.
+        ("flow_epe", "FAIL"),
+        ("flow_aligned", "FAIL"),
+        ("popping", "FAIL"),
+        // The rotation never stops, and the size cost is bench's.
+        ("static_stop", "n/a"),
+        ("size_cost", "n/a"),
+    ];
+    let metrics = method["metrics"].as_array().unwrap();
+    let got: Vec<(&str, &str)> = metrics
+        .iter()
+        .map(|m| (m["key"].as_str().unwrap(), m["verdict"].as_str().unwrap()))
+        .collect();
+    assert_eq!(got, expected);
+    assert_eq!(metrics[0]["median"], 0.0, "no uncovered texel");
+    assert_eq!(metrics[1]["median"], 0.0, "no ghosting");
     assert_eq!(method["per_frame"].as_array().unwrap().len(), 3);
     assert_eq!(
         method["parameters"]["parameters"]["cells_per_diagonal"],

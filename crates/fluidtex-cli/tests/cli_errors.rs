@@ -228,7 +228,7 @@ fn bad_flags_are_refused_before_any_work() {
         ),
         (
             &["--atlas", "0"],
-            "error: --atlas 0: allowed 16 to 32768 texels",
+            "error: --atlas 0: allowed 16 to 16384 texels",
         ),
         (
             &["--frames", "5-2"],

@@ -12,7 +12,6 @@ mod common;
 
 use std::collections::BTreeSet;
 use std::path::Path;
-use std::time::{Duration, Instant};
 
 use common::*;
 
@@ -490,10 +489,51 @@ fn demo_writes_previews_and_outputs() {
     assert_eq!(previews, ["preview.0000.png"]);
     let p = image(&out.join("preview.0000.png"));
     assert_eq!((p.width, p.height), (2 * 512 + 8, 512));
-    // The textured half is not the background alone.
+    // Both halves draw the same surface from the same camera, so they
+    // cover exactly the same pixels; the textured half is textured (its
+    // luminance varies over the surface) and differs from the patch view.
     let background = p.texel(0, 0).to_vec();
-    let centre = p.texel(256, 256);
-    assert_ne!(centre, background.as_slice(), "nothing drawn at the centre");
+    let lum = |t: &[f32]| 0.2126 * t[0] + 0.7152 * t[1] + 0.0722 * t[2];
+    let mut covered = 0usize;
+    let mut differ = 0usize;
+    let mut sum = 0.0f64;
+    let mut sum2 = 0.0f64;
+    for y in 0..512 {
+        for x in 0..512 {
+            let textured = p.texel(x, y);
+            let patches = p.texel(x + 512 + 8, y);
+            let drawn = textured != background.as_slice();
+            assert_eq!(
+                drawn,
+                patches != background.as_slice(),
+                "pixel ({x}, {y}): the two views cover different pixels"
+            );
+            if drawn {
+                covered += 1;
+                differ += usize::from(textured != patches);
+                let l = f64::from(lum(textured));
+                sum += l;
+                sum2 += l * l;
+            }
+        }
+    }
+    let share = covered as f64 / (512.0 * 512.0);
+    // The camera frames the sphere: it fills a good part of the view.
+    assert!(
+        (0.2..0.9).contains(&share),
+        "surface covers {share:.3} of the view"
+    );
+    let mean = sum / covered as f64;
+    let sd = (sum2 / covered as f64 - mean * mean).max(0.0).sqrt();
+    assert!(
+        sd > 0.03,
+        "textured half is nearly flat: luminance sd {sd:.4}"
+    );
+    assert!(
+        differ as f64 > 0.9 * covered as f64,
+        "the textured view matches the patch view on {} of {covered} pixels",
+        covered - differ
+    );
 }
 
 /// The erosion run of a small generated scene, as a list of arguments.
@@ -545,24 +585,30 @@ fn thread_count_does_not_change_the_outputs() {
     assert_same_outputs(&dir.path().join("t1"), &dir.path().join("t2"));
 }
 
-/// Polls until `path` exists (the run reached that frame) or the child ends.
-fn wait_for(path: &Path, child: &mut std::process::Child) -> bool {
-    let start = Instant::now();
-    while start.elapsed() < Duration::from_secs(120) {
-        if path.exists() {
-            return true;
-        }
-        if child.try_wait().unwrap().is_some() {
-            return path.exists();
-        }
-        std::thread::sleep(Duration::from_millis(2));
-    }
-    false
+/// The files of frame `f` a default erosion run writes.
+fn frame_files(f: i32) -> Vec<String> {
+    [
+        "color.F.png",
+        "mesh.F.mtl",
+        "mesh.F.obj",
+        "mesh.F.glb",
+        "patches.F.png",
+        "source.F.exr",
+        "stats.F.json",
+    ]
+    .iter()
+    .map(|n| n.replace('F', &format!("{f:04}")))
+    .collect()
 }
 
-/// A run killed with SIGKILL once frame 2 is written, then rerun with
-/// `--resume`, writes the same bytes as an uninterrupted run; every file
-/// visible right after the kill is already complete (atomic writes).
+/// A run killed with SIGKILL right after frame 2 is counted finished, then
+/// rerun with `--resume`, writes the same bytes as an uninterrupted run.
+///
+/// Deterministic: the run itself stops after frame 2
+/// (`FLUIDTEX_TEST_PAUSE_AFTER_FRAME=2`, it waits on its stdin) and the
+/// test kills it there with a real SIGKILL, so the path tested is always
+/// "killed between frames 2 and 3, lock file left behind", whatever the
+/// machine's load. The run inside a write is the next test.
 #[test]
 fn resume_after_sigkill_gives_the_same_files() {
     let dir = tempfile::tempdir().unwrap();
@@ -572,87 +618,93 @@ fn resume_after_sigkill_gives_the_same_files() {
 
     let killed = dir.path().join("killed");
     let args = erosion_args(&pattern, &killed);
-    let mut child = fluidtex().args(&args).spawn().unwrap();
-    assert!(
-        wait_for(&killed.join("stats.0002.json"), &mut child),
-        "the run never wrote frame 2"
-    );
-    child.kill().unwrap(); // SIGKILL
-    let status = child.wait().unwrap();
-    assert!(
-        !killed.join("stats.0007.json").exists() && !status.success(),
-        "the run ended before the kill; the test proves nothing ({status:?})"
-    );
+    let paused = spawn_paused(&args, &[("FLUIDTEX_TEST_PAUSE_AFTER_FRAME", "2")]);
+    assert_eq!(paused.line, "fluidtex-test: paused after frame 2");
+    let pid = paused.child.id();
+    paused.kill();
+    // Exactly frames 0-2, the state and the dead run's lock; every file
+    // complete.
     let reference_files = files(&reference);
     let after_kill = files(&killed);
-    let left = temporaries(&killed);
+    let mut expected: Vec<String> = (0..=2).flat_map(frame_files).collect();
+    expected.extend(["fluidtex.lock".to_string(), "state.bin".to_string()]);
+    expected.sort();
+    assert_eq!(after_kill.keys().cloned().collect::<Vec<_>>(), expected);
     for (name, bytes) in &after_kill {
-        if left.contains(name) || name == "state.bin" {
-            continue;
-        }
-        if name.starts_with("stats.") {
-            assert_eq!(
+        match name.as_str() {
+            "state.bin" => {}
+            "fluidtex.lock" => {
+                let text = String::from_utf8_lossy(bytes);
+                assert!(text.starts_with(&format!("pid {pid}\n")), "{text}");
+            }
+            n if n.starts_with("stats.") => assert_eq!(
                 stats_without_timings(bytes),
-                stats_without_timings(&reference_files[name])
-            );
-            continue;
+                stats_without_timings(&reference_files[n])
+            ),
+            n => assert!(bytes == &reference_files[n], "{n} differs after the kill"),
         }
-        assert!(
-            bytes == &reference_files[name],
-            "{name} is visible after the kill but not complete"
-        );
     }
 
     let mut resume = args.clone();
     resume.push("--resume".into());
-    ok(&resume);
-    // A kill during a write leaves that write's temporary; the resumed run
-    // must not add any (removing the old one is tested below).
-    for t in temporaries(&killed) {
-        assert!(left.contains(&t), "the resumed run left {t}");
-        std::fs::remove_file(killed.join(t)).unwrap();
-    }
+    let out = fluidtex().args(&resume).output().unwrap();
+    check_ok(&out, &resume);
+    // The stale lock was noticed and taken over, then released.
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains(&format!(
+            "took over the lock of a run that is no longer running (pid {pid} on host "
+        )),
+        "{stderr}"
+    );
     assert_same_outputs(&reference, &killed);
 }
 
 /// Bug: a SIGKILL during a write leaves `.<name>.<random>.tmp` in the
-/// output folder, and `--resume` leaves it there for good (observed with
-/// 5 of 12 kill times on this scene).
+/// output folder, and `--resume` leaves it there for good.
+///
+/// Deterministic: the run stops inside its 11th write
+/// (`FLUIDTEX_TEST_PAUSE_IN_WRITE=11`), the third file of frame 1, with
+/// that file's temporary on disk, and the test kills it there; the real
+/// kill-inside-a-write path runs every time (no hand-made temporary).
 #[test]
 fn resume_removes_the_temporary_of_a_killed_write() {
     let dir = tempfile::tempdir().unwrap();
-    let pattern = make_scene(dir.path(), "0-5");
+    let pattern = make_scene(dir.path(), "0-2");
+    let reference = dir.path().join("reference");
+    ok(&erosion_args(&pattern, &reference));
     let out = dir.path().join("out");
     let args = erosion_args(&pattern, &out);
-    // Try to land a real kill inside a write: kill as soon as a temporary
-    // appears after frame 1 is done.
-    let mut landed = false;
-    for _ in 0..10 {
-        let _ = std::fs::remove_dir_all(&out);
-        let mut child = fluidtex().args(&args).spawn().unwrap();
-        assert!(wait_for(&out.join("stats.0001.json"), &mut child));
-        let start = Instant::now();
-        while child.try_wait().unwrap().is_none() && start.elapsed() < Duration::from_secs(60) {
-            if !temporaries(&out).is_empty() {
-                break;
-            }
-        }
-        let _ = child.kill();
-        let _ = child.wait();
-        if !temporaries(&out).is_empty() && !out.join("stats.0005.json").exists() {
-            landed = true;
-            break;
-        }
-    }
-    if !landed {
-        // The same file a kill inside a write leaves, made by hand.
-        ok(&args);
-        std::fs::write(out.join(".color.0003.png.Xa9k2Q.tmp"), b"\x89PNG half").unwrap();
+    // Writes per frame: its 7 files, then state.bin; 11 = frame 1's third.
+    let paused = spawn_paused(&args, &[("FLUIDTEX_TEST_PAUSE_IN_WRITE", "11")]);
+    let temporary = paused
+        .line
+        .strip_prefix("fluidtex-test: paused in write 11: ")
+        .unwrap()
+        .to_string();
+    let name = Path::new(&temporary).file_name().unwrap().to_string_lossy();
+    assert!(name.starts_with(".mesh.0001.obj."), "{name}");
+    paused.kill();
+    // Frame 1's first three files are temporaries (staged, never renamed);
+    // none of its files is visible.
+    let left = temporaries(&out);
+    let prefixes: Vec<String> = left
+        .iter()
+        .map(|t| t.rsplitn(3, '.').nth(2).unwrap().to_string())
+        .collect();
+    assert_eq!(
+        prefixes,
+        [".color.0001.png", ".mesh.0001.mtl", ".mesh.0001.obj"],
+        "{left:?}"
+    );
+    for f in frame_files(1) {
+        assert!(!out.join(&f).exists(), "{f} visible before its frame ended");
     }
     let mut resume = args.clone();
     resume.push("--resume".into());
     ok(&resume);
     assert_eq!(temporaries(&out), Vec::<String>::new());
+    assert_same_outputs(&reference, &out);
 }
 
 /// Bug: every output is created with mode 0600 (the temp file's mode is

@@ -17,11 +17,13 @@
 //! ```
 //!
 //! Modules, one per concept: [`mesh`], [`surface`], [`param`], [`atlas`],
-//! [`exemplar`], [`methods`], [`metrics`], [`eval`] (the evaluation harness), [`render`], [`scenes`], [`io`], and [`texture`] (the float image type and texel convention).
+//! [`exemplar`], [`methods`], [`metrics`], [`eval`] (the evaluation harness), [`render`], [`scenes`], [`io`], and [`texture`] (the float image type and texel convention);
+//! [`fuzz`] is the seeded mutation fuzzer the reader tests use.
 
 pub mod atlas;
 pub mod eval;
 pub mod exemplar;
+pub mod fuzz;
 pub mod io;
 pub mod mesh;
 pub mod methods;

@@ -8,6 +8,16 @@
 //! frame F as the previous frame and continues with F+1; because the state
 //! is the whole carried state and every RNG stream is derived from (seed,
 //! frame or patch id), the files are the same as those of an uninterrupted run.
+//!
+//! Robustness: a run holds the output folder's lock ([`crate::io::lock`])
+//! from start to end, so a second run into the same folder refuses at once.
+//! The files of a frame are staged and renamed together
+//! ([`crate::io::Staging`]) before `state.bin` counts the frame finished: a
+//! full disk mid-frame leaves none of that frame's files and the previous
+//! state, and `--resume` (after space is freed) writes exactly the files of
+//! an uninterrupted run. Before any frame is read the run estimates the
+//! memory it needs ([`estimate_memory`]) and refuses when the machine has
+//! less available.
 
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -19,7 +29,7 @@ use thiserror::Error;
 
 use crate::atlas::{Atlas, AtlasError, AtlasParams};
 use crate::io::image::{ExrOptions, ExrSample, PngDepth, PngOptions};
-use crate::io::{InputGuard, IoError};
+use crate::io::{InputGuard, IoError, Staging, WriteHook};
 use crate::mesh::{TriMesh, ValidationReport};
 use crate::methods::{
     FrameContext, Method, MethodError, PreviousFrame, SOURCE_OUTSIDE, SOURCE_UNCOVERED,
@@ -134,6 +144,29 @@ pub struct Job {
     pub resume: bool,
     /// Identifies the configuration; a resumed run must match it.
     pub fingerprint: String,
+    /// Test hooks; front ends leave them at their default (none).
+    pub hooks: TestHooks,
+}
+
+/// Hooks that let tests stop a run at an exact point instead of racing it.
+#[derive(Clone, Default)]
+pub struct TestHooks {
+    /// Called in every atomic write of the run (see [`WriteHook`]); writes
+    /// are counted in a fixed order, so "the Nth write" is the same file in
+    /// every run of the same job.
+    pub write: Option<WriteHook>,
+    /// Memory available to the run in bytes, instead of the machine's
+    /// `MemAvailable`, for testing the up-front memory check.
+    pub available_memory: Option<u64>,
+}
+
+impl std::fmt::Debug for TestHooks {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("TestHooks")
+            .field("write", &self.write.as_ref().map(|_| "hook"))
+            .field("available_memory", &self.available_memory)
+            .finish()
+    }
 }
 
 /// Errors of the frame job.
@@ -143,6 +176,9 @@ pub enum PipelineError {
     Io(#[from] IoError),
     #[error("frame {frame}: {source}")]
     Atlas { frame: i32, source: AtlasError },
+    /// Atlas parameters refused before any frame is read.
+    #[error("{0}")]
+    AtlasParams(AtlasError),
     #[error(transparent)]
     Method(#[from] MethodError),
     #[error("{0}")]
@@ -151,6 +187,18 @@ pub enum PipelineError {
     Output { path: PathBuf, message: String },
     #[error("cannot resume: {0}")]
     Resume(String),
+    #[error(
+        "a {width}x{height} atlas needs about {} of memory and {} is available: \
+         lower --atlas (at most {fits} fits)",
+        gib(*.needed), gib(*.available)
+    )]
+    Memory {
+        width: u32,
+        height: u32,
+        needed: u64,
+        available: u64,
+        fits: u32,
+    },
 }
 
 /// Per-frame numbers, also written as `stats.F.json`.
@@ -184,6 +232,8 @@ pub enum Event<'a> {
     Done { stats: &'a FrameStats },
     /// Something the user should know that did not stop the run.
     Warning(String),
+    /// The memory estimate, made before the first frame.
+    Memory(MemoryEstimate),
 }
 
 /// What a run did.
@@ -201,10 +251,16 @@ struct SavedState {
     method: String,
     last_frame: i32,
     method_state: Vec<u8>,
+    /// CRC-32 of `method_state`. Postcard has no integrity check of its
+    /// own, and a flipped bit in a patch position would decode into a state
+    /// that breaks the next frame; with the checksum a damaged file is
+    /// refused on load, with one line.
+    checksum: u32,
 }
 
 const STATE_FILE: &str = "state.bin";
-const STATE_VERSION: u32 = 1;
+/// 2: the checksum was added.
+const STATE_VERSION: u32 = 2;
 
 /// Runs `method` over every frame of `source`.
 pub fn run(
@@ -214,10 +270,27 @@ pub fn run(
     observer: &mut dyn FnMut(Event<'_>),
 ) -> Result<Summary, PipelineError> {
     let start = Instant::now();
+    // Everything that can be refused without reading a frame, first.
+    job.atlas.validate().map_err(PipelineError::AtlasParams)?;
+    let estimate = estimate_memory(&job.atlas, &method.channel_specs(), &job.outputs)
+        .with_available(job.hooks.available_memory.or_else(available_memory));
+    estimate.check()?;
+    observer(Event::Memory(estimate));
     std::fs::create_dir_all(&job.out_dir).map_err(|e| PipelineError::Output {
         path: job.out_dir.clone(),
         message: format!("cannot create the output folder: {e}"),
     })?;
+    // Held until this function returns, on success and on error alike;
+    // taken before the temporaries are cleaned, which would otherwise
+    // delete those of a run still writing.
+    let lock = crate::io::OutputLock::acquire(&job.out_dir)?;
+    if let Some(stale) = &lock.stale {
+        observer(Event::Warning(format!(
+            "{}: took over the lock of a run that is no longer running ({})",
+            lock.lock.path().display(),
+            stale.describe()
+        )));
+    }
     let guard = InputGuard::new(source.input_paths());
     // A run killed inside a write leaves its temporary behind.
     crate::io::remove_stale_temporaries(&job.out_dir, &guard)?;
@@ -325,9 +398,13 @@ pub fn run(
             method_stats: std::mem::take(&mut result.stats),
             ..Default::default()
         };
+        // Every file of the frame is staged, then all are renamed together,
+        // then the state counts the frame; a failure before the state is
+        // written leaves the frame uncounted and `--resume` redoes it.
+        let mut files = Staging::new(Some(&guard), job.hooks.write.as_ref());
         write_frame(
             job,
-            &guard,
+            &mut files,
             first_frame,
             number,
             &mesh,
@@ -343,16 +420,18 @@ pub fn run(
             message: e.to_string(),
         })?;
         write_file(
-            &guard,
+            &mut files,
             &job.out_dir
                 .join(format!("stats.{}.json", frame_tag(number))),
             &json,
         )?;
+        files.commit()?;
         save_state(job, &guard, method, number)?;
         observer(Event::Done { stats: &stats });
         done += 1;
         previous = Some((mesh, index));
     }
+    drop(lock);
     Ok(Summary {
         frames_done: done,
         resumed_after,
@@ -376,17 +455,51 @@ fn read_state(dir: &Path) -> Result<Option<SavedState>, PipelineError> {
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
         Err(e) => return Err(PipelineError::Resume(format!("{}: {e}", path.display()))),
     };
-    let saved: SavedState = postcard::from_bytes(&bytes).map_err(|e| {
-        PipelineError::Resume(format!("{}: damaged state file ({e})", path.display()))
-    })?;
-    if saved.version != STATE_VERSION {
+    parse_state(&path, &bytes).map(Some)
+}
+
+/// Decodes `state.bin` bytes into `method` as `--resume` does, without the
+/// configuration check; returns the last finished frame. For tests of
+/// damaged state files (the fuzz tests feed it thousands).
+pub fn load_state_bytes(
+    path: &Path,
+    bytes: &[u8],
+    method: &mut dyn Method,
+) -> Result<i32, PipelineError> {
+    let saved = parse_state(path, bytes)?;
+    if saved.method != method.name() {
         return Err(PipelineError::Resume(format!(
-            "{}: state version {} is not {STATE_VERSION}",
+            "{}: written by method {}, not {}",
             path.display(),
-            saved.version
+            saved.method,
+            method.name()
         )));
     }
-    Ok(Some(saved))
+    method.load_state(&saved.method_state)?;
+    Ok(saved.last_frame)
+}
+
+fn parse_state(path: &Path, bytes: &[u8]) -> Result<SavedState, PipelineError> {
+    let damaged = |e: postcard::Error| {
+        PipelineError::Resume(format!("{}: damaged state file ({e})", path.display()))
+    };
+    // The version first (the file's first field): a file of another
+    // version has another layout, and would otherwise read as damaged.
+    let (version, _) = postcard::take_from_bytes::<u32>(bytes).map_err(damaged)?;
+    if version != STATE_VERSION {
+        return Err(PipelineError::Resume(format!(
+            "{}: state version {version} is not {STATE_VERSION}",
+            path.display(),
+        )));
+    }
+    let saved: SavedState = postcard::from_bytes(bytes).map_err(damaged)?;
+    if crc32fast::hash(&saved.method_state) != saved.checksum {
+        return Err(PipelineError::Resume(format!(
+            "{}: damaged state file (checksum mismatch)",
+            path.display()
+        )));
+    }
+    Ok(saved)
 }
 
 fn save_state(
@@ -395,22 +508,26 @@ fn save_state(
     method: &dyn Method,
     frame: i32,
 ) -> Result<(), PipelineError> {
+    let method_state = method.save_state()?;
     let saved = SavedState {
         version: STATE_VERSION,
         fingerprint: job.fingerprint.clone(),
         method: method.name().to_string(),
         last_frame: frame,
-        method_state: method.save_state()?,
+        checksum: crc32fast::hash(&method_state),
+        method_state,
     };
     let bytes = postcard::to_allocvec(&saved).map_err(|e| PipelineError::Output {
         path: job.out_dir.join(STATE_FILE),
         message: e.to_string(),
     })?;
-    write_file(guard, &job.out_dir.join(STATE_FILE), &bytes)
+    let mut files = Staging::new(Some(guard), job.hooks.write.as_ref());
+    write_file(&mut files, &job.out_dir.join(STATE_FILE), &bytes)?;
+    Ok(files.commit()?)
 }
 
-fn write_file(guard: &InputGuard, path: &Path, bytes: &[u8]) -> Result<(), PipelineError> {
-    guard.write_atomic(path, |w| w.write_all(bytes))?;
+fn write_file(files: &mut Staging<'_>, path: &Path, bytes: &[u8]) -> Result<(), PipelineError> {
+    files.write(path, |w| w.write_all(bytes))?;
     Ok(())
 }
 
@@ -431,7 +548,7 @@ pub fn patch_colour(source: u32) -> [f32; 3] {
 #[allow(clippy::too_many_arguments)]
 fn write_frame(
     job: &Job,
-    guard: &InputGuard,
+    files: &mut Staging<'_>,
     first_frame: i32,
     number: i32,
     mesh: &TriMesh,
@@ -457,7 +574,7 @@ fn write_frame(
     for (spec, texture) in specs.iter().zip(&result.channels) {
         let file = format!("{}.{tag}.{}", spec.name, spec.format.extension());
         let path = dir.join(&file);
-        if let Some(bytes) = write_channel(guard, &path, texture, spec.format)?
+        if let Some(bytes) = write_channel(files, &path, texture, spec.format)?
             && colour_png.is_none()
         {
             colour_png = Some((file, bytes));
@@ -467,15 +584,14 @@ fn write_frame(
     let normals = uv_mesh_normals(mesh, atlas);
     if job.outputs.obj {
         let obj = dir.join(format!("mesh.{tag}.obj"));
-        guard.check(&obj)?;
-        guard.check(&crate::io::obj_write::mtl_path(&obj))?;
         let material = colour_png
             .as_ref()
             .map(|(file, _)| crate::io::obj_write::ObjMaterial {
                 name: "fluidtex".to_string(),
                 map_kd: file.clone(),
             });
-        crate::io::obj_write::write_obj(
+        crate::io::obj_write::stage_obj(
+            files,
             &obj,
             &uv.positions,
             &uv.uvs,
@@ -486,16 +602,14 @@ fn write_frame(
     }
     if job.outputs.glb {
         let path = dir.join(format!("mesh.{tag}.glb"));
-        guard.check(&path)?;
         let png = colour_png.as_ref().map(|(_, b)| b.as_slice());
-        crate::io::gltf::write_glb(
-            &path,
-            &uv.positions,
-            &uv.uvs,
-            Some(&normals),
-            &uv.triangles,
-            png,
-        )?;
+        let glb =
+            crate::io::gltf::encode_glb(&uv.positions, &uv.uvs, Some(&normals), &uv.triangles, png)
+                .map_err(|reason| IoError::Unwritable {
+                    path: path.clone(),
+                    reason,
+                })?;
+        write_file(files, &path, &glb)?;
     }
     let patches = result.source.as_ref().map(|source| {
         let mut colours = Texture::filled(atlas.width, atlas.height, 3, 0.0);
@@ -542,7 +656,7 @@ fn write_frame(
         }
         let sheet = render::side_by_side(&views.iter().collect::<Vec<_>>(), 8, background);
         write_channel(
-            guard,
+            files,
             &dir.join(format!("preview.{tag}.png")),
             &sheet,
             ChannelFormat::Png8,
@@ -552,7 +666,7 @@ fn write_frame(
         && let (Some(source), Some(colours)) = (&result.source, &patches)
     {
         write_channel(
-            guard,
+            files,
             &dir.join(format!("patches.{tag}.png")),
             colours,
             ChannelFormat::Png8,
@@ -568,7 +682,7 @@ fn write_frame(
             data: ids,
         };
         write_channel(
-            guard,
+            files,
             &dir.join(format!("source.{tag}.exr")),
             &ids,
             ChannelFormat::Exr,
@@ -592,7 +706,7 @@ fn uv_mesh_normals(mesh: &TriMesh, atlas: &Atlas) -> Vec<glam::Vec3> {
 /// Writes one channel atlas; returns the PNG bytes for PNG formats (the
 /// glb embeds the colour atlas without encoding it twice).
 fn write_channel(
-    guard: &InputGuard,
+    files: &mut Staging<'_>,
     path: &Path,
     texture: &Texture,
     format: ChannelFormat,
@@ -601,12 +715,11 @@ fn write_channel(
         ChannelFormat::Png8 => PngDepth::Eight,
         ChannelFormat::Png16 => PngDepth::Sixteen,
         ChannelFormat::Exr => {
-            guard.check(path)?;
             let options = ExrOptions {
                 sample: ExrSample::F32,
                 ..Default::default()
             };
-            crate::io::image::write_exr(path, texture, &options)?;
+            crate::io::image::stage_exr(files, path, texture, &options)?;
             return Ok(None);
         }
     };
@@ -620,8 +733,141 @@ fn write_channel(
             message,
         }
     })?;
-    write_file(guard, path, &bytes)?;
+    write_file(files, path, &bytes)?;
     Ok(Some(bytes))
+}
+
+/// What a run is expected to need in memory, from the atlas size and the
+/// output channels alone (known before any frame is read).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MemoryEstimate {
+    pub width: u32,
+    pub height: u32,
+    /// Bytes held per atlas texel at the peak of a frame (see [`estimate_memory`]).
+    pub bytes_per_texel: u64,
+    /// Bytes that do not scale with the atlas (meshes, exemplar, patches).
+    pub base_bytes: u64,
+    /// The estimate in bytes.
+    pub bytes: u64,
+    /// What the machine has available (`MemAvailable`), where known.
+    pub available: Option<u64>,
+}
+
+/// Memory the frames of a run need besides the atlas: two meshes with their
+/// BVHs, the exemplar and the patch state. 256 MiB covers a dam-break frame
+/// (85k triangles, 5k patches) with room; a heavier scene is not refused
+/// for it, since the check only catches atlases that cannot fit.
+const BASE_BYTES: u64 = 256 << 20;
+
+/// Estimates the memory of a run before any frame is read.
+///
+/// Per atlas texel, at the peak of a frame (the write, while the method's
+/// result is alive), with C = 4 components per output channel (an upper
+/// bound: colour is 3 or 4):
+/// - the method's fill: C floats per channel, a source id and a uv
+///   (4·C·channels + 12 bytes), and its result textures (4·C·channels + 8);
+/// - the debug outputs: patch colours (12), ids as floats (4) and their
+///   EXR planes (4);
+/// - encoding: quantized samples and the compressed image, about 2 bytes
+///   per component (up to 4 for 16-bit).
+///
+/// An upper bound by design. Measured (erosion demo, built-in pebbles,
+/// one 8-bit colour channel): peak RSS 104 MB at 1024² and 253 MB at
+/// 2048², a slope of 49 bytes per texel against the estimate's 80.
+pub fn estimate_memory(
+    atlas: &AtlasParams,
+    channels: &[ChannelSpec],
+    outputs: &OutputOptions,
+) -> MemoryEstimate {
+    const C: u64 = 4;
+    let components = C * channels.len().max(1) as u64;
+    let encode: u64 = channels
+        .iter()
+        .map(|c| match c.format {
+            ChannelFormat::Png8 => 2 * C,
+            ChannelFormat::Png16 | ChannelFormat::Exr => 4 * C,
+        })
+        .sum();
+    let debug = if outputs.debug { 12 + 4 + 4 } else { 0 };
+    let bytes_per_texel = 4 * components + 12 + 4 * components + 8 + debug + encode;
+    let texels = u64::from(atlas.width) * u64::from(atlas.height);
+    MemoryEstimate {
+        width: atlas.width,
+        height: atlas.height,
+        bytes_per_texel,
+        base_bytes: BASE_BYTES,
+        bytes: texels * bytes_per_texel + BASE_BYTES,
+        available: None,
+    }
+}
+
+impl MemoryEstimate {
+    /// The same estimate with the available memory recorded.
+    pub fn with_available(mut self, available: Option<u64>) -> MemoryEstimate {
+        self.available = available;
+        self
+    }
+
+    /// Refuses an estimate above the available memory (never where the
+    /// available memory is unknown), naming the largest square atlas that
+    /// fits.
+    pub fn check(&self) -> Result<(), PipelineError> {
+        let Some(available) = self.available else {
+            return Ok(());
+        };
+        if self.bytes <= available {
+            return Ok(());
+        }
+        let texels = available.saturating_sub(self.base_bytes) / self.bytes_per_texel.max(1);
+        // Whole multiples of 256 texels: atlas sizes people type.
+        let side = (texels as f64).sqrt() as u64 / 256 * 256;
+        Err(PipelineError::Memory {
+            width: self.width,
+            height: self.height,
+            needed: self.bytes,
+            available,
+            fits: side.min(u64::from(crate::atlas::MAX_SIDE)) as u32,
+        })
+    }
+
+    /// "about 1.3 GiB for a 4096x4096 atlas (80 bytes per texel); 20.1 GiB available".
+    pub fn describe(&self) -> String {
+        let available = match self.available {
+            Some(a) => format!("{} available", gib(a)),
+            None => "available memory unknown".into(),
+        };
+        format!(
+            "about {} for a {}x{} atlas ({} bytes per texel); {available}",
+            gib(self.bytes),
+            self.width,
+            self.height,
+            self.bytes_per_texel
+        )
+    }
+}
+
+/// `MemAvailable` of `/proc/meminfo` in bytes; `None` where there is no
+/// such file (other systems: the check is skipped).
+pub fn available_memory() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line
+        .trim_start_matches("MemAvailable:")
+        .trim()
+        .trim_end_matches("kB")
+        .trim()
+        .parse()
+        .ok()?;
+    kib.checked_mul(1024)
+}
+
+/// Bytes as "1.3 GiB" or "512 MiB".
+fn gib(bytes: u64) -> String {
+    if bytes >= 1 << 30 {
+        format!("{:.1} GiB", bytes as f64 / (1u64 << 30) as f64)
+    } else {
+        format!("{} MiB", bytes >> 20)
+    }
 }
 
 /// Frames read from files named by a pattern.

@@ -76,6 +76,7 @@ pub fn execute(
     let job = build_job(config, out.clone(), resume)?;
     let total = source.frames().len() as u64;
     let progress = Progress::new(total, method.name(), quiet);
+    let pause_after = crate::test_hooks::pause_after_frame()?;
     let mut observer = |e: Event<'_>| match e {
         Event::Start { number, .. } => progress.set_message(format!("frame {number}")),
         Event::Done { stats } => {
@@ -95,8 +96,10 @@ pub fn execute(
             let secs: f64 = stats.seconds.values().sum();
             progress.set_message(format!("frame {} done in {secs:.2}s{patches}", stats.frame));
             progress.inc();
+            crate::test_hooks::maybe_pause_after(stats.frame, pause_after);
         }
         Event::Warning(w) => progress.warn(&w),
+        Event::Memory(m) => progress.info(&format!("memory: {}", m.describe())),
     };
     let summary = pipeline::run(&job, source, method.as_mut(), &mut observer)?;
     progress.finish();
@@ -197,8 +200,11 @@ pub fn build_method(config: &Config) -> Result<Box<dyn Method>> {
 /// The frame job the config describes.
 pub fn build_job(config: &Config, out: PathBuf, resume: bool) -> Result<Job> {
     let size = config.atlas.unwrap_or(4096);
-    if !(16..=32768).contains(&size) {
-        bail!("--atlas {size}: allowed 16 to 32768 texels");
+    // The library's own limit, so a size it would refuse is refused here,
+    // before any frame is read.
+    let max = fluidtex::atlas::MAX_SIDE;
+    if !(16..=max).contains(&size) {
+        bail!("--atlas {size}: allowed 16 to {max} texels");
     }
     let fps = config.fps.unwrap_or(24.0);
     if !(fps.is_finite() && fps > 0.0 && fps <= 10_000.0) {
@@ -222,6 +228,7 @@ pub fn build_job(config: &Config, out: PathBuf, resume: bool) -> Result<Job> {
         outputs: config.outputs.clone(),
         resume,
         fingerprint: config.fingerprint(),
+        hooks: crate::test_hooks::from_env()?,
     })
 }
 

@@ -246,3 +246,71 @@ pub fn validate_glb(validator: &(PathBuf, PathBuf), file: &Path) -> serde_json::
     );
     serde_json::from_slice(&out.stdout).unwrap()
 }
+
+/// A run held by a test hook (see `fluidtex_cli::test_hooks`): the child,
+/// its standard input (drop it to let the run go on) and the hook's line.
+pub struct Paused {
+    pub child: std::process::Child,
+    pub stdin: Option<std::process::ChildStdin>,
+    pub line: String,
+    /// The rest of stderr, read on a thread until the child ends.
+    pub stderr: std::thread::JoinHandle<String>,
+}
+
+/// Starts `fluidtex args` with the hook variables `env` and waits until it
+/// prints `fluidtex-test: paused ...` (no timing involved: the child waits
+/// for us). Fails the test if the child ends without pausing.
+pub fn spawn_paused<S: AsRef<std::ffi::OsStr>>(args: &[S], env: &[(&str, &str)]) -> Paused {
+    use std::io::BufRead;
+    let mut cmd = fluidtex();
+    cmd.args(args)
+        .stdin(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped());
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    let mut child = cmd.spawn().unwrap();
+    let stdin = child.stdin.take();
+    let mut err = std::io::BufReader::new(child.stderr.take().unwrap());
+    let mut seen = String::new();
+    let mut line = String::new();
+    loop {
+        line.clear();
+        if err.read_line(&mut line).unwrap() == 0 {
+            let status = child.wait().unwrap();
+            panic!("the run ended ({status:?}) without pausing; stderr:\n{seen}");
+        }
+        if line.starts_with("fluidtex-test: paused") {
+            break;
+        }
+        seen.push_str(&line);
+    }
+    let stderr = std::thread::spawn(move || {
+        let mut rest = String::new();
+        let _ = std::io::Read::read_to_string(&mut err, &mut rest);
+        rest
+    });
+    Paused {
+        child,
+        stdin,
+        line: line.trim_end().to_string(),
+        stderr,
+    }
+}
+
+impl Paused {
+    /// SIGKILL, as a farm's scheduler or the OOM killer would.
+    pub fn kill(mut self) {
+        self.child.kill().unwrap();
+        let status = self.child.wait().unwrap();
+        assert!(!status.success());
+    }
+
+    /// Lets the run go on to its end; returns whether it succeeded and
+    /// the rest of its stderr.
+    pub fn resume(mut self) -> (bool, String) {
+        drop(self.stdin.take());
+        let status = self.child.wait().unwrap();
+        (status.success(), self.stderr.join().unwrap())
+    }
+}

@@ -10,8 +10,13 @@
 //! crate directly, because `image` only decodes EXR files that hold R, G and
 //! B channels, and height or feature maps are usually a single `Y` (or other
 //! single) channel.
+//!
+//! The size in an image's header is checked against the file's length
+//! before any pixel memory is reserved ([`check_size_against_data`]), so a
+//! damaged header claiming 60000² pixels is refused instead of reserving
+//! gigabytes for data that is not there.
 
-use std::io::Read;
+use std::io::Cursor;
 use std::path::Path;
 
 use image::DynamicImage;
@@ -34,19 +39,60 @@ pub fn read_image(path: &Path) -> Result<Decoded, ExemplarError> {
     if !path.exists() {
         return Err(ExemplarError::NotFound { what });
     }
-    let mut magic = [0u8; 4];
-    let is_exr = std::fs::File::open(path)
-        .and_then(|mut f| f.read_exact(&mut magic))
-        .map(|()| magic == EXR_MAGIC)
-        // Files shorter than 4 bytes fall through to the decoder's error.
-        .unwrap_or(false);
-    let decoded = if is_exr {
-        super::openexr::read_exr(path)?
+    let bytes = std::fs::read(path).map_err(|e| ExemplarError::Io {
+        what: what.clone(),
+        reason: e.to_string(),
+    })?;
+    decode_image(&bytes, &what)
+}
+
+/// Decodes image bytes (PNG, JPEG or EXR, recognised from the contents);
+/// `what` names the image in messages.
+pub fn decode_image(bytes: &[u8], what: &str) -> Result<Decoded, ExemplarError> {
+    // Files shorter than 4 bytes fall through to the image crate's error.
+    let decoded = if bytes.starts_with(&EXR_MAGIC) {
+        super::openexr::decode_exr(bytes, what)?
     } else {
-        read_with_image_crate(path)?
+        decode_with_image_crate(bytes, what)?
     };
-    check(&decoded.texture, &what)?;
+    check(&decoded.texture, what)?;
     Ok(decoded)
+}
+
+/// The most samples a file of `len` bytes can describe. Deflate (PNG, EXR
+/// ZIP) expands at most 1032:1 and a 1-bit PNG packs 8 pixels a byte, so
+/// no real file exceeds 8300 samples per byte; a million is always
+/// allowed. JPEG and EXR's other codecs compress less than deflate.
+pub fn max_samples_for(len: usize) -> u64 {
+    (len as u64).saturating_mul(8300).saturating_add(1 << 20)
+}
+
+/// Refuses a header whose size (`channels` samples per pixel; 1 where the
+/// format's decoder does not say) the data cannot hold, before any pixel
+/// memory is reserved.
+pub fn check_size_against_data(
+    width: u64,
+    height: u64,
+    channels: u64,
+    len: usize,
+    what: &str,
+) -> Result<(), ExemplarError> {
+    let samples = width.saturating_mul(height).saturating_mul(channels.max(1));
+    if samples > max_samples_for(len) {
+        let of = if channels > 1 {
+            format!(" of {channels} channels")
+        } else {
+            String::new()
+        };
+        return Err(ExemplarError::Decode {
+            what: what.to_owned(),
+            reason: format!(
+                "the header says {width}x{height} pixels{of}, more than {len} bytes can hold \
+                 (damaged file?)"
+            ),
+        });
+    }
+    Ok(())
 }
 
 /// Rejects empty images and non-finite samples.
@@ -73,22 +119,24 @@ pub(crate) fn check(texture: &Texture, what: &str) -> Result<(), ExemplarError> 
     Ok(())
 }
 
-fn read_with_image_crate(path: &Path) -> Result<Decoded, ExemplarError> {
-    let what = || path.display().to_string();
-    let reader = image::ImageReader::open(path)
-        .map_err(|e| ExemplarError::Io {
-            what: what(),
-            reason: e.to_string(),
-        })?
-        .with_guessed_format()
-        .map_err(|e| ExemplarError::Io {
-            what: what(),
-            reason: e.to_string(),
-        })?;
-    let image = reader.decode().map_err(|e| ExemplarError::Decode {
+fn decode_with_image_crate(bytes: &[u8], what: &str) -> Result<Decoded, ExemplarError> {
+    let what = || what.to_owned();
+    let reader = || {
+        image::ImageReader::new(Cursor::new(bytes))
+            .with_guessed_format()
+            .map_err(|e| ExemplarError::Io {
+                what: what(),
+                reason: e.to_string(),
+            })
+    };
+    let decode_err = |e: image::ImageError| ExemplarError::Decode {
         what: what(),
         reason: e.to_string(),
-    })?;
+    };
+    // The header alone first: its size must fit the data (see above).
+    let (w, h) = reader()?.into_dimensions().map_err(decode_err)?;
+    check_size_against_data(u64::from(w), u64::from(h), 1, bytes.len(), &what())?;
+    let image = reader()?.decode().map_err(decode_err)?;
     from_dynamic(image).map_err(|reason| ExemplarError::Decode {
         what: what(),
         reason,

@@ -8,7 +8,7 @@
 //! Samples of every type (half, float, uint) become `f32`;
 //! the exemplar records [`SampleFormat::F32`] so the atlas is written as EXR.
 
-use std::path::Path;
+use std::io::Cursor;
 
 use exr::prelude::{AnyChannels, FlatSamples, Image, Layer, ReadChannels, ReadLayers};
 
@@ -18,19 +18,35 @@ use crate::texture::Texture;
 
 type FlatImage = Image<Layer<AnyChannels<FlatSamples>>>;
 
-pub(crate) fn read_exr(path: &Path) -> Result<Decoded, ExemplarError> {
-    let what = || path.display().to_string();
+pub(crate) fn decode_exr(bytes: &[u8], what: &str) -> Result<Decoded, ExemplarError> {
+    let what = || what.to_owned();
+    let decode_err = |e: exr::error::Error| ExemplarError::Decode {
+        what: what(),
+        reason: e.to_string(),
+    };
+    // The headers alone first: no layer may claim more pixels than the
+    // data can hold (see `decode::check_size_against_data`).
+    let meta =
+        exr::meta::MetaData::read_from_buffered(Cursor::new(bytes), false).map_err(decode_err)?;
+    for header in &meta.headers {
+        let size = header.layer_size;
+        let channels = header.channels.list.len().max(1) as u64;
+        super::decode::check_size_against_data(
+            size.width() as u64,
+            size.height() as u64,
+            channels,
+            bytes.len(),
+            &what(),
+        )?;
+    }
     let image: FlatImage = exr::prelude::read()
         .no_deep_data()
         .largest_resolution_level()
         .all_channels()
         .first_valid_layer()
         .all_attributes()
-        .from_file(path)
-        .map_err(|e| ExemplarError::Decode {
-            what: what(),
-            reason: e.to_string(),
-        })?;
+        .from_buffered(Cursor::new(bytes))
+        .map_err(decode_err)?;
     let layer = &image.layer_data;
     let (w, h) = (layer.size.width(), layer.size.height());
     let channels = &layer.channel_data.list;

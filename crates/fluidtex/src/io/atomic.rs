@@ -14,52 +14,129 @@ use std::path::{Path, PathBuf};
 
 use super::IoError;
 
+/// A test hook called by [`Staging::write`] for every file, once its
+/// temporary holds all its bytes (flushed, not yet synced or renamed), with
+/// the target and the temporary path. Returning an error makes that write
+/// fail as the OS would (e.g. `ENOSPC`); blocking in it holds the run inside
+/// a write so that a test can kill it there. Front ends leave it unset.
+pub type WriteHook = std::sync::Arc<dyn Fn(&Path, &Path) -> std::io::Result<()> + Send + Sync>;
+
 /// Writes `path` atomically: `write` fills a buffered temp file that then
 /// replaces `path`. The writer is seekable (EXR needs that).
 pub fn write_atomic<F>(path: &Path, write: F) -> Result<(), IoError>
 where
     F: FnOnce(&mut BufWriter<File>) -> std::io::Result<()>,
 {
-    let os = |e: std::io::Error| IoError::Io {
-        path: path.to_path_buf(),
-        source: e,
-    };
-    let dir = match path.parent() {
+    let mut files = Staging::new(None, None);
+    files.write(path, write)?;
+    files.commit()
+}
+
+/// A group of files that appear together or not at all: each
+/// [`Staging::write`] fills and syncs a temporary beside its target;
+/// [`Staging::commit`] renames them all, in the order written. Dropping a
+/// staging that was not committed removes its temporaries, so a failed
+/// write (a full disk) leaves none of the group's files behind, and the
+/// old versions of the targets stay as they were.
+///
+/// The pipeline stages every file of a frame, commits, and only then
+/// records the frame as finished in `state.bin`; a run that stops between
+/// the renames has not counted the frame, so `--resume` redoes it.
+pub struct Staging<'a> {
+    guard: Option<&'a InputGuard>,
+    hook: Option<&'a WriteHook>,
+    staged: Vec<(tempfile::TempPath, PathBuf)>,
+}
+
+impl<'a> Staging<'a> {
+    /// An empty group; `guard` refuses targets that are inputs of the run,
+    /// `hook` is the test hook (see [`WriteHook`]).
+    pub fn new(guard: Option<&'a InputGuard>, hook: Option<&'a WriteHook>) -> Staging<'a> {
+        Staging {
+            guard,
+            hook,
+            staged: Vec::new(),
+        }
+    }
+
+    /// Writes `path`'s temporary through `write`, synced, not yet renamed.
+    pub fn write<F>(&mut self, path: &Path, write: F) -> Result<(), IoError>
+    where
+        F: FnOnce(&mut BufWriter<File>) -> std::io::Result<()>,
+    {
+        if let Some(guard) = self.guard {
+            guard.check(path)?;
+        }
+        let os = |e: std::io::Error| IoError::Io {
+            path: path.to_path_buf(),
+            source: e,
+        };
+        let dir = parent_dir(path);
+        let name = path
+            .file_name()
+            .ok_or_else(|| IoError::Unwritable {
+                path: path.to_path_buf(),
+                reason: "not a file name".into(),
+            })?
+            .to_string_lossy();
+        let prefix = format!(".{name}.");
+        let mut builder = tempfile::Builder::new();
+        builder.prefix(&prefix).suffix(".tmp");
+        // tempfile creates 0600 files by default and the rename keeps the
+        // mode; asking for 0666 lets the umask decide, as for any new file,
+        // so that others on a render farm can read the outputs.
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            builder.permissions(std::fs::Permissions::from_mode(0o666));
+        }
+        let tmp = builder.tempfile_in(dir).map_err(os)?;
+        let (file, tmp_path) = tmp.into_parts();
+        // From here on the temporary is removed on any error (TempPath's drop).
+        let mut w = BufWriter::with_capacity(1 << 20, file);
+        write(&mut w).map_err(os)?;
+        w.flush().map_err(os)?;
+        let file = w.into_inner().map_err(|e| os(e.into_error()))?;
+        if let Some(hook) = self.hook {
+            hook(path, &tmp_path).map_err(os)?;
+        }
+        file.sync_all().map_err(os)?;
+        drop(file);
+        self.staged.push((tmp_path, path.to_path_buf()));
+        Ok(())
+    }
+
+    /// Renames every staged temporary over its target, in order, then
+    /// makes the renames durable. A failure part-way leaves the targets
+    /// renamed so far and removes the other temporaries.
+    pub fn commit(self) -> Result<(), IoError> {
+        let mut dirs: Vec<PathBuf> = Vec::new();
+        for (tmp, path) in self.staged {
+            tmp.persist(&path).map_err(|e| IoError::Io {
+                path: path.clone(),
+                source: e.error,
+            })?;
+            let dir = parent_dir(&path).to_path_buf();
+            if !dirs.contains(&dir) {
+                dirs.push(dir);
+            }
+        }
+        // Not all platforms can sync a directory; the data is synced anyway.
+        for dir in dirs {
+            if let Ok(d) = File::open(&dir) {
+                let _ = d.sync_all();
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The folder a temporary for `path` goes in: the target's own.
+fn parent_dir(path: &Path) -> &Path {
+    match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
-    };
-    let name = path
-        .file_name()
-        .ok_or_else(|| IoError::Unwritable {
-            path: path.to_path_buf(),
-            reason: "not a file name".into(),
-        })?
-        .to_string_lossy();
-    let prefix = format!(".{name}.");
-    let mut builder = tempfile::Builder::new();
-    builder.prefix(&prefix).suffix(".tmp");
-    // tempfile creates 0600 files by default and the rename keeps the mode;
-    // asking for 0666 lets the umask decide, as for any new file, so that
-    // others on a render farm can read the outputs.
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        builder.permissions(std::fs::Permissions::from_mode(0o666));
     }
-    let tmp = builder.tempfile_in(dir).map_err(os)?;
-    let (file, tmp_path) = tmp.into_parts();
-    let mut w = BufWriter::with_capacity(1 << 20, file);
-    write(&mut w).map_err(os)?;
-    w.flush().map_err(os)?;
-    let file = w.into_inner().map_err(|e| os(e.into_error()))?;
-    file.sync_all().map_err(os)?;
-    drop(file);
-    tmp_path.persist(path).map_err(|e| os(e.error))?;
-    // Make the rename itself durable; not all platforms can sync a directory.
-    if let Ok(d) = File::open(dir) {
-        let _ = d.sync_all();
-    }
-    Ok(())
 }
 
 /// Removes the temporaries that a killed [`write_atomic`] left in `dir`
@@ -225,6 +302,52 @@ mod tests {
         assert!(err.to_string().ends_with("a.txt: killed"), "{err}");
         assert_eq!(std::fs::read(&out).unwrap(), b"old");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn a_group_appears_whole_or_not_at_all() {
+        let dir = tempfile::tempdir().unwrap();
+        let (a, b) = (dir.path().join("a.png"), dir.path().join("b.obj"));
+        std::fs::write(&a, b"old a").unwrap();
+        let listing = || {
+            let mut n: Vec<String> = std::fs::read_dir(dir.path())
+                .unwrap()
+                .map(|e| e.unwrap().file_name().into_string().unwrap())
+                .collect();
+            n.sort();
+            n
+        };
+        // The second write fails as on a full disk: nothing of the group
+        // appears, the old file stays, no temporary is left.
+        let fail_second: WriteHook = std::sync::Arc::new(|target: &Path, tmp: &Path| {
+            assert!(tmp.is_file(), "the hook sees the temporary");
+            if target.ends_with("b.obj") {
+                return Err(std::io::Error::from(std::io::ErrorKind::StorageFull));
+            }
+            Ok(())
+        });
+        let mut files = Staging::new(None, Some(&fail_second));
+        files.write(&a, |w| w.write_all(b"new a")).unwrap();
+        assert_eq!(
+            std::fs::read(&a).unwrap(),
+            b"old a",
+            "not renamed before commit"
+        );
+        let err = files.write(&b, |w| w.write_all(b"new b")).unwrap_err();
+        assert!(
+            err.to_string().starts_with(&format!("{}: ", b.display())),
+            "{err}"
+        );
+        drop(files);
+        assert_eq!(listing(), ["a.png"]);
+        assert_eq!(std::fs::read(&a).unwrap(), b"old a");
+        // Without the fault both appear on commit.
+        let mut files = Staging::new(None, None);
+        files.write(&a, |w| w.write_all(b"new a")).unwrap();
+        files.write(&b, |w| w.write_all(b"new b")).unwrap();
+        files.commit().unwrap();
+        assert_eq!(listing(), ["a.png", "b.obj"]);
+        assert_eq!(std::fs::read(&b).unwrap(), b"new b");
     }
 
     #[test]

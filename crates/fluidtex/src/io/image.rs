@@ -28,6 +28,7 @@ use miniz_oxide::deflate::core::{
 };
 use rayon::prelude::*;
 
+use super::atomic::Staging;
 use super::{IoError, write_atomic};
 use crate::texture::Texture;
 
@@ -394,6 +395,18 @@ fn default_channel_names(channels: usize) -> Vec<String> {
 
 /// Writes a texture as an EXR file, atomically.
 pub fn write_exr(path: &Path, tex: &Texture, options: &ExrOptions) -> Result<(), IoError> {
+    let mut files = Staging::new(None, None);
+    stage_exr(&mut files, path, tex, options)?;
+    files.commit()
+}
+
+/// [`write_exr`] into a group of files that the caller commits.
+pub fn stage_exr(
+    files: &mut Staging<'_>,
+    path: &Path,
+    tex: &Texture,
+    options: &ExrOptions,
+) -> Result<(), IoError> {
     use exr::prelude::*;
     let bad = |reason: String| IoError::Unwritable {
         path: path.to_path_buf(),
@@ -448,7 +461,7 @@ pub fn write_exr(path: &Path, tex: &Texture, options: &ExrOptions) -> Result<(),
     );
     let image = Image::from_layer(layer);
     let single = options.single_threaded;
-    write_atomic(path, |w| {
+    files.write(path, |w| {
         let writer = image.write();
         let result = if single {
             writer.non_parallel().to_buffered(w)

@@ -11,11 +11,14 @@
 //!
 //! **Writing.** Every output goes through [`atomic::write_atomic`]: a temp
 //! file in the target directory, synced, then renamed, so a killed run never
-//! leaves a half-written file; [`atomic::InputGuard`] refuses to overwrite one
-//! of the run's inputs. Formats: atlas images ([`image`]: PNG 8/16-bit with a
-//! parallel deflate, EXR f16/f32), meshes with atlas UVs ([`obj_write`]:
-//! OBJ + MTL; [`gltf`]: binary glTF 2.0), and PLY with velocity
-//! ([`ply_write`], used by the scene generator).
+//! leaves a half-written file; [`atomic::Staging`] groups the files of a
+//! frame so that they appear together or not at all;
+//! [`atomic::InputGuard`] refuses to overwrite one of the run's inputs;
+//! [`lock::OutputLock`] keeps a second run out of a folder being written.
+//! Formats: atlas images ([`image`]: PNG 8/16-bit with a parallel deflate,
+//! EXR f16/f32), meshes with atlas UVs ([`obj_write`]: OBJ + MTL;
+//! [`gltf`]: binary glTF 2.0), and PLY with velocity ([`ply_write`], used
+//! by the scene generator).
 //!
 //! **Errors.** One [`IoError`] for the whole module. Its message is one line
 //! that names the file and, where it applies, the element (`face 88`,
@@ -26,6 +29,7 @@
 pub mod atomic;
 pub mod gltf;
 pub mod image;
+pub mod lock;
 pub mod obj;
 pub mod obj_write;
 pub mod ply;
@@ -39,7 +43,8 @@ use thiserror::Error;
 
 use crate::mesh::{self, MeshError, TriMesh, ValidationReport};
 
-pub use atomic::{InputGuard, remove_stale_temporaries, write_atomic};
+pub use atomic::{InputGuard, Staging, WriteHook, remove_stale_temporaries, write_atomic};
+pub use lock::OutputLock;
 pub use sequence::{Frame, FramePattern, FrameRange, Sequence};
 
 /// Everything that can go wrong reading or writing a file.
@@ -90,6 +95,9 @@ pub enum IoError {
     Range { text: String, reason: String },
     #[error("{}: refusing to overwrite an input of this run", .path.display())]
     OverwritesInput { path: PathBuf },
+    /// Another run holds the output folder's lock ([`lock`]).
+    #[error("{}: another fluidtex run is writing here ({holder}); wait for it to end or choose another --out", .dir.display())]
+    Locked { dir: PathBuf, holder: String },
     /// Data handed to a writer that the format cannot hold.
     #[error("{}: cannot write: {reason}", .path.display())]
     Unwritable { path: PathBuf, reason: String },

@@ -28,13 +28,15 @@ pub fn parse_obj(path: &Path, bytes: &[u8]) -> Result<TriMesh, IoError> {
         single_index: false,
         ..Default::default()
     };
-    let (models, _materials) = tobj::load_obj_buf(&mut &bytes[..], &options, |_| {
-        Err(tobj::LoadError::OpenFileFailed)
-    })
-    .map_err(|e| IoError::Malformed {
-        path: path.to_path_buf(),
-        reason: describe(&e),
-    })?;
+    let without_uv_and_normals = drop_vt_vn(bytes);
+    let (models, _materials) =
+        tobj::load_obj_buf(&mut &without_uv_and_normals[..], &options, |_| {
+            Err(tobj::LoadError::OpenFileFailed)
+        })
+        .map_err(|e| IoError::Malformed {
+            path: path.to_path_buf(),
+            reason: describe(&e),
+        })?;
     let mut positions = Vec::new();
     let mut triangles = Vec::new();
     for model in &models {
@@ -54,6 +56,24 @@ pub fn parse_obj(path: &Path, bytes: &[u8]) -> Result<TriMesh, IoError> {
     Ok(TriMesh::new(positions, triangles))
 }
 
+/// The file without its `vt` and `vn` records. We ignore both, and tobj
+/// 4.0.5 computes `vt * 2 + 1` and `vn * 3 + 2` for a face's texture and
+/// normal indices unchecked: a huge index (`f 1/9223372036854775807 ...`)
+/// overflows, a panic in debug builds and a wrong index in release (found
+/// by the fuzz tests, `obj_face_with_a_huge_uv_index`). Without the
+/// records, tobj never looks at those indices.
+fn drop_vt_vn(bytes: &[u8]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(bytes.len());
+    for line in bytes.split_inclusive(|&b| b == b'\n') {
+        let t = line.trim_ascii_start();
+        let is = |k: &[u8]| t.starts_with(k) && t.get(2).is_none_or(|b| b.is_ascii_whitespace());
+        if !(is(b"vt") || is(b"vn")) {
+            out.extend_from_slice(line);
+        }
+    }
+    out
+}
+
 fn describe(e: &tobj::LoadError) -> String {
     use tobj::LoadError as E;
     match e {
@@ -71,6 +91,20 @@ fn describe(e: &tobj::LoadError) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Regression (fuzz case obj 460, seed 0x5eedf1d7): tobj overflowed computing the offset
+    /// of a huge texture or normal index.
+    #[test]
+    fn obj_face_with_a_huge_uv_index() {
+        for face in [
+            "f 1/9223372036854775807 2/1 3/1",
+            "f 1//9223372036854775807 2//1 3//1",
+        ] {
+            let text = format!("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\n{face}\n");
+            let m = parse_obj(Path::new("t.obj"), text.as_bytes()).unwrap();
+            assert_eq!(m.triangles, vec![[0, 1, 2]]);
+        }
+    }
 
     #[test]
     fn quad_and_triangle_in_two_objects() {

@@ -12,7 +12,8 @@ use std::path::{Path, PathBuf};
 
 use glam::{Vec2, Vec3};
 
-use super::{IoError, write_atomic};
+use super::IoError;
+use super::atomic::Staging;
 
 /// The one material of an exported mesh.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -29,8 +30,26 @@ pub fn mtl_path(obj_path: &Path) -> PathBuf {
     obj_path.with_extension("mtl")
 }
 
-/// Writes an OBJ (and, with a material, its MTL beside it), atomically.
+/// Writes an OBJ (and, with a material, its MTL beside it), atomically:
+/// both files appear together or neither does.
 pub fn write_obj(
+    path: &Path,
+    positions: &[Vec3],
+    uvs: &[Vec2],
+    normals: Option<&[Vec3]>,
+    triangles: &[[u32; 3]],
+    material: Option<&ObjMaterial>,
+) -> Result<(), IoError> {
+    let mut files = Staging::new(None, None);
+    stage_obj(
+        &mut files, path, positions, uvs, normals, triangles, material,
+    )?;
+    files.commit()
+}
+
+/// [`write_obj`] into a group of files that the caller commits.
+pub fn stage_obj(
+    files: &mut Staging<'_>,
     path: &Path,
     positions: &[Vec3],
     uvs: &[Vec2],
@@ -58,14 +77,14 @@ pub fn write_obj(
                 return Err(bad(format!("{what} {s:?} is empty or has whitespace")));
             }
         }
-        write_atomic(&mtl, |w| {
+        files.write(&mtl, |w| {
             writeln!(w, "# written by fluidtex")?;
             writeln!(w, "newmtl {}", m.name)?;
             writeln!(w, "Ka 0 0 0\nKd 1 1 1\nKs 0 0 0\nd 1\nillum 1")?;
             writeln!(w, "map_Kd {}", m.map_kd)
         })?;
     }
-    write_atomic(path, |w| {
+    files.write(path, |w| {
         writeln!(w, "# written by fluidtex")?;
         if material.is_some() {
             writeln!(w, "mtllib {mtl_name}")?;

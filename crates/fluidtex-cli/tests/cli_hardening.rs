@@ -1,0 +1,250 @@
+//! What a render farm hits: two runs into one folder, a run killed while
+//! holding the folder, a disk that fills mid-frame, an atlas that cannot
+//! fit in memory. Every test stops the run at an exact point through the
+//! test hooks (`fluidtex_cli::test_hooks`), never by timing.
+
+#![allow(clippy::unwrap_used)]
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use common::*;
+
+/// A small erosion run (64² atlas unless `extra` says) as arguments.
+fn args(pattern: &Path, out: &Path, extra: &[&str]) -> Vec<std::ffi::OsString> {
+    let mut a: Vec<std::ffi::OsString> = [
+        "run".as_ref(),
+        "--mesh".as_ref(),
+        pattern.as_os_str(),
+        "--out".as_ref(),
+        out.as_os_str(),
+        "--quiet".as_ref(),
+    ]
+    .map(std::ffi::OsString::from)
+    .to_vec();
+    // `extra` may set its own atlas size (clap refuses a repeated flag).
+    if !extra.contains(&"--atlas") {
+        a.extend(["--atlas".into(), "64".into()]);
+    }
+    a.extend(extra.iter().map(std::ffi::OsString::from));
+    a
+}
+
+fn scene(dir: &Path, frames: &str) -> PathBuf {
+    let scene = dir.join("scene");
+    ok(&[
+        "scene".as_ref(),
+        "rigid-rotation".as_ref(),
+        "--resolution".as_ref(),
+        "12".as_ref(),
+        "--frames".as_ref(),
+        frames.as_ref(),
+        "--out".as_ref(),
+        scene.as_os_str(),
+        "--quiet".as_ref(),
+    ]);
+    scene.join("fluid.####.ply")
+}
+
+fn hostname() -> String {
+    fluidtex::io::lock::hostname()
+}
+
+/// Two runs into one folder (a re-queued farm task): the second refuses at
+/// once with one line naming the folder and the first run, writes nothing,
+/// and the first run then finishes with exactly the files of a run that was
+/// alone.
+#[test]
+fn a_second_run_into_the_same_folder_is_refused_and_the_first_is_untouched() {
+    let dir = tempfile::tempdir().unwrap();
+    let pattern = scene(dir.path(), "0-2");
+    let reference = dir.path().join("reference");
+    ok(&args(&pattern, &reference, &["--seed", "0"]));
+
+    let out = dir.path().join("out");
+    let first = spawn_paused(
+        &args(&pattern, &out, &["--seed", "0"]),
+        &[("FLUIDTEX_TEST_PAUSE_AFTER_FRAME", "0")],
+    );
+    let before = files(&out);
+    let line = user_error(&args(&pattern, &out, &["--seed", "5"]));
+    let expected = format!(
+        "error: {}: another fluidtex run is writing here (pid {} on host {}, started ",
+        out.display(),
+        first.child.id(),
+        hostname()
+    );
+    assert!(
+        line.starts_with(&expected),
+        "{line}\nexpected {expected}..."
+    );
+    assert!(
+        line.ends_with("s ago); wait for it to end or choose another --out"),
+        "{line}"
+    );
+    assert!(files(&out) == before, "the refused run changed the folder");
+    // Also with --resume (a re-queued task resuming into a live run).
+    user_error(
+        &[
+            args(&pattern, &out, &["--seed", "0"]),
+            vec!["--resume".into()],
+        ]
+        .concat(),
+    );
+
+    let (success, stderr) = first.resume();
+    assert!(success, "{stderr}");
+    assert_same_outputs(&reference, &out);
+    assert!(!out.join("fluidtex.lock").exists(), "the lock is released");
+}
+
+/// A lock file left by a killed run does not block the folder: the next run
+/// takes it over with a warning naming the dead run, and releases it.
+#[test]
+fn a_lock_left_by_a_killed_run_is_taken_over() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let pattern = interop("meshio_ascii.####.ply");
+    let run = args(&pattern, &out, &["--method", "atlas-check"]);
+    let paused = spawn_paused(&run, &[("FLUIDTEX_TEST_PAUSE_AFTER_FRAME", "1")]);
+    let pid = paused.child.id();
+    paused.kill();
+    let lock = std::fs::read_to_string(out.join("fluidtex.lock")).unwrap();
+    assert!(
+        lock.starts_with(&format!("pid {pid}\nhost {}\n", hostname())),
+        "{lock}"
+    );
+    let o = fluidtex().args(&run).output().unwrap();
+    check_ok(&o, &run);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    let warning = format!(
+        "warning: {}: took over the lock of a run that is no longer running (pid {pid} on host {}, started ",
+        out.join("fluidtex.lock").display(),
+        hostname()
+    );
+    assert!(stderr.starts_with(&warning), "{stderr}");
+    assert!(!out.join("fluidtex.lock").exists());
+}
+
+/// The files of frame `f` of these runs (erosion, debug outputs on).
+fn frame_files(f: i32) -> Vec<String> {
+    [
+        "color", "mesh", "mesh", "mesh", "patches", "source", "stats",
+    ]
+    .iter()
+    .zip(["png", "mtl", "obj", "glb", "png", "exr", "json"])
+    .map(|(n, e)| format!("{n}.{f:04}.{e}"))
+    .collect()
+}
+
+/// A disk that fills in the Nth write (`FLUIDTEX_TEST_FAIL_WRITE=N`: the
+/// write fails with ENOSPC after its temporary holds its bytes, the path a
+/// real full disk takes through `Staging::write`). The run stops with one
+/// line naming the file; every frame's files are all there or none are; no
+/// temporary is left; and after "space is freed" the same command with
+/// `--resume` writes exactly the files of an uninterrupted run.
+///
+/// Writes per frame, in order: color.png, mesh.mtl, mesh.obj, mesh.glb,
+/// patches.png, source.exr, stats.json, then state.bin.
+#[test]
+fn a_full_disk_mid_frame_leaves_no_counted_partial_frame_and_resume_matches() {
+    let dir = tempfile::tempdir().unwrap();
+    let pattern = scene(dir.path(), "0-2");
+    let reference = dir.path().join("reference");
+    ok(&args(&pattern, &reference, &[]));
+    let cases = [
+        (3, "mesh.0000.obj", None),
+        (8, "state.bin", Some(0)),
+        (12, "mesh.0001.glb", Some(0)),
+        (15, "stats.0001.json", Some(0)),
+        (16, "state.bin", Some(1)),
+    ];
+    for (n, file, complete_through) in cases {
+        let out = dir.path().join(format!("fail{n}"));
+        let run = args(&pattern, &out, &[]);
+        let o = fluidtex()
+            .args(&run)
+            .env("FLUIDTEX_TEST_FAIL_WRITE", n.to_string())
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "write {n}: {stderr}");
+        assert_eq!(
+            stderr.trim_end(),
+            format!(
+                "error: {}: No space left on device (os error 28)",
+                out.join(file).display()
+            ),
+            "write {n}"
+        );
+        assert_eq!(temporaries(&out), Vec::<String>::new(), "write {n}");
+        let names = files(&out);
+        for f in 0..=2 {
+            let present = frame_files(f)
+                .iter()
+                .filter(|x| names.contains_key(*x))
+                .count();
+            let all = complete_through.is_some_and(|c| f <= c);
+            assert_eq!(
+                present,
+                if all { 7 } else { 0 },
+                "write {n}: frame {f} has {present} of its 7 files"
+            );
+        }
+        // The state counts only frames whose write of state.bin succeeded:
+        // with n = 8 frame 0's files are there, but no state counts them.
+        assert_eq!(names.contains_key("state.bin"), n > 8, "write {n}");
+        assert!(!names.contains_key("fluidtex.lock"), "write {n}: lock kept");
+
+        let mut resume = run.clone();
+        resume.push("--resume".into());
+        ok(&resume);
+        assert_same_outputs(&reference, &out);
+    }
+}
+
+/// The memory needed is estimated before any frame is read: with 1 GB
+/// available, an 8192² atlas is refused with the flag that lowers it, and
+/// the frame (a damaged file, which would fail any read) is never read.
+/// Control: a 64² atlas with the same memory reads the frame and fails on
+/// its damage. The CLI and the library agree on the largest atlas.
+#[test]
+fn an_impossible_atlas_is_refused_before_any_frame_is_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("in");
+    std::fs::create_dir_all(&input).unwrap();
+    std::fs::write(input.join("fluid.0001.ply"), b"ply\nthis is no mesh\n").unwrap();
+    let pattern = input.join("fluid.####.ply");
+    let out = dir.path().join("out");
+    let refused = |extra: &[&str]| {
+        let run = args(&pattern, &out, extra);
+        let o = fluidtex()
+            .args(&run)
+            .env("FLUIDTEX_TEST_MEMORY_AVAILABLE", "1000000000")
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(1));
+        String::from_utf8_lossy(&o.stderr).trim_end().to_string()
+    };
+    let line = refused(&["--atlas", "8192"]);
+    assert!(
+        line.starts_with("error: a 8192x8192 atlas needs about ")
+            && line.ends_with(
+                " of memory and 953 MiB is available: lower --atlas (at most 2816 fits)"
+            ),
+        "{line}"
+    );
+    assert!(!out.exists(), "refused before creating the output folder");
+    let line = refused(&["--atlas", "64"]);
+    assert!(
+        line.starts_with(&format!(
+            "error: {}: bad header",
+            input.join("fluid.0001.ply").display()
+        )),
+        "{line}"
+    );
+    // Above the library's limit: refused by the flag check itself.
+    let line = user_error(&args(&pattern, &out, &["--atlas", "16385"]));
+    assert_eq!(line, "error: --atlas 16385: allowed 16 to 16384 texels");
+}
