@@ -189,6 +189,8 @@ pub fn metric_key(m: Metric) -> &'static str {
         Metric::FlowEpe => "flow_epe",
         Metric::FlowAligned => "flow_aligned",
         Metric::Popping => "popping",
+        Metric::SourceSwitch => "source_switch",
+        Metric::ColourFollow => "colour_follow",
         Metric::StaticStop => "static_stop",
         Metric::SizeCost => "size_cost",
     }
@@ -197,8 +199,8 @@ pub fn metric_key(m: Metric) -> &'static str {
 /// The metrics measured per frame (plotted over time).
 /// Every metric but the two that are not per frame (static stop, exemplar
 /// size cost), which [`Metric::ALL`] lists last.
-pub const PER_FRAME: &[Metric] = Metric::ALL.split_at(8).0;
-const _: () = assert!(PER_FRAME.len() == 8 && matches!(PER_FRAME[7], Metric::Popping));
+pub const PER_FRAME: &[Metric] = Metric::ALL.split_at(10).0;
+const _: () = assert!(PER_FRAME.len() == 10 && matches!(PER_FRAME[9], Metric::ColourFollow));
 
 /// One frame's numbers. Metrics with nothing to measure are NaN (flow and
 /// popping on the first frame: they need the frame before).
@@ -210,7 +212,7 @@ pub struct FrameRecord {
     /// The method's `patches_alive` statistic, where it has one.
     pub patches: Option<f64>,
     /// Per metric of [`PER_FRAME`], in that order.
-    pub values: [f64; 8],
+    pub values: [f64; 10],
     /// Whether the fluid is still at this frame.
     pub still: bool,
 }
@@ -347,7 +349,7 @@ pub fn evaluate(
         };
         let uv: Option<&[Vec2]> = result.uv.as_deref().filter(|u| u.len() == n_texels);
 
-        let mut values = [f64::NAN; 8];
+        let mut values = [f64::NAN; 10];
         let mut set = |m: Metric, v: f64| {
             if let Some(k) = PER_FRAME.iter().position(|&p| p == m) {
                 values[k] = v;

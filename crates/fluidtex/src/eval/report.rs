@@ -165,9 +165,12 @@ pub struct Report {
     pub not_measured: Vec<String>,
 }
 
-/// The pass threshold of a per-frame metric, for plots.
+/// The pass threshold of a per-frame metric, for plots. The source switch
+/// share has none of its own (it is judged against the floor method).
 pub fn threshold_of(t: &Thresholds, m: Metric) -> Option<f64> {
     Some(match m {
+        Metric::SourceSwitch => return None,
+        Metric::ColourFollow => t.colour_follow.max_ratio,
         Metric::Coverage => t.coverage.max_uncovered_share,
         Metric::Ghosting => t.ghosting.max_share,
         Metric::Contrast => t.contrast.min_ratio,
@@ -223,7 +226,7 @@ fn spread_text(s: &Spread) -> String {
 }
 
 /// Columns of the tables: every metric but exemplar-size cost.
-const COLUMNS: &[Metric] = Metric::ALL.split_at(9).0;
+const COLUMNS: &[Metric] = Metric::ALL.split_at(11).0;
 
 impl Report {
     /// The Markdown report.
