@@ -17,9 +17,10 @@
 //! ```
 //!
 //! Modules, one per concept: [`mesh`], [`surface`], [`param`], [`atlas`],
-//! [`exemplar`], [`methods`], [`metrics`], [`eval`] (the evaluation harness), [`render`], [`scenes`], [`io`], and [`texture`] (the float image type and texel convention).
+//! [`exemplar`], [`methods`], [`metrics`], [`coherence`] (does the texture ride the flow: measured on outputs), [`eval`] (the evaluation harness), [`render`], [`scenes`], [`io`], and [`texture`] (the float image type and texel convention).
 
 pub mod atlas;
+pub mod coherence;
 pub mod eval;
 pub mod exemplar;
 pub mod io;
