@@ -23,6 +23,12 @@
 //!   see [`pixels`]): flow fidelity against the true motion (provenance-based
 //!   where the method gives uv, image-based otherwise) and popping
 //!   (backward warp with the true motion, disoccluded pixels left out);
+//! - on surface points (two frames): source switch share and colour follow
+//!   ratio ([`crate::coherence`]), 20k points sampled on each frame and
+//!   carried to the next by the scene's exact flow ([`prepare`]), looked up
+//!   in both frames' atlases. The switch share has no absolute threshold:
+//!   [`judge_against_floor`] compares each method with the floor method
+//!   (`advect`) on the same frames once every method has run;
 //! - static stop: once every vertex velocity is exactly zero, the colour
 //!   atlas of every later frame must be bit-identical to the first still
 //!   frame's;
@@ -304,6 +310,9 @@ pub fn evaluate(
     let mut records = Vec::with_capacity(scene.frames.len());
     let mut renders = Vec::new();
     let mut previous_view: Option<FrameView> = None;
+    // Sources and grey values of the frame before, for the coherence
+    // metrics.
+    let mut previous_texels: Option<(Vec<u32>, Vec<f32>)> = None;
     let mut image_flow_noted = false;
 
     for (k, frame) in scene.frames.iter().enumerate() {
@@ -538,6 +547,35 @@ pub fn evaluate(
                 set(Metric::Popping, pop.share());
             }
         }
+        // Coherence: the previous frame's points carried here. Without
+        // per-texel sources nothing is covered (no switch share) but the
+        // colour still says whether the texture follows.
+        let texels = (
+            source.map_or_else(|| vec![metrics::SOURCE_OUTSIDE; n_texels], <[u32]>::to_vec),
+            metrics::luminance(colour),
+        );
+        if let (Some(p), Some((ps, pg))) = (prev, &previous_texels)
+            && let Some(carried) = &p.carried
+        {
+            let c = crate::coherence::measure(
+                carried,
+                &crate::coherence::TexelFrame {
+                    atlas: &p.atlas,
+                    source: ps,
+                    grey: pg,
+                },
+                &crate::coherence::TexelFrame {
+                    atlas: &frame.atlas,
+                    source: &texels.0,
+                    grey: &texels.1,
+                },
+                &crate::coherence::CoherenceSettings::from_thresholds(thresholds),
+            )
+            .map_err(metric_err(number, "coherence"))?;
+            set(Metric::SourceSwitch, c.switch_share());
+            set(Metric::ColourFollow, c.follow_ratio());
+        }
+        previous_texels = Some(texels);
         if frame.still {
             stop.push(colour);
             if let Some(p) = &previous_still
@@ -590,6 +628,52 @@ pub fn evaluate(
         renders,
         fidelity_scale,
     })
+}
+
+/// Judges every run's source switch share against the floor method's
+/// (`thresholds.source_switch.floor_method`, advect) on the same scene,
+/// frame by frame ([`Thresholds::summarize_against_floor`]): call it with
+/// all the runs of one scene once they are done. Without a floor run the
+/// verdicts stay n/a and each run gets a note saying so.
+pub fn judge_against_floor(runs: &mut [MethodRun], thresholds: &Thresholds) {
+    let floor_name = thresholds.source_switch.floor_method.clone();
+    let floor: Option<Vec<(i32, f64)>> = runs.iter().find(|r| r.method == floor_name).map(|r| {
+        r.frames
+            .iter()
+            .map(|f| (f.frame, f.value(Metric::SourceSwitch)))
+            .collect()
+    });
+    for run in runs.iter_mut() {
+        let values: Vec<f64> = run
+            .frames
+            .iter()
+            .map(|f| f.value(Metric::SourceSwitch))
+            .collect();
+        let Some(floor) = &floor else {
+            run.notes.push(format!(
+                "source switch share: not judged, it is judged against {floor_name} on the                  same frames and {floor_name} was not run"
+            ));
+            continue;
+        };
+        let floor_values: Vec<f64> = run
+            .frames
+            .iter()
+            .map(|f| {
+                floor
+                    .iter()
+                    .find(|(n, _)| *n == f.frame)
+                    .map_or(f64::NAN, |&(_, v)| v)
+            })
+            .collect();
+        let summary = thresholds.summarize_against_floor(&values, &floor_values);
+        if let Some(s) = run
+            .summaries
+            .iter_mut()
+            .find(|s| s.metric == Metric::SourceSwitch)
+        {
+            *s = summary;
+        }
+    }
 }
 
 /// The G-buffer of `frame` seen by `camera` at `k` samples per pixel side

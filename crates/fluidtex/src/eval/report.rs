@@ -237,7 +237,8 @@ impl Report {
             s,
             "`{}`  \natlas {}², seed {}, exemplar {}, {:.0} s in all. Thresholds: \
              `metrics/thresholds.toml` (committed). Cells: median [min, max] over frames, \
-             PASS/FAIL of the committed rule.\n",
+             PASS/FAIL of the committed rule (source switch share: every frame at most 0.02 \
+             above advect's on the same frame; n/a without an advect run).\n",
             self.command, self.atlas_size, self.seed, self.exemplar, self.seconds
         );
         for n in &self.not_measured {
@@ -326,7 +327,8 @@ impl Report {
             "<h1>fluidtex compare</h1><p><code>{}</code><br>atlas {}², seed {}, exemplar {}, \
              {:.0} s in all. Thresholds: <code>metrics/thresholds.toml</code> (committed). \
              Cells: median [min, max] over frames, PASS/FAIL of the committed rule \
-             (contrast: min; flow: median; popping: mean and worst; others: worst).</p>",
+             (contrast: min; flow: median; popping: mean and worst; source switch share: \
+             every frame at most 0.02 above advect's on the same frame; others: worst).</p>",
             esc(&self.command),
             self.atlas_size,
             self.seed,
