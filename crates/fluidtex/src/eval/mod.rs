@@ -13,8 +13,10 @@
 //!
 //! - on the atlas (per-texel provenance): coverage, ghost fraction (from
 //!   the method's layer counts; 0 by construction for methods that never
-//!   blend), contrast ρ over chart texels, distortion (exemplar uv against
-//!   the texel's surface point) and exemplar fidelity (SWD, reference built
+//!   blend), contrast ρ over chart texels, distortion (Sorkine's δ of the
+//!   exemplar uv against the texel's surface point, relative to s₀ =
+//!   exemplar width / S, S the world size the method reports as
+//!   `exemplar_size`; anisotropy σ₁/σ₂ beside it) and exemplar fidelity (SWD, reference built
 //!   once per sequence from the exemplar rescaled to the output's texel
 //!   scale, metrics/mod.rs);
 //! - on unlit renders from the fixed camera (colour looked up through the
@@ -221,6 +223,9 @@ pub struct FrameRecord {
     pub values: [f64; 10],
     /// Whether the fluid is still at this frame.
     pub still: bool,
+    /// For information beside distortion: area-weighted p95 of σ₁/σ₂ (NaN
+    /// without exemplar uv).
+    pub anisotropy: f64,
 }
 
 impl FrameRecord {
@@ -314,6 +319,9 @@ pub fn evaluate(
     // metrics.
     let mut previous_texels: Option<(Vec<u32>, Vec<f32>)> = None;
     let mut image_flow_noted = false;
+    // s₀ of the distortion metric (exemplar texels per world unit at the
+    // patches' creation), fixed at the first frame that gives it.
+    let mut rest_scale = f64::NAN;
 
     for (k, frame) in scene.frames.iter().enumerate() {
         let number = frame.number;
@@ -382,6 +390,17 @@ pub fn evaluate(
             );
         }
         let mut texel_scale = f64::NAN;
+        let mut anisotropy = f64::NAN;
+        if rest_scale.is_nan()
+            && let Some(size) = result
+                .stats
+                .get("exemplar_size")
+                .and_then(|v| v.as_f64())
+                .filter(|s| s.is_finite() && *s > 0.0)
+        {
+            // The exemplar's [0, 1]² covers S world units at creation.
+            rest_scale = f64::from(exemplar.width) / size;
+        }
         if let (Some(s), Some(u)) = (source, uv) {
             let samples = SurfaceSamples {
                 width: frame.atlas.width,
@@ -391,13 +410,30 @@ pub fn evaluate(
                 points: &frame.points,
                 chart: Some(&frame.chart),
             };
-            let d = metrics::distortion(
-                &samples,
-                (exemplar.width, exemplar.height),
-                thresholds.distortion.quantile,
-            )
-            .map_err(metric_err(number, "distortion"))?;
-            set(Metric::Distortion, d.anisotropy);
+            let measure = |s0: f64| {
+                metrics::distortion(
+                    &samples,
+                    (exemplar.width, exemplar.height),
+                    s0,
+                    thresholds.distortion.quantile,
+                )
+                .map_err(metric_err(number, "distortion"))
+            };
+            let d = if rest_scale.is_nan() {
+                // No S from the method: take the scale the texture shows on
+                // its first measured frame as the rest scale.
+                let first = measure(1.0)?;
+                rest_scale = first.exemplar_texels_per_unit;
+                notes.push(format!(
+                    "distortion: the method reports no exemplar size S; s0 = {rest_scale:.4} \
+                     exemplar texels per world unit, the median scale of frame {number}"
+                ));
+                measure(rest_scale)?
+            } else {
+                measure(rest_scale)?
+            };
+            set(Metric::Distortion, d.delta);
+            anisotropy = d.anisotropy;
             texel_scale = d.exemplar_texels_per_texel;
         }
         if fidelity_scale.is_nan() {
@@ -598,6 +634,7 @@ pub fn evaluate(
             patches,
             values,
             still: frame.still,
+            anisotropy,
         });
         previous_view = Some(view);
     }

@@ -142,13 +142,20 @@ fn cylinder(map: impl Fn(Vec2) -> Vec2) -> (u32, u32, Vec<u32>, Vec<Vec2>, Vec<V
             let z = y as f32 * dz;
             source.push(1 + x / 32);
             points.push(Vec3::new(r * theta.cos(), r * theta.sin(), z));
-            uv.push(map(Vec2::new(r * theta, z)) / 256.0);
+            // Unrolled by the chord, not the arc, between neighbouring
+            // texels: finite differences then see exactly the map's scale
+            // (the arc is longer by 1.7e-5, which would put a 3x stretch
+            // judged against s0 above the inclusive threshold).
+            let chord = 2.0 * r * (0.5 * dtheta).sin();
+            uv.push(map(Vec2::new(x as f32 * chord, z)) / 256.0);
         }
     }
     (w, h, source, uv, points)
 }
 
-fn p95(data: &(u32, u32, Vec<u32>, Vec<Vec2>, Vec<Vec3>)) -> f64 {
+/// The distortion of a [`cylinder`] atlas whose patches were created at
+/// s₀ = 100 exemplar texels per world unit.
+fn p95(data: &(u32, u32, Vec<u32>, Vec<Vec2>, Vec<Vec3>)) -> Distortion {
     let s = SurfaceSamples {
         width: data.0,
         height: data.1,
@@ -157,15 +164,13 @@ fn p95(data: &(u32, u32, Vec<u32>, Vec<Vec2>, Vec<Vec3>)) -> f64 {
         points: &data.4,
         chart: None,
     };
-    distortion(&s, (256, 256), thresholds().distortion.quantile)
-        .expect("valid")
-        .anisotropy
+    distortion(&s, (256, 256), 100.0, thresholds().distortion.quantile).expect("valid")
 }
 
 #[test]
 fn distortion_isometry_passes_and_stretch_fails() {
     let t = thresholds();
-    // 100 exemplar texels per world unit, rotated by 30°.
+    // s0 = 100 exemplar texels per world unit, rotated by 30°.
     let rot = glam::Mat2::from_angle(std::f32::consts::FRAC_PI_6);
     let iso = p95(&cylinder(|s| rot * s * 100.0));
     // Exactly delta_max = 3 along the cylinder's axis: on the inclusive
@@ -173,14 +178,76 @@ fn distortion_isometry_passes_and_stretch_fails() {
     let three = p95(&cylinder(|s| rot * Vec2::new(s.x, 3.0 * s.y) * 100.0));
     // 10% beyond delta_max.
     let beyond = p95(&cylinder(|s| rot * Vec2::new(3.3 * s.x, s.y) * 100.0));
+    // An area-preserving shear [[1, k], [0, 1]] with k = 2.5 - 1/2.5:
+    // singular values 2.5 and 1/2.5 of s0, so delta = 2.5 passes while the
+    // anisotropy is delta² = 6.25.
+    let k = 2.5 - 1.0 / 2.5;
+    let shear = p95(&cylinder(|s| rot * Vec2::new(s.x + k * s.y, s.y) * 100.0));
+    // Uniformly magnified 4x: no anisotropy at all, but delta = 4 fails.
+    let magnified = p95(&cylinder(|s| rot * s * 400.0));
     eprintln!(
-        "distortion p95: isometric {iso:.4}, 3x stretch {three:.4}, 3.3x stretch {beyond:.4}"
+        "distortion p95 delta (anisotropy): isometric {:.4} ({:.4}), 3x stretch {:.4} ({:.4}), \
+         3.3x stretch {:.4}, area-preserving shear {:.4} ({:.4}), 4x magnified {:.4} ({:.4})",
+        iso.delta,
+        iso.anisotropy,
+        three.delta,
+        three.anisotropy,
+        beyond.delta,
+        shear.delta,
+        shear.anisotropy,
+        magnified.delta,
+        magnified.anisotropy
     );
-    // The chord of a 0.02 rad arc is shorter than the arc by 1.7e-5.
-    assert!((iso - 1.0).abs() < 1e-3, "{iso}");
-    assert!((three - 3.0).abs() < 1e-3, "{three}");
-    assert_eq!(t.verdict(Metric::Distortion, iso), Verdict::Pass);
-    assert_eq!(t.verdict(Metric::Distortion, beyond), Verdict::Fail);
+    assert!((iso.delta - 1.0).abs() < 1e-3, "{}", iso.delta);
+    assert!((three.delta - 3.0).abs() < 1e-3, "{}", three.delta);
+    assert!((beyond.delta - 3.3).abs() < 1e-3, "{}", beyond.delta);
+    assert!((shear.delta - 2.5).abs() < 1e-3, "{}", shear.delta);
+    assert!(
+        (shear.anisotropy - 6.25).abs() < 1e-2,
+        "{}",
+        shear.anisotropy
+    );
+    assert!((magnified.delta - 4.0).abs() < 1e-3, "{}", magnified.delta);
+    assert!((magnified.anisotropy - 1.0).abs() < 1e-3);
+    assert_eq!(t.verdict(Metric::Distortion, iso.delta), Verdict::Pass);
+    // Exactly on the inclusive threshold: on a cylinder and rotated, the
+    // last bits of 3 are rounding. Axis-aligned on a plane with scales that
+    // are powers of two every step is exact, and 3 must pass.
+    let (w, h) = (16u32, 16u32);
+    let mut points = Vec::new();
+    let mut uv = Vec::new();
+    for y in 0..h {
+        for x in 0..w {
+            let p = Vec2::new(x as f32, y as f32) / 64.0;
+            points.push(Vec3::new(p.x, p.y, 0.0));
+            // s0 = 128 exemplar texels per unit of a 256² exemplar.
+            uv.push(Vec2::new(3.0 * p.x, p.y) * 128.0 / 256.0);
+        }
+    }
+    let exact = distortion(
+        &SurfaceSamples {
+            width: w,
+            height: h,
+            source: &vec![1; (w * h) as usize],
+            uv: &uv,
+            points: &points,
+            chart: None,
+        },
+        (256, 256),
+        128.0,
+        t.distortion.quantile,
+    )
+    .expect("valid");
+    assert_eq!(exact.delta, 3.0);
+    assert_eq!(t.verdict(Metric::Distortion, exact.delta), Verdict::Pass);
+    assert_eq!(t.verdict(Metric::Distortion, beyond.delta), Verdict::Fail);
+    assert_eq!(t.verdict(Metric::Distortion, shear.delta), Verdict::Pass);
+    assert_eq!(
+        t.verdict(Metric::Distortion, magnified.delta),
+        Verdict::Fail
+    );
+    // Judged by anisotropy, the shear would fail and the magnification pass.
+    assert!(shear.anisotropy > t.distortion.max_delta);
 }
 
 // ---------------------------------------------------- exemplar fidelity

@@ -13,7 +13,7 @@
 //! | coverage | [`coverage()`] | share of chart texels with no source | worst | `= 0` |
 //! | ghost fraction | [`ghosting()`] | share of chart texels with ≥ 2 layers of weight ≥ 0.05 | worst | `= 0` |
 //! | contrast ratio ρ | [`contrast_ratio`] | σ(output)/σ_ex of luminance | min | `≥ 0.90` |
-//! | distortion | [`distortion()`] | area-weighted p95 of σ₁/σ₂ | worst | `≤ 3` |
+//! | distortion | [`distortion()`] | area-weighted p95 of δ = max(σ₁/s₀, s₀/σ₂), s₀ the texel scale at the patch's creation (σ₁/σ₂ beside it, for information) | worst | `≤ 3` |
 //! | exemplar fidelity | [`FidelityReference::measure`] | mean over levels of SWD(output, exemplar)/SWD(half, half) | worst | `≤ 2.5` |
 //! | flow fidelity | [`provenance_motion`] (or [`image_motion`]), then [`compare_motion`] | median EPE (px), share with cos > 0.9 | median | `≤ 0.25 px`, `≥ 90%` |
 //! | popping | [`popping()`] | share with \|I₁ − warp(I₀)\| > 0.5 σ_ex | mean and worst | `≤ 2%`, `≤ 5%` |
@@ -50,7 +50,10 @@
 //!
 //! **What the harness must supply** (details in each function's doc).
 //! - Atlases: `source`, `uv`, per-texel surface `points` (NaN outside
-//!   charts); chart ids where charts may touch without a gutter.
+//!   charts); chart ids where charts may touch without a gutter. For
+//!   distortion, s₀: exemplar texels per world unit at the patches'
+//!   creation (exemplar width / S for a method whose exemplar covers S
+//!   world units).
 //! - Renders (flow and popping are measured on renders only: the atlas is
 //!   unwrapped anew every frame, so texel (x, y) of two frames are
 //!   unrelated): a foreground mask and depth for [`interior_mask`]; per

@@ -41,14 +41,14 @@ pub struct ContrastThresholds {
     pub min_ratio: f64,
 }
 
-/// Distortion: area-weighted quantile of σ₁/σ₂.
+/// Distortion: area-weighted quantile of Sorkine's δ = max(σ₁/s₀, s₀/σ₂).
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct DistortionThresholds {
     /// The quantile, in (0, 1]. EVALUATION: 0.95.
     pub quantile: f32,
-    /// δ_max, the largest passing anisotropy (inclusive), ≥ 1. 3.
-    pub max_anisotropy: f64,
+    /// δ_max, the largest passing δ (inclusive), ≥ 1. 3.
+    pub max_delta: f64,
 }
 
 /// Exemplar fidelity: relative sliced Wasserstein distance.
@@ -210,7 +210,7 @@ impl Metric {
             Metric::Coverage => "uncovered share",
             Metric::Ghosting => "ghost fraction",
             Metric::Contrast => "contrast ratio",
-            Metric::Distortion => "distortion p95",
+            Metric::Distortion => "distortion p95 (δ)",
             Metric::Fidelity => "SWD ratio",
             Metric::FlowEpe => "flow median EPE (px)",
             Metric::FlowAligned => "flow aligned share",
@@ -346,9 +346,9 @@ impl Thresholds {
         let q = d.quantile as f64;
         check("distortion.quantile", q, q > 0.0 && q <= 1.0, "(0, 1]")?;
         check(
-            "distortion.max_anisotropy",
-            d.max_anisotropy,
-            d.max_anisotropy >= 1.0,
+            "distortion.max_delta",
+            d.max_delta,
+            d.max_delta >= 1.0,
             "[1, inf)",
         )?;
         let f = &self.fidelity;
@@ -512,7 +512,7 @@ impl Thresholds {
             Metric::Coverage => value <= self.coverage.max_uncovered_share,
             Metric::Ghosting => value <= self.ghosting.max_share,
             Metric::Contrast => value >= self.contrast.min_ratio,
-            Metric::Distortion => value <= self.distortion.max_anisotropy,
+            Metric::Distortion => value <= self.distortion.max_delta,
             Metric::Fidelity => value <= self.fidelity.max_ratio,
             Metric::FlowEpe => value <= self.flow.max_median_epe_px,
             Metric::FlowAligned => value >= self.flow.min_aligned_share,
@@ -639,7 +639,7 @@ mod tests {
         assert_eq!(t.ghosting.max_share, 0.0);
         assert_eq!(t.contrast.min_ratio, 0.90);
         assert_eq!(t.distortion.quantile, 0.95);
-        assert_eq!(t.distortion.max_anisotropy, 3.0);
+        assert_eq!(t.distortion.max_delta, 3.0);
         assert_eq!(t.fidelity.max_ratio, 2.5);
         assert_eq!(t.fidelity.levels, 4);
         assert_eq!(t.fidelity.patch_size, 7);
