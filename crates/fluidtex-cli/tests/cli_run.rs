@@ -448,6 +448,37 @@ fn scene_then_run_with_erosion_covers_every_texel() {
         );
         let color = image(&out.join(format!("color.{tag}.png")));
         assert_eq!((color.width, color.height), (128, 128));
+        // Coherence with the frame before (none for the first frame): the
+        // share is a share, and switch.F.png marks the same texels: the
+        // ids of this frame's covered texels are red or grey (or dark blue
+        // where the point carried back found no patch), the rest black.
+        let switch = out.join(format!("switch.{tag}.png"));
+        if f == 0 {
+            assert!(stats.get("source_switch_share").is_none());
+            assert!(!switch.exists());
+            continue;
+        }
+        let share = stats["source_switch_share"].as_f64().unwrap();
+        assert!((0.0..=1.0).contains(&share), "frame {f}: {share}");
+        assert!(stats.get("colour_follow_ratio").is_some(), "frame {f}");
+        let map = image(&switch);
+        assert_eq!((map.width, map.height), (128, 128));
+        for (px, &id) in map.data.chunks_exact(3).zip(&ids.data) {
+            let known = [
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.5, 0.5, 0.5],
+                [0.1, 0.1, 0.35],
+            ];
+            let colour = known
+                .iter()
+                .position(|k| k.iter().zip(px).all(|(a, b)| (a - b).abs() < 0.01));
+            match colour {
+                Some(0) => assert_eq!(id, -1.0, "frame {f}: black on a chart texel"),
+                Some(_) => assert!(id >= 1.0, "frame {f}: colour outside the charts"),
+                None => panic!("frame {f}: unexpected colour {px:?}"),
+            }
+        }
     }
 }
 

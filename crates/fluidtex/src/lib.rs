@@ -17,10 +17,11 @@
 //! ```
 //!
 //! Modules, one per concept: [`mesh`], [`surface`], [`param`], [`atlas`],
-//! [`exemplar`], [`methods`], [`metrics`], [`eval`] (the evaluation harness), [`render`], [`scenes`], [`io`], and [`texture`] (the float image type and texel convention);
+//! [`exemplar`], [`methods`], [`metrics`], [`coherence`] (does the texture ride the flow: measured on outputs), [`eval`] (the evaluation harness), [`render`], [`scenes`], [`io`], and [`texture`] (the float image type and texel convention);
 //! [`fuzz`] is the seeded mutation fuzzer the reader tests use.
 
 pub mod atlas;
+pub mod coherence;
 pub mod eval;
 pub mod exemplar;
 pub mod fuzz;

@@ -99,7 +99,8 @@ pub struct OutputOptions {
     pub obj: bool,
     /// `mesh.F.glb` [true].
     pub glb: bool,
-    /// `patches.F.png` and `source.F.exr` [true].
+    /// `patches.F.png`, `source.F.exr`, `switch.F.png` and the coherence
+    /// numbers of `stats.F.json` [true].
     pub debug: bool,
     /// Write `preview.F.png` every this many frames (0: never) [0].
     pub preview_every: u32,
@@ -212,6 +213,17 @@ pub struct FrameStats {
     pub charts: usize,
     pub atlas_width: u32,
     pub atlas_height: u32,
+    /// Share of surface points carried by the velocity from the previous
+    /// frame, with a patch at both ends, whose patch changed
+    /// ([`crate::coherence`]); with debug outputs, when the method gives
+    /// per-texel sources and both frames have velocity. `null`: nothing
+    /// was covered.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub source_switch_share: Option<f64>,
+    /// Colour follow ratio over the same points (see
+    /// [`crate::metrics::colour_follow`]); `null` when too few points moved.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub colour_follow_ratio: Option<f64>,
     #[serde(flatten)]
     pub method_stats: BTreeMap<String, serde_json::Value>,
     /// Seconds per stage: read, bvh, atlas, the method's stages, dilate, write.
@@ -322,6 +334,8 @@ pub fn run(
     // Previews are taken every n frames counted from the sequence's first
     // frame, so a resumed run writes the same previews.
     let first_frame = source.frames().first().copied().unwrap_or(0);
+    // What the coherence measurement keeps of the frame before.
+    let mut coherence_prev: Option<CoherencePrevious> = None;
     let mut done = 0;
     for (k, &number) in frames.iter().enumerate() {
         observer(Event::Start {
@@ -412,7 +426,34 @@ pub fn run(
             method,
             &result,
         )?;
+        // The coherence measurement reads this frame's colour atlas back as
+        // written, so the frame's files are committed first; `switch.F.png`
+        // and the stats follow in a second group, and only then does the
+        // state count the frame (a failure in between: the frame is redone).
+        files.commit()?;
         lap("write", &mut seconds);
+        let mut files = Staging::new(Some(&guard), job.hooks.write.as_ref());
+        if job.outputs.debug
+            && let Some(ids) = &result.source
+        {
+            if coherence_prev.is_none()
+                && let (Some(last), Some((prev_mesh, _))) = (resumed_after, &previous)
+            {
+                coherence_prev = reload_coherence(job, method, last, prev_mesh, observer);
+            }
+            let current = CoherencePrevious::of(job, method, number, atlas, ids)?;
+            if let (Some(prev), Some((prev_mesh, prev_index))) = (&coherence_prev, &previous) {
+                let found = measure_coherence(
+                    job, &mut files, number, prev, prev_mesh, prev_index, &current, &mesh, &index,
+                )?;
+                if let Some(c) = found {
+                    stats.source_switch_share = Some(c.switch_share());
+                    stats.colour_follow_ratio = Some(c.follow_ratio());
+                }
+            }
+            coherence_prev = Some(current);
+            lap("coherence", &mut seconds);
+        }
         stats.stage_order = seconds.iter().map(|(n, _)| n.clone()).collect();
         stats.seconds = seconds.into_iter().collect();
         let json = serde_json::to_vec_pretty(&stats).map_err(|e| PipelineError::Output {
@@ -524,6 +565,178 @@ fn save_state(
     let mut files = Staging::new(Some(guard), job.hooks.write.as_ref());
     write_file(&mut files, &job.out_dir.join(STATE_FILE), &bytes)?;
     Ok(files.commit()?)
+}
+
+/// What the coherence measurement of the next frame needs of this one: its
+/// atlas, sources and grey values *as written to the files*
+/// (`source.F.exr` stores ids as f32; the grey values are read back from
+/// the colour atlas file), so that a resumed run, which reloads them from
+/// those files, measures exactly what an uninterrupted one does.
+struct CoherencePrevious {
+    number: i32,
+    atlas: Atlas,
+    source: Vec<u32>,
+    grey: Vec<f32>,
+}
+
+impl CoherencePrevious {
+    /// This frame's data, after its files were written.
+    fn of(
+        job: &Job,
+        method: &dyn Method,
+        number: i32,
+        atlas: Atlas,
+        source: &[u32],
+    ) -> Result<CoherencePrevious, PipelineError> {
+        let grey = read_grey(job, method, number)?;
+        let source = source
+            .iter()
+            .map(|&s| {
+                if s == SOURCE_OUTSIDE {
+                    s
+                } else {
+                    s as f32 as u32
+                }
+            })
+            .collect();
+        Ok(CoherencePrevious {
+            number,
+            atlas,
+            source,
+            grey,
+        })
+    }
+}
+
+/// The luminance of frame `number`'s colour atlas as written.
+fn read_grey(job: &Job, method: &dyn Method, number: i32) -> Result<Vec<f32>, PipelineError> {
+    let Some(spec) = method.channel_specs().into_iter().next() else {
+        return Ok(Vec::new());
+    };
+    let path = job.out_dir.join(format!(
+        "{}.{}.{}",
+        spec.name,
+        frame_tag(number),
+        spec.format.extension()
+    ));
+    let decoded =
+        crate::exemplar::decode::read_image(&path).map_err(|e| PipelineError::Output {
+            path: path.clone(),
+            message: format!("cannot read it back for the coherence measurement: {e}"),
+        })?;
+    Ok(crate::metrics::luminance(&decoded.texture))
+}
+
+/// After `--resume`: the coherence data of the last finished frame, from its
+/// files (`source.F.exr`, the colour atlas) and its atlas rebuilt from its
+/// mesh. `None`, with a warning, when they cannot be read (then the first
+/// resumed frame has no coherence numbers).
+fn reload_coherence(
+    job: &Job,
+    method: &dyn Method,
+    last: i32,
+    mesh: &TriMesh,
+    observer: &mut dyn FnMut(Event<'_>),
+) -> Option<CoherencePrevious> {
+    let load = || -> Result<CoherencePrevious, String> {
+        let path = job.out_dir.join(format!("source.{}.exr", frame_tag(last)));
+        let ids = crate::exemplar::decode::read_image(&path).map_err(|e| e.to_string())?;
+        let source: Vec<u32> = ids
+            .texture
+            .data
+            .iter()
+            .step_by(ids.texture.channels.max(1))
+            .map(|&v| if v < 0.0 { SOURCE_OUTSIDE } else { v as u32 })
+            .collect();
+        let atlas = Atlas::build(mesh, &job.atlas).map_err(|e| e.to_string())?;
+        let grey = read_grey(job, method, last).map_err(|e| e.to_string())?;
+        Ok(CoherencePrevious {
+            number: last,
+            atlas,
+            source,
+            grey,
+        })
+    };
+    match load() {
+        Ok(c) => Some(c),
+        Err(e) => {
+            observer(Event::Warning(format!(
+                "frame {}: no source switch share (frame {last} cannot be reloaded: {e})",
+                last + 1
+            )));
+            None
+        }
+    }
+}
+
+/// Source switch share and colour follow ratio from `prev` to `current`
+/// (carried by the meshes' velocity), and `switch.F.png`. `None` when a
+/// frame has no velocity or the data does not fit its atlas.
+#[allow(clippy::too_many_arguments)]
+fn measure_coherence(
+    job: &Job,
+    files: &mut Staging<'_>,
+    number: i32,
+    prev: &CoherencePrevious,
+    prev_mesh: &TriMesh,
+    prev_index: &SurfaceIndex,
+    current: &CoherencePrevious,
+    mesh: &TriMesh,
+    index: &SurfaceIndex,
+) -> Result<Option<crate::coherence::Coherence>, PipelineError> {
+    use crate::coherence::{
+        self, CoherenceSettings, TexelFrame, carry_by_velocity, sample_surface, switch_map,
+    };
+    use crate::surface::velocity::FlowFrame;
+    let (Some(v0), Some(v1)) = (prev_mesh.velocity(), mesh.velocity()) else {
+        return Ok(None);
+    };
+    let settings = CoherenceSettings::from_thresholds(
+        &crate::metrics::Thresholds::committed().map_err(|e| PipelineError::Output {
+            path: job.out_dir.clone(),
+            message: format!("internal: {e}"),
+        })?,
+    );
+    let dt = 1.0 / job.fps;
+    let before = TexelFrame {
+        atlas: &prev.atlas,
+        source: &prev.source,
+        grey: &prev.grey,
+    };
+    let after = TexelFrame {
+        atlas: &current.atlas,
+        source: &current.source,
+        grey: &current.grey,
+    };
+    let next = FlowFrame {
+        mesh,
+        index,
+        velocity: v1,
+    };
+    // One sample set per frame pair, seeded by the frame so a resumed run
+    // draws the same points.
+    let seed = crate::methods::erosion::mix(settings.seed, 7, prev.number as u64);
+    let points = sample_surface(prev_mesh, settings.samples, seed);
+    let carried = carry_by_velocity(prev_mesh, v0, next, dt, points);
+    let Ok(found) = coherence::measure(&carried, &before, &after, &settings) else {
+        return Ok(None);
+    };
+    let from = FlowFrame {
+        mesh: prev_mesh,
+        index: prev_index,
+        velocity: v0,
+    };
+    if let Ok(map) = switch_map(&before, from, &after, next, dt) {
+        let image = coherence::switch_image(&map, current.atlas.width, current.atlas.height);
+        write_channel(
+            files,
+            &job.out_dir
+                .join(format!("switch.{}.png", frame_tag(number))),
+            &image,
+            ChannelFormat::Png8,
+        )?;
+    }
+    Ok(Some(found))
 }
 
 fn write_file(files: &mut Staging<'_>, path: &Path, bytes: &[u8]) -> Result<(), PipelineError> {

@@ -188,7 +188,7 @@ pub fn compare(a: &CompareArgs) -> Result<()> {
         let prepared = eval::prepare(scene.as_mut(), &frames, &job.atlas, &settings, &thresholds)
             .with_context(|| format!("scene {name}"))?;
         let mut runs: Vec<MethodRun> = Vec::new();
-        let mut reports = Vec::new();
+        let mut parameters = Vec::new();
         for m in &method_names {
             let config = Config {
                 method: Some(m.clone()),
@@ -209,9 +209,17 @@ pub fn compare(a: &CompareArgs) -> Result<()> {
                 run.frames.len(),
                 clock.elapsed().as_secs_f64()
             ));
-            reports.push(MethodReport::new(&run, method_parameters(&config, m)));
+            parameters.push(method_parameters(&config, m));
             runs.push(run);
         }
+        // The source switch share passes relative to advect on the same
+        // frames: judged once every method of the scene has run.
+        eval::judge_against_floor(&mut runs, &thresholds);
+        let reports = runs
+            .iter()
+            .zip(parameters)
+            .map(|(run, p)| MethodReport::new(run, p))
+            .collect();
         let images = write_pictures(&a.out, name, &keep, &runs)?;
         scene_reports.push(SceneReport::new(&prepared, reports, images));
     }

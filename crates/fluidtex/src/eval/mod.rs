@@ -15,7 +15,9 @@
 //!   the method's layer counts; 0 by construction for methods that never
 //!   blend), contrast ρ over chart texels (against the exemplar filtered
 //!   to the mip levels the method reports, [`metrics::shown_sigma`]),
-//!   distortion (exemplar uv against the texel's surface point) and
+//!   distortion (Sorkine's δ of the exemplar uv against the texel's surface
+//!   point, relative to s₀ = exemplar width / S, S the world size the
+//!   method reports as `exemplar_size`; anisotropy σ₁/σ₂ beside it) and
 //!   exemplar fidelity (SWD, reference built once per sequence from the
 //!   exemplar rescaled to the output's texel scale, metrics/mod.rs);
 //! - on unlit renders from the fixed camera (colour looked up through the
@@ -24,6 +26,12 @@
 //!   see [`pixels`]): flow fidelity against the true motion (provenance-based
 //!   where the method gives uv, image-based otherwise) and popping
 //!   (backward warp with the true motion, disoccluded pixels left out);
+//! - on surface points (two frames): source switch share and colour follow
+//!   ratio ([`crate::coherence`]), 20k points sampled on each frame and
+//!   carried to the next by the scene's exact flow ([`prepare`]), looked up
+//!   in both frames' atlases. The switch share has no absolute threshold:
+//!   [`judge_against_floor`] compares each method with the floor method
+//!   (`advect`) on the same frames once every method has run;
 //! - static stop: once every vertex velocity is exactly zero, the colour
 //!   atlas of every later frame must be bit-identical to the first still
 //!   frame's;
@@ -190,6 +198,8 @@ pub fn metric_key(m: Metric) -> &'static str {
         Metric::FlowEpe => "flow_epe",
         Metric::FlowAligned => "flow_aligned",
         Metric::Popping => "popping",
+        Metric::SourceSwitch => "source_switch",
+        Metric::ColourFollow => "colour_follow",
         Metric::StaticStop => "static_stop",
         Metric::SizeCost => "size_cost",
     }
@@ -198,8 +208,8 @@ pub fn metric_key(m: Metric) -> &'static str {
 /// The metrics measured per frame (plotted over time).
 /// Every metric but the two that are not per frame (static stop, exemplar
 /// size cost), which [`Metric::ALL`] lists last.
-pub const PER_FRAME: &[Metric] = Metric::ALL.split_at(8).0;
-const _: () = assert!(PER_FRAME.len() == 8 && matches!(PER_FRAME[7], Metric::Popping));
+pub const PER_FRAME: &[Metric] = Metric::ALL.split_at(10).0;
+const _: () = assert!(PER_FRAME.len() == 10 && matches!(PER_FRAME[9], Metric::ColourFollow));
 
 /// One frame's numbers. Metrics with nothing to measure are NaN (flow and
 /// popping on the first frame: they need the frame before).
@@ -211,9 +221,12 @@ pub struct FrameRecord {
     /// The method's `patches_alive` statistic, where it has one.
     pub patches: Option<f64>,
     /// Per metric of [`PER_FRAME`], in that order.
-    pub values: [f64; 8],
+    pub values: [f64; 10],
     /// Whether the fluid is still at this frame.
     pub still: bool,
+    /// For information beside distortion: area-weighted p95 of σ₁/σ₂ (NaN
+    /// without exemplar uv).
+    pub anisotropy: f64,
 }
 
 impl FrameRecord {
@@ -304,7 +317,13 @@ pub fn evaluate(
     let mut records = Vec::with_capacity(scene.frames.len());
     let mut renders = Vec::new();
     let mut previous_view: Option<FrameView> = None;
+    // Sources and grey values of the frame before, for the coherence
+    // metrics.
+    let mut previous_texels: Option<(Vec<u32>, Vec<f32>)> = None;
     let mut image_flow_noted = false;
+    // s₀ of the distortion metric (exemplar texels per world unit at the
+    // patches' creation), fixed at the first frame that gives it.
+    let mut rest_scale = f64::NAN;
 
     for (k, frame) in scene.frames.iter().enumerate() {
         let number = frame.number;
@@ -349,7 +368,7 @@ pub fn evaluate(
         };
         let uv: Option<&[Vec2]> = result.uv.as_deref().filter(|u| u.len() == n_texels);
 
-        let mut values = [f64::NAN; 8];
+        let mut values = [f64::NAN; 10];
         let mut set = |m: Metric, v: f64| {
             if let Some(k) = PER_FRAME.iter().position(|&p| p == m) {
                 values[k] = v;
@@ -384,6 +403,17 @@ pub fn evaluate(
             );
         }
         let mut texel_scale = f64::NAN;
+        let mut anisotropy = f64::NAN;
+        if rest_scale.is_nan()
+            && let Some(size) = result
+                .stats
+                .get("exemplar_size")
+                .and_then(|v| v.as_f64())
+                .filter(|s| s.is_finite() && *s > 0.0)
+        {
+            // The exemplar's [0, 1]² covers S world units at creation.
+            rest_scale = f64::from(exemplar.width) / size;
+        }
         if let (Some(s), Some(u)) = (source, uv) {
             let samples = SurfaceSamples {
                 width: frame.atlas.width,
@@ -393,13 +423,30 @@ pub fn evaluate(
                 points: &frame.points,
                 chart: Some(&frame.chart),
             };
-            let d = metrics::distortion(
-                &samples,
-                (exemplar.width, exemplar.height),
-                thresholds.distortion.quantile,
-            )
-            .map_err(metric_err(number, "distortion"))?;
-            set(Metric::Distortion, d.anisotropy);
+            let measure = |s0: f64| {
+                metrics::distortion(
+                    &samples,
+                    (exemplar.width, exemplar.height),
+                    s0,
+                    thresholds.distortion.quantile,
+                )
+                .map_err(metric_err(number, "distortion"))
+            };
+            let d = if rest_scale.is_nan() {
+                // No S from the method: take the scale the texture shows on
+                // its first measured frame as the rest scale.
+                let first = measure(1.0)?;
+                rest_scale = first.exemplar_texels_per_unit;
+                notes.push(format!(
+                    "distortion: the method reports no exemplar size S; s0 = {rest_scale:.4} \
+                     exemplar texels per world unit, the median scale of frame {number}"
+                ));
+                measure(rest_scale)?
+            } else {
+                measure(rest_scale)?
+            };
+            set(Metric::Distortion, d.delta);
+            anisotropy = d.anisotropy;
             texel_scale = d.exemplar_texels_per_texel;
         }
         if fidelity_scale.is_nan() {
@@ -549,6 +596,35 @@ pub fn evaluate(
                 set(Metric::Popping, pop.share());
             }
         }
+        // Coherence: the previous frame's points carried here. Without
+        // per-texel sources nothing is covered (no switch share) but the
+        // colour still says whether the texture follows.
+        let texels = (
+            source.map_or_else(|| vec![metrics::SOURCE_OUTSIDE; n_texels], <[u32]>::to_vec),
+            metrics::luminance(colour),
+        );
+        if let (Some(p), Some((ps, pg))) = (prev, &previous_texels)
+            && let Some(carried) = &p.carried
+        {
+            let c = crate::coherence::measure(
+                carried,
+                &crate::coherence::TexelFrame {
+                    atlas: &p.atlas,
+                    source: ps,
+                    grey: pg,
+                },
+                &crate::coherence::TexelFrame {
+                    atlas: &frame.atlas,
+                    source: &texels.0,
+                    grey: &texels.1,
+                },
+                &crate::coherence::CoherenceSettings::from_thresholds(thresholds),
+            )
+            .map_err(metric_err(number, "coherence"))?;
+            set(Metric::SourceSwitch, c.switch_share());
+            set(Metric::ColourFollow, c.follow_ratio());
+        }
+        previous_texels = Some(texels);
         if frame.still {
             stop.push(colour);
             if let Some(p) = &previous_still
@@ -571,6 +647,7 @@ pub fn evaluate(
             patches,
             values,
             still: frame.still,
+            anisotropy,
         });
         previous_view = Some(view);
     }
@@ -601,6 +678,52 @@ pub fn evaluate(
         renders,
         fidelity_scale,
     })
+}
+
+/// Judges every run's source switch share against the floor method's
+/// (`thresholds.source_switch.floor_method`, advect) on the same scene,
+/// frame by frame ([`Thresholds::summarize_against_floor`]): call it with
+/// all the runs of one scene once they are done. Without a floor run the
+/// verdicts stay n/a and each run gets a note saying so.
+pub fn judge_against_floor(runs: &mut [MethodRun], thresholds: &Thresholds) {
+    let floor_name = thresholds.source_switch.floor_method.clone();
+    let floor: Option<Vec<(i32, f64)>> = runs.iter().find(|r| r.method == floor_name).map(|r| {
+        r.frames
+            .iter()
+            .map(|f| (f.frame, f.value(Metric::SourceSwitch)))
+            .collect()
+    });
+    for run in runs.iter_mut() {
+        let values: Vec<f64> = run
+            .frames
+            .iter()
+            .map(|f| f.value(Metric::SourceSwitch))
+            .collect();
+        let Some(floor) = &floor else {
+            run.notes.push(format!(
+                "source switch share: not judged, it is judged against {floor_name} on the                  same frames and {floor_name} was not run"
+            ));
+            continue;
+        };
+        let floor_values: Vec<f64> = run
+            .frames
+            .iter()
+            .map(|f| {
+                floor
+                    .iter()
+                    .find(|(n, _)| *n == f.frame)
+                    .map_or(f64::NAN, |&(_, v)| v)
+            })
+            .collect();
+        let summary = thresholds.summarize_against_floor(&values, &floor_values);
+        if let Some(s) = run
+            .summaries
+            .iter_mut()
+            .find(|s| s.metric == Metric::SourceSwitch)
+        {
+            *s = summary;
+        }
+    }
 }
 
 /// The G-buffer of `frame` seen by `camera` at `k` samples per pixel side

@@ -9,6 +9,7 @@ use rayon::prelude::*;
 use super::truth::{TruthMotion, true_motion};
 use super::{EvalError, EvalSettings};
 use crate::atlas::{Atlas, AtlasParams};
+use crate::coherence::{Carried, CoherenceSettings, carry_by_velocity, sample_surface};
 use crate::mesh::TriMesh;
 use crate::metrics::{Thresholds, interior_mask};
 use crate::render::{BACKGROUND, Camera, GBuffer, rasterize};
@@ -42,6 +43,12 @@ pub struct PreparedFrame {
     /// where it is now, negated: the displacement over the frame), and
     /// whether that point was visible then. `None` for the first frame.
     pub backward: Option<(Vec<Vec2>, Vec<bool>)>,
+    /// Surface points sampled on this frame and carried to the next one by
+    /// the true motion (the scene's exact flow where it has one, else the
+    /// mesh velocity with a second-order step), located on the next mesh;
+    /// for the source switch share and the colour follow ratio. `None` for
+    /// the last frame.
+    pub carried: Option<Carried>,
 }
 
 /// A scene's frames ready for evaluation.
@@ -148,6 +155,7 @@ pub fn prepare(
             interior,
             forward: None,
             backward: None,
+            carried: None,
         });
     }
     let truth = TruthMotion::of(&*scene, settings.trace_substeps);
@@ -180,6 +188,7 @@ pub fn prepare(
         // the displacement over the frame, and whether the point was seen.
         let visible = visible_before(&back, &depth, &next.gbuffer, &prev.gbuffer, thresholds);
         next.backward = Some((back.into_iter().map(|m| -m).collect(), visible));
+        prev.carried = Some(carry_points(&*scene, &truth, prev, next, step, thresholds));
     }
     Ok(PreparedScene {
         info,
@@ -188,6 +197,47 @@ pub fn prepare(
         frames: out,
         truth,
     })
+}
+
+/// Samples points on `prev` (seeded by the committed thresholds and the
+/// frame number) and carries them `step` seconds to `next`.
+fn carry_points(
+    scene: &dyn Scene,
+    truth: &TruthMotion,
+    prev: &PreparedFrame,
+    next: &PreparedFrame,
+    step: f64,
+    thresholds: &Thresholds,
+) -> Carried {
+    let settings = CoherenceSettings::from_thresholds(thresholds);
+    let seed = crate::methods::erosion::mix(settings.seed, 7, prev.number as u64);
+    let points = sample_surface(&prev.mesh, settings.samples, seed);
+    match (truth, prev.mesh.velocity(), next.mesh.velocity()) {
+        (TruthMotion::Exact { substeps }, _, _) => {
+            // Sequential: `Scene` is `Send` but not `Sync`.
+            let carried: Vec<Option<Vec3>> = points
+                .iter()
+                .map(|sp| {
+                    let p = sp.interpolate(&prev.mesh.triangles, &prev.mesh.positions);
+                    super::trace(scene, p, prev.time, step, *substeps)
+                })
+                .collect();
+            Carried::locate(&prev.mesh, points, &carried, &next.index)
+        }
+        (TruthMotion::MeshVelocity, Some(v0), Some(v1)) => carry_by_velocity(
+            &prev.mesh,
+            v0,
+            crate::surface::velocity::FlowFrame {
+                mesh: &next.mesh,
+                index: &next.index,
+                velocity: v1,
+            },
+            step as f32,
+            points,
+        ),
+        // No way to carry: nothing is measured.
+        _ => Carried::locate(&prev.mesh, points, &[], &next.index),
+    }
 }
 
 /// Surface point and chart id per atlas texel.

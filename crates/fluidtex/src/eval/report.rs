@@ -45,6 +45,8 @@ pub struct FrameJson {
     pub patches: Option<f64>,
     pub still: bool,
     pub values: Vec<(&'static str, f64)>,
+    /// Area-weighted p95 of σ₁/σ₂, for information beside distortion.
+    pub anisotropy: f64,
 }
 
 /// One method on one scene.
@@ -55,6 +57,9 @@ pub struct MethodReport {
     pub parameters: serde_json::Value,
     pub seconds_per_frame: Spread,
     pub patches: Option<Spread>,
+    /// Per-frame p95 anisotropy σ₁/σ₂ over frames (information only: the
+    /// distortion verdict is on δ).
+    pub anisotropy: Option<Spread>,
     /// Exemplar texels per atlas texel the fidelity reference used.
     pub fidelity_scale: f64,
     pub metrics: Vec<MetricCell>,
@@ -70,6 +75,7 @@ impl MethodReport {
             parameters,
             seconds_per_frame: Spread { median, min, max },
             patches: patch_counts(run).map(|(median, min, max)| Spread { median, min, max }),
+            anisotropy: spread(run.frames.iter().map(|r| r.anisotropy)),
             fidelity_scale: run.fidelity_scale,
             metrics: run
                 .summaries
@@ -96,6 +102,7 @@ impl MethodReport {
                     seconds: r.seconds,
                     patches: r.patches,
                     still: r.still,
+                    anisotropy: r.anisotropy,
                     values: PER_FRAME
                         .iter()
                         .zip(r.values)
@@ -165,13 +172,16 @@ pub struct Report {
     pub not_measured: Vec<String>,
 }
 
-/// The pass threshold of a per-frame metric, for plots.
+/// The pass threshold of a per-frame metric, for plots. The source switch
+/// share has none of its own (it is judged against the floor method).
 pub fn threshold_of(t: &Thresholds, m: Metric) -> Option<f64> {
     Some(match m {
+        Metric::SourceSwitch => return None,
+        Metric::ColourFollow => t.colour_follow.max_ratio,
         Metric::Coverage => t.coverage.max_uncovered_share,
         Metric::Ghosting => t.ghosting.max_share,
         Metric::Contrast => t.contrast.min_ratio,
-        Metric::Distortion => t.distortion.max_anisotropy,
+        Metric::Distortion => t.distortion.max_delta,
         Metric::Fidelity => t.fidelity.max_ratio,
         Metric::FlowEpe => t.flow.max_median_epe_px,
         Metric::FlowAligned => t.flow.min_aligned_share,
@@ -218,12 +228,29 @@ pub fn cell_text(c: &MetricCell) -> String {
     )
 }
 
+/// Median, min and max of the non-NaN values, if any.
+fn spread(values: impl Iterator<Item = f64>) -> Option<Spread> {
+    let mut v: Vec<f64> = values.filter(|x| !x.is_nan()).collect();
+    v.sort_unstable_by(f64::total_cmp);
+    match (v.first(), v.last()) {
+        (Some(&min), Some(&max)) => Some(Spread {
+            median: v[(v.len() - 1) / 2],
+            min,
+            max,
+        }),
+        _ => None,
+    }
+}
+
+/// Title of the information column shown after distortion.
+const ANISOTROPY: &str = "anisotropy p95 (info)";
+
 fn spread_text(s: &Spread) -> String {
     format!("{} [{}, {}]", num(s.median), num(s.min), num(s.max))
 }
 
 /// Columns of the tables: every metric but exemplar-size cost.
-const COLUMNS: &[Metric] = Metric::ALL.split_at(9).0;
+const COLUMNS: &[Metric] = Metric::ALL.split_at(11).0;
 
 impl Report {
     /// The Markdown report.
@@ -234,7 +261,8 @@ impl Report {
             s,
             "`{}`  \natlas {}², seed {}, exemplar {}, {:.0} s in all. Thresholds: \
              `metrics/thresholds.toml` (committed). Cells: median [min, max] over frames, \
-             PASS/FAIL of the committed rule.\n",
+             PASS/FAIL of the committed rule (source switch share: every frame at most 0.02 \
+             above advect's on the same frame; n/a without an advect run).\n",
             self.command, self.atlas_size, self.seed, self.exemplar, self.seconds
         );
         for n in &self.not_measured {
@@ -258,6 +286,10 @@ impl Report {
             for &m in COLUMNS {
                 let _ = write!(head, " {} |", m.name());
                 rule.push_str(" --- |");
+                if m == Metric::Distortion {
+                    let _ = write!(head, " {ANISOTROPY} |");
+                    rule.push_str(" --- |");
+                }
             }
             head.push_str(" s/frame | patches |");
             rule.push_str(" --- | --- |");
@@ -267,6 +299,10 @@ impl Report {
                 for &c in COLUMNS {
                     let text = m.cell(metric_key(c)).map_or("n/a".into(), cell_text);
                     let _ = write!(row, " {text} |");
+                    if c == Metric::Distortion {
+                        let text = m.anisotropy.as_ref().map_or("—".into(), spread_text);
+                        let _ = write!(row, " {text} |");
+                    }
                 }
                 let _ = write!(
                     row,
@@ -323,7 +359,8 @@ impl Report {
             "<h1>fluidtex compare</h1><p><code>{}</code><br>atlas {}², seed {}, exemplar {}, \
              {:.0} s in all. Thresholds: <code>metrics/thresholds.toml</code> (committed). \
              Cells: median [min, max] over frames, PASS/FAIL of the committed rule \
-             (contrast: min; flow: median; popping: mean and worst; others: worst).</p>",
+             (contrast: min; flow: median; popping: mean and worst; source switch share: \
+             every frame at most 0.02 above advect's on the same frame; others: worst).</p>",
             esc(&self.command),
             self.atlas_size,
             self.seed,
@@ -350,6 +387,9 @@ impl Report {
             s.push_str("<table><tr><th>method</th>");
             for &m in COLUMNS {
                 let _ = write!(s, "<th>{}</th>", esc(m.name()));
+                if m == Metric::Distortion {
+                    let _ = write!(s, "<th>{ANISOTROPY}</th>");
+                }
             }
             s.push_str("<th>s/frame</th><th>patches</th></tr>\n");
             for m in &scene.methods {
@@ -362,6 +402,10 @@ impl Report {
                                 write!(s, "<td class=\"{class}\">{}</td>", esc(&cell_text(cell)));
                         }
                         _ => s.push_str("<td class=\"na\">n/a</td>"),
+                    }
+                    if c == Metric::Distortion {
+                        let text = m.anisotropy.as_ref().map_or("—".into(), spread_text);
+                        let _ = write!(s, "<td>{}</td>", esc(&text));
                     }
                 }
                 let _ = writeln!(

@@ -448,3 +448,84 @@ fn erosion_follows_a_rigid_rotation_and_the_world_checker_does_not() {
     assert_eq!(e.summary(Metric::Coverage).unwrap().max, 0.0);
     assert!(e.frames.iter().all(|f| f.patches.is_some_and(|p| p > 0.0)));
 }
+
+#[test]
+fn colour_follows_a_moving_texture_and_not_a_fixed_one() {
+    // 0.065 rad/frame on the rigid rotation: the equator moves ≈ 3.6 texels
+    // of the 256² atlas per frame, so the colour follow ratio has points.
+    let (scene, settings) = prepared("rigid-rotation", 16, 0..=2, 256, 64);
+    let exemplar = pattern(128);
+    let good = run(
+        &scene,
+        &mut painted(&scene, &exemplar, true, false),
+        &settings,
+    );
+    let fixed = run(
+        &scene,
+        &mut painted(&scene, &exemplar, false, false),
+        &settings,
+    );
+    let follow = |r: &MethodRun| *r.summary(Metric::ColourFollow).unwrap();
+    eprintln!(
+        "colour follow through the harness: moving {}, fixed {}",
+        follow(&good),
+        follow(&fixed)
+    );
+    // Measured: moving 0.0125, fixed 172 (painted in world space, the
+    // unmoved colour differs only by the re-meshing's resampling).
+    assert!(good.frames[0].value(Metric::ColourFollow).is_nan());
+    assert_eq!(follow(&good).frames, 2);
+    assert_eq!(follow(&good).verdict, Verdict::Pass);
+    assert_eq!(follow(&fixed).verdict, Verdict::Fail);
+    // One source everywhere: nothing switches, for either.
+    assert_eq!(good.summary(Metric::SourceSwitch).unwrap().max, 0.0);
+    assert_eq!(fixed.summary(Metric::SourceSwitch).unwrap().max, 0.0);
+}
+
+#[test]
+fn source_switch_is_judged_against_advect_on_the_same_frames() {
+    let (scene, settings) = prepared("rigid-rotation", 16, 0..=2, 64, 64);
+    let exemplar = pattern(64);
+    let base = run(
+        &scene,
+        &mut painted(&scene, &exemplar, true, false),
+        &settings,
+    );
+    let k = PER_FRAME
+        .iter()
+        .position(|&m| m == Metric::SourceSwitch)
+        .unwrap();
+    let with_shares = |name: &str, shares: [f64; 3]| {
+        let mut r = base.clone();
+        r.method = name.into();
+        for (f, s) in r.frames.iter_mut().zip(shares) {
+            f.values[k] = s;
+        }
+        r
+    };
+    let thresholds = Thresholds::committed().unwrap();
+    let mut runs = vec![
+        with_shares("erosion", [f64::NAN, 0.05, 0.06]),
+        with_shares("advect", [f64::NAN, 0.03, 0.03]),
+        with_shares("boiling", [f64::NAN, 0.04, 0.2]),
+    ];
+    judge_against_floor(&mut runs, &thresholds);
+    let v = |r: &MethodRun| r.summary(Metric::SourceSwitch).unwrap().verdict;
+    // erosion: 2 and 3 points above advect; the second frame fails it.
+    assert_eq!(v(&runs[0]), Verdict::Fail);
+    assert_eq!(v(&runs[1]), Verdict::Pass);
+    assert_eq!(v(&runs[2]), Verdict::Fail);
+    runs[0] = with_shares("erosion", [f64::NAN, 0.05, 0.05]);
+    judge_against_floor(&mut runs, &thresholds);
+    assert_eq!(v(&runs[0]), Verdict::Pass);
+    // Without advect there is nothing to judge against.
+    let mut alone = vec![with_shares("erosion", [f64::NAN, 0.05, 0.05])];
+    judge_against_floor(&mut alone, &thresholds);
+    assert_eq!(v(&alone[0]), Verdict::NoData);
+    assert!(
+        alone[0]
+            .notes
+            .iter()
+            .any(|n| n.contains("advect was not run"))
+    );
+}

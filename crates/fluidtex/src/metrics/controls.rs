@@ -142,13 +142,20 @@ fn cylinder(map: impl Fn(Vec2) -> Vec2) -> (u32, u32, Vec<u32>, Vec<Vec2>, Vec<V
             let z = y as f32 * dz;
             source.push(1 + x / 32);
             points.push(Vec3::new(r * theta.cos(), r * theta.sin(), z));
-            uv.push(map(Vec2::new(r * theta, z)) / 256.0);
+            // Unrolled by the chord, not the arc, between neighbouring
+            // texels: finite differences then see exactly the map's scale
+            // (the arc is longer by 1.7e-5, which would put a 3x stretch
+            // judged against s0 above the inclusive threshold).
+            let chord = 2.0 * r * (0.5 * dtheta).sin();
+            uv.push(map(Vec2::new(x as f32 * chord, z)) / 256.0);
         }
     }
     (w, h, source, uv, points)
 }
 
-fn p95(data: &(u32, u32, Vec<u32>, Vec<Vec2>, Vec<Vec3>)) -> f64 {
+/// The distortion of a [`cylinder`] atlas whose patches were created at
+/// s₀ = 100 exemplar texels per world unit.
+fn p95(data: &(u32, u32, Vec<u32>, Vec<Vec2>, Vec<Vec3>)) -> Distortion {
     let s = SurfaceSamples {
         width: data.0,
         height: data.1,
@@ -157,15 +164,13 @@ fn p95(data: &(u32, u32, Vec<u32>, Vec<Vec2>, Vec<Vec3>)) -> f64 {
         points: &data.4,
         chart: None,
     };
-    distortion(&s, (256, 256), thresholds().distortion.quantile)
-        .expect("valid")
-        .anisotropy
+    distortion(&s, (256, 256), 100.0, thresholds().distortion.quantile).expect("valid")
 }
 
 #[test]
 fn distortion_isometry_passes_and_stretch_fails() {
     let t = thresholds();
-    // 100 exemplar texels per world unit, rotated by 30°.
+    // s0 = 100 exemplar texels per world unit, rotated by 30°.
     let rot = glam::Mat2::from_angle(std::f32::consts::FRAC_PI_6);
     let iso = p95(&cylinder(|s| rot * s * 100.0));
     // Exactly delta_max = 3 along the cylinder's axis: on the inclusive
@@ -173,14 +178,76 @@ fn distortion_isometry_passes_and_stretch_fails() {
     let three = p95(&cylinder(|s| rot * Vec2::new(s.x, 3.0 * s.y) * 100.0));
     // 10% beyond delta_max.
     let beyond = p95(&cylinder(|s| rot * Vec2::new(3.3 * s.x, s.y) * 100.0));
+    // An area-preserving shear [[1, k], [0, 1]] with k = 2.5 - 1/2.5:
+    // singular values 2.5 and 1/2.5 of s0, so delta = 2.5 passes while the
+    // anisotropy is delta² = 6.25.
+    let k = 2.5 - 1.0 / 2.5;
+    let shear = p95(&cylinder(|s| rot * Vec2::new(s.x + k * s.y, s.y) * 100.0));
+    // Uniformly magnified 4x: no anisotropy at all, but delta = 4 fails.
+    let magnified = p95(&cylinder(|s| rot * s * 400.0));
     eprintln!(
-        "distortion p95: isometric {iso:.4}, 3x stretch {three:.4}, 3.3x stretch {beyond:.4}"
+        "distortion p95 delta (anisotropy): isometric {:.4} ({:.4}), 3x stretch {:.4} ({:.4}), \
+         3.3x stretch {:.4}, area-preserving shear {:.4} ({:.4}), 4x magnified {:.4} ({:.4})",
+        iso.delta,
+        iso.anisotropy,
+        three.delta,
+        three.anisotropy,
+        beyond.delta,
+        shear.delta,
+        shear.anisotropy,
+        magnified.delta,
+        magnified.anisotropy
     );
-    // The chord of a 0.02 rad arc is shorter than the arc by 1.7e-5.
-    assert!((iso - 1.0).abs() < 1e-3, "{iso}");
-    assert!((three - 3.0).abs() < 1e-3, "{three}");
-    assert_eq!(t.verdict(Metric::Distortion, iso), Verdict::Pass);
-    assert_eq!(t.verdict(Metric::Distortion, beyond), Verdict::Fail);
+    assert!((iso.delta - 1.0).abs() < 1e-3, "{}", iso.delta);
+    assert!((three.delta - 3.0).abs() < 1e-3, "{}", three.delta);
+    assert!((beyond.delta - 3.3).abs() < 1e-3, "{}", beyond.delta);
+    assert!((shear.delta - 2.5).abs() < 1e-3, "{}", shear.delta);
+    assert!(
+        (shear.anisotropy - 6.25).abs() < 1e-2,
+        "{}",
+        shear.anisotropy
+    );
+    assert!((magnified.delta - 4.0).abs() < 1e-3, "{}", magnified.delta);
+    assert!((magnified.anisotropy - 1.0).abs() < 1e-3);
+    assert_eq!(t.verdict(Metric::Distortion, iso.delta), Verdict::Pass);
+    // Exactly on the inclusive threshold: on a cylinder and rotated, the
+    // last bits of 3 are rounding. Axis-aligned on a plane with scales that
+    // are powers of two every step is exact, and 3 must pass.
+    let (w, h) = (16u32, 16u32);
+    let mut points = Vec::new();
+    let mut uv = Vec::new();
+    for y in 0..h {
+        for x in 0..w {
+            let p = Vec2::new(x as f32, y as f32) / 64.0;
+            points.push(Vec3::new(p.x, p.y, 0.0));
+            // s0 = 128 exemplar texels per unit of a 256² exemplar.
+            uv.push(Vec2::new(3.0 * p.x, p.y) * 128.0 / 256.0);
+        }
+    }
+    let exact = distortion(
+        &SurfaceSamples {
+            width: w,
+            height: h,
+            source: &vec![1; (w * h) as usize],
+            uv: &uv,
+            points: &points,
+            chart: None,
+        },
+        (256, 256),
+        128.0,
+        t.distortion.quantile,
+    )
+    .expect("valid");
+    assert_eq!(exact.delta, 3.0);
+    assert_eq!(t.verdict(Metric::Distortion, exact.delta), Verdict::Pass);
+    assert_eq!(t.verdict(Metric::Distortion, beyond.delta), Verdict::Fail);
+    assert_eq!(t.verdict(Metric::Distortion, shear.delta), Verdict::Pass);
+    assert_eq!(
+        t.verdict(Metric::Distortion, magnified.delta),
+        Verdict::Fail
+    );
+    // Judged by anisotropy, the shear would fail and the magnification pass.
+    assert!(shear.anisotropy > t.distortion.max_delta);
 }
 
 // ---------------------------------------------------- exemplar fidelity
@@ -628,4 +695,134 @@ fn size_cost_ratio_threshold() {
     let linear = size_cost_ratio(1.0 + 64.0, 1.0 + 1.0).expect("valid");
     assert_eq!(t.verdict(Metric::SizeCost, flat), Verdict::Pass);
     assert_eq!(t.verdict(Metric::SizeCost, linear), Verdict::Fail);
+}
+
+// ------------------------------------------- source switch, colour follow
+
+/// Grey value of `t` at pixel coordinates `p` (pixel centres at +0.5),
+/// bilinear, clamped at the border.
+fn grey_at(t: &Texture, p: Vec2) -> f32 {
+    let mut s = [0.0];
+    t.sample_bilinear(
+        p.x / t.width as f32,
+        p.y / t.height as f32,
+        Wrap::Clamp,
+        &mut s,
+    );
+    s[0]
+}
+
+/// The colour follow ratio of the pair (`a`, `b`) for points at every pixel
+/// centre within `radius` px of the image centre, carried by `carry`.
+fn follow_ratio(a: &Texture, b: &Texture, radius: f32, carry: impl Fn(Vec2) -> Vec2) -> f64 {
+    let t = thresholds();
+    let centre = Vec2::splat(N as f32 / 2.0);
+    let (mut before, mut carried, mut still, mut moved) = (vec![], vec![], vec![], vec![]);
+    for i in 0..(N * N) as usize {
+        let p = pixel_to_domain(i) * N as f32;
+        if (p - centre).length() > radius {
+            continue;
+        }
+        let q = carry(p);
+        before.push(grey_at(a, p));
+        carried.push(grey_at(b, q));
+        still.push(grey_at(b, p));
+        moved.push((q - p).length());
+    }
+    colour_follow(
+        &before,
+        &carried,
+        &still,
+        &moved,
+        t.colour_follow.min_move_texels,
+        t.colour_follow.min_moving_samples as usize,
+    )
+    .expect("valid")
+    .ratio()
+}
+
+#[test]
+fn colour_follow_rigid_rotation_passes_and_glued_or_boiling_texture_fails() {
+    // Gravel at one exemplar texel per pixel, turned by 0.1 rad per frame
+    // about the image centre: points beyond 30 px from the centre move 3 px
+    // or more. Radius 56 keeps every carried point inside the image.
+    let t = thresholds();
+    let ex = exemplar("gravel.png");
+    let theta = 0.1;
+    let centre = Vec2::splat(N as f32 / 2.0);
+    let turn = |p: Vec2| centre + glam::Mat2::from_angle(theta) * (p - centre);
+    let (a, b) = (rotated(&ex, 0.0), rotated(&ex, theta));
+    let follows = follow_ratio(&a.2, &b.2, 56.0, turn);
+    // Glued: frame t+1 shows frame t's image where it was.
+    let glued = follow_ratio(&a.2, &a.2, 56.0, turn);
+    // Boiling: frame t+1 shows an unrelated part of the exemplar.
+    let other = translated(&ex, Vec2::new(200.0, 137.0));
+    let boiling = follow_ratio(&a.2, &other, 56.0, turn);
+    eprintln!(
+        "colour follow (gravel, {N}², 0.1 rad/frame): rotation {follows:.3}, glued {glued}, \
+         boiling {boiling:.3}"
+    );
+    // Measured: rotation 0.116, glued inf, boiling 0.990.
+    assert_eq!(t.verdict(Metric::ColourFollow, follows), Verdict::Pass);
+    assert!(follows < 0.3, "{follows}");
+    assert_eq!(glued, f64::INFINITY);
+    assert_eq!(t.verdict(Metric::ColourFollow, glued), Verdict::Fail);
+    assert_eq!(t.verdict(Metric::ColourFollow, boiling), Verdict::Fail);
+    assert!((boiling - 1.0).abs() < 0.2, "{boiling}");
+}
+
+/// Patch ids on 16×16 px blocks of the plane, at pixel `p` (px) of a frame
+/// whose content has moved by `shift` px since frame 0.
+fn block_id(p: Vec2, shift: Vec2) -> u32 {
+    let q = ((p - shift) / 16.0).floor();
+    1 + (q.x as i32 + 4) as u32 + 32 * (q.y as i32 + 4) as u32
+}
+
+#[test]
+fn source_switch_following_ids_pass_and_reshuffled_region_fails_by_its_share() {
+    // Points at every pixel centre of frame t carried by an integer
+    // translation, so that the lookups are exact: ids that follow the
+    // motion switch nowhere; ids replaced in a known region switch exactly
+    // there.
+    let t = thresholds();
+    let shift = Vec2::new(5.0, 3.0);
+    let lookup = |p: Vec2| -> Option<Vec2> {
+        let q = p + shift;
+        (q.x < N as f32 && q.y < N as f32).then_some(q)
+    };
+    let (mut before, mut follows, mut reshuffled) = (vec![], vec![], vec![]);
+    let mut in_region = 0usize;
+    for i in 0..(N * N) as usize {
+        let p = pixel_to_domain(i) * N as f32;
+        let Some(q) = lookup(p) else {
+            continue;
+        };
+        before.push(block_id(p, Vec2::ZERO));
+        let id = block_id(q, shift);
+        follows.push(id);
+        // Frame t+1's ids in its left quarter (x < 32 px) are another
+        // patch's: every point carried there switches.
+        if q.x < 32.0 {
+            in_region += 1;
+            reshuffled.push(id + 10_000);
+        } else {
+            reshuffled.push(id);
+        }
+    }
+    let good = source_switch(&before, &follows).expect("valid");
+    let bad = source_switch(&before, &reshuffled).expect("valid");
+    // Covered points: (128 - 5) x (128 - 3); region x in [5, 32): 27 columns.
+    assert_eq!(good.covered, 123 * 125);
+    assert_eq!(in_region, 27 * 125);
+    assert_eq!(good.switched, 0);
+    assert_eq!(bad.switched, in_region);
+    assert_eq!(bad.share(), 27.0 / 123.0);
+    eprintln!(
+        "source switch (blocks, integer shift): following {:.4}, reshuffled quarter {:.4}",
+        good.share(),
+        bad.share()
+    );
+    // Judged against a floor that follows the motion exactly.
+    assert_eq!(t.switch_verdict(good.share(), good.share()), Verdict::Pass);
+    assert_eq!(t.switch_verdict(bad.share(), good.share()), Verdict::Fail);
 }

@@ -1,4 +1,5 @@
-//! Distortion: how anisotropically the exemplar is stretched on the surface.
+//! Distortion: how far the exemplar is stretched or squashed on the surface
+//! relative to its scale when the patch was created.
 //!
 //! At each chart texel the Jacobian J = d(exemplar uv, in exemplar texels) /
 //! d(surface tangent coordinates) is estimated by finite differences with
@@ -9,13 +10,21 @@
 //! orthonormal tangent frame e₁ = dp/dx/|dp/dx|, e₂ = n̂ × e₁ (n = dp/dx ×
 //! dp/dy) gives P = E T with T upper triangular, and J = U T⁻¹. The singular
 //! values σ₁ ≥ σ₂ of the 2×2 J come in closed form (via the conformal and
-//! anti-conformal parts of J); the texel's anisotropy is σ₁/σ₂, infinite
-//! where σ₂ vanishes (the map folds or collapses a direction), and its
-//! weight is the surface area it covers, |dp/dx × dp/dy|.
+//! anti-conformal parts of J), and its weight is the surface area it
+//! covers, |dp/dx × dp/dy|.
 //!
-//! σ₁/σ₂ is scale-free: a uniformly magnified or shrunk exemplar is not
-//! distorted. It equals the δ of Sorkine et al. 2002 that the primary
-//! method bounds (DESIGN §1) when the rest shape is isometric up to scale.
+//! **The metric** is the distortion the primary method bounds (DESIGN §1):
+//! Sorkine et al. 2002's δ = max(σ₁/s₀, s₀/σ₂), where s₀ is the texel
+//! scale at the patch's creation (exemplar texels per world unit: the
+//! exemplar's width over the world size S it covers), so a patch is
+//! undistorted when it shows the exemplar at the scale it was made with.
+//! δ is infinite where σ₂ vanishes (the map folds or collapses a
+//! direction). The pass threshold is δ_max on the area-weighted p95.
+//!
+//! **Anisotropy** σ₁/σ₂ is reported beside it for information. It is
+//! scale-free, so it misses a uniformly magnified or shrunk exemplar, and
+//! under an area-preserving shear (σ₁ σ₂ = s₀²) it is δ², not δ: judging
+//! it against δ_max would fail textures the method rightly keeps.
 //!
 //! Texels without a usable neighbour pair (single-texel slivers), and texels
 //! whose surface samples are degenerate (dp/dx ∥ dp/dy, which is an atlas
@@ -75,9 +84,18 @@ pub struct Distortion {
     pub texels: usize,
     /// Their total surface area (world units²).
     pub area: f64,
-    /// Texels whose map collapses a direction (σ₂ ≈ 0): infinite anisotropy.
+    /// Texels whose map collapses a direction (σ₂ ≈ 0): infinite δ and
+    /// anisotropy.
     pub folded: usize,
-    /// The metric: area-weighted quantile of σ₁/σ₂ (NaN without texels).
+    /// The rest scale s₀ it was measured against (exemplar texels per
+    /// world unit).
+    pub rest_scale: f64,
+    /// The metric: area-weighted quantile of δ = max(σ₁/s₀, s₀/σ₂) (NaN
+    /// without texels).
+    pub delta: f64,
+    /// Area-weighted median of δ.
+    pub median_delta: f64,
+    /// For information: area-weighted quantile of σ₁/σ₂.
     pub anisotropy: f64,
     /// Area-weighted median of σ₁/σ₂.
     pub median_anisotropy: f64,
@@ -91,6 +109,8 @@ pub struct Distortion {
 
 #[derive(Clone, Copy)]
 struct Local {
+    s1: f64,
+    s2: f64,
     anisotropy: f64,
     area: f64,
     scale: f64,
@@ -108,11 +128,23 @@ pub fn anisotropy_map(
         .collect())
 }
 
-/// The distortion metric of one frame; `quantile` is
-/// `thresholds.distortion.quantile` (0.95).
+/// Sorkine's δ of singular values `s1 ≥ s2` against the rest scale `s0`:
+/// infinite where the map collapses a direction.
+fn delta_of(s1: f64, s2: f64, s0: f64) -> f64 {
+    if s2 <= 1e-6 * s1 || s1 == 0.0 {
+        f64::INFINITY
+    } else {
+        (s1 / s0).max(s0 / s2)
+    }
+}
+
+/// The distortion metric of one frame; `rest_scale` is s₀ (exemplar texels
+/// per world unit at the patches' creation: exemplar width / S), `quantile`
+/// is `thresholds.distortion.quantile` (0.95).
 pub fn distortion(
     samples: &SurfaceSamples,
     exemplar_size: (u32, u32),
+    rest_scale: f64,
     quantile: f32,
 ) -> Result<Distortion, MetricsError> {
     if !(quantile > 0.0 && quantile <= 1.0) {
@@ -122,7 +154,14 @@ pub fn distortion(
             allowed: "(0, 1]",
         });
     }
-    let mut l: Vec<Local> = locals(samples, exemplar_size)?
+    if !(rest_scale.is_finite() && rest_scale > 0.0) {
+        return Err(MetricsError::Invalid {
+            name: "distortion rest scale s0",
+            value: rest_scale,
+            allowed: "(0, inf) exemplar texels per world unit",
+        });
+    }
+    let l: Vec<Local> = locals(samples, exemplar_size)?
         .into_iter()
         .flatten()
         .collect();
@@ -137,24 +176,34 @@ pub fn distortion(
     };
     let exemplar_texels_per_unit = median_of(&mut l.iter().map(|l| l.scale).collect());
     let exemplar_texels_per_texel = median_of(&mut l.iter().map(|l| l.texel_scale).collect());
-    l.sort_unstable_by(|a, b| a.anisotropy.total_cmp(&b.anisotropy));
-    let weighted = |q: f64| -> f64 {
-        let target = q * area;
-        let mut acc = 0.0;
-        for x in &l {
-            acc += x.area;
-            if acc >= target {
-                return x.anisotropy;
+    // Area-weighted quantiles of a per-texel value.
+    let weighted = |value: &dyn Fn(&Local) -> f64, qs: [f64; 2]| -> [f64; 2] {
+        let mut v: Vec<(f64, f64)> = l.iter().map(|x| (value(x), x.area)).collect();
+        v.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+        qs.map(|q| {
+            let target = q * area;
+            let mut acc = 0.0;
+            for &(x, a) in &v {
+                acc += a;
+                if acc >= target {
+                    return x;
+                }
             }
-        }
-        l.last().map_or(f64::NAN, |x| x.anisotropy)
+            v.last().map_or(f64::NAN, |x| x.0)
+        })
     };
+    let q = quantile as f64;
+    let [delta, median_delta] = weighted(&|x| delta_of(x.s1, x.s2, rest_scale), [q, 0.5]);
+    let [anisotropy, median_anisotropy] = weighted(&|x| x.anisotropy, [q, 0.5]);
     Ok(Distortion {
         texels,
         area,
         folded,
-        anisotropy: weighted(quantile as f64),
-        median_anisotropy: weighted(0.5),
+        rest_scale,
+        delta,
+        median_delta,
+        anisotropy,
+        median_anisotropy,
         exemplar_texels_per_unit,
         exemplar_texels_per_texel,
     })
@@ -249,6 +298,8 @@ fn local(s: &SurfaceSamples, x: usize, y: usize, ex: DVec2) -> Option<Local> {
         s1 / s2
     };
     Some(Local {
+        s1,
+        s2,
         anisotropy,
         area,
         scale: (s1 * s2).sqrt(),
@@ -286,7 +337,13 @@ mod tests {
         (source, uv, points)
     }
 
-    fn measure(w: u32, h: u32, data: &(Vec<u32>, Vec<Vec2>, Vec<Vec3>), ex: u32) -> Distortion {
+    fn measure(
+        w: u32,
+        h: u32,
+        data: &(Vec<u32>, Vec<Vec2>, Vec<Vec3>),
+        ex: u32,
+        s0: f64,
+    ) -> Distortion {
         let s = SurfaceSamples {
             width: w,
             height: h,
@@ -295,7 +352,7 @@ mod tests {
             points: &data.2,
             chart: None,
         };
-        distortion(&s, (ex, ex), 0.95).expect("valid input")
+        distortion(&s, (ex, ex), s0, 0.95).expect("valid input")
     }
 
     #[test]
@@ -320,11 +377,17 @@ mod tests {
                 // uv in exemplar texels / 256, plus an offset.
                 Vec2::splat(0.3) + m * Vec2::new(p.dot(e1), p.dot(e2)) * 40.0 / 256.0
             });
-            let d = measure(16, 12, &data, 256);
+            // s0 = 40 exemplar texels per unit: the map is s0 * m.
+            let d = measure(16, 12, &data, 256, 40.0);
             assert_eq!(d.texels, 16 * 12, "case {case}");
             assert_eq!(d.folded, 0);
             let rel = (d.anisotropy - stretch as f64).abs() / stretch as f64;
             assert!(rel < 1e-3, "case {case}: {} vs {stretch}", d.anisotropy);
+            // sigma / s0 = stretch * scale and scale: delta is the larger
+            // of stretch * scale and 1 / scale.
+            let want = (stretch * scale).max(1.0 / scale) as f64;
+            let rel = (d.delta - want).abs() / want;
+            assert!(rel < 1e-3, "case {case}: delta {} vs {want}", d.delta);
             let expected_scale = (stretch * scale * scale).sqrt() as f64 * 40.0;
             let rel = (d.exemplar_texels_per_unit - expected_scale).abs() / expected_scale;
             assert!(
@@ -365,12 +428,14 @@ mod tests {
             points: &points,
             chart: None,
         };
-        let d = distortion(&s, (1024, 1024), 0.95).expect("valid");
+        let d = distortion(&s, (1024, 1024), 1.0, 0.95).expect("valid");
         assert!((d.anisotropy - 5.0).abs() < 1e-3, "{}", d.anisotropy);
+        assert!((d.delta - 5.0).abs() < 1e-3, "{}", d.delta);
         assert!((d.median_anisotropy - 5.0).abs() < 1e-3);
         // At the 10% quantile the isometric fifth of the area decides.
-        let d = distortion(&s, (1024, 1024), 0.1).expect("valid");
+        let d = distortion(&s, (1024, 1024), 1.0, 0.1).expect("valid");
         assert!((d.anisotropy - 1.0).abs() < 1e-3, "{}", d.anisotropy);
+        assert!((d.delta - 1.0).abs() < 1e-3, "{}", d.delta);
         assert!((d.area - (100.0 + 400.0)).abs() < 1e-6 * 500.0);
     }
 
@@ -392,7 +457,10 @@ mod tests {
             points: &data.2,
             chart: None,
         };
-        assert_eq!(distortion(&s, (64, 64), 0.95).expect("valid").texels, 0);
+        assert_eq!(
+            distortion(&s, (64, 64), 1.0, 0.95).expect("valid").texels,
+            0
+        );
         // Same with one source but two charts.
         let one = vec![1u32; 64];
         let charts: Vec<u32> = (0..64).map(|i| (i % 8 >= 4) as u32).collect();
@@ -408,9 +476,10 @@ mod tests {
             chart: Some(&charts),
             ..s
         };
-        let d = distortion(&s, (64, 64), 1.0).expect("valid");
+        let d = distortion(&s, (64, 64), 1.0, 1.0).expect("valid");
         assert_eq!(d.texels, 64);
         assert!((d.anisotropy - 1.0).abs() < 1e-4, "{}", d.anisotropy);
+        assert!((d.delta - 1.0).abs() < 1e-4, "{}", d.delta);
     }
 
     #[test]
@@ -419,16 +488,21 @@ mod tests {
         let data = planar(16, 4, Vec3::ZERO, Vec3::X, Vec3::Y, |c| {
             Vec2::new((c.x / 8.0).fract(), c.y / 8.0)
         });
-        let d = measure(16, 4, &data, 32);
+        let d = measure(16, 4, &data, 32, 4.0);
         assert!((d.anisotropy - 1.0).abs() < 1e-4, "{}", d.anisotropy);
+        assert!((d.delta - 1.0).abs() < 1e-4, "{}", d.delta);
+        // The same map judged against half its scale is magnified 2x.
+        let d = measure(16, 4, &data, 32, 2.0);
+        assert!((d.delta - 2.0).abs() < 1e-4, "{}", d.delta);
         assert_eq!(d.exemplar_texels_per_texel, 4.0);
         // A map that ignores y collapses a direction: infinite anisotropy.
         let data = planar(8, 8, Vec3::ZERO, Vec3::X, Vec3::Y, |c| {
             Vec2::new(c.x / 8.0, 0.5)
         });
-        let d = measure(8, 8, &data, 32);
+        let d = measure(8, 8, &data, 32, 4.0);
         assert_eq!(d.folded, 64);
         assert_eq!(d.anisotropy, f64::INFINITY);
+        assert_eq!(d.delta, f64::INFINITY);
     }
 
     #[test]
@@ -443,12 +517,17 @@ mod tests {
             chart: None,
         };
         assert_eq!(
-            distortion(&s, (8, 8), 0.95),
+            distortion(&s, (8, 8), 1.0, 0.95),
             Err(MetricsError::Length {
                 what: "uv",
                 expected: 16,
                 got: 15
             })
         );
+        let s = SurfaceSamples { uv: &data.1, ..s };
+        assert!(matches!(
+            distortion(&s, (8, 8), 0.0, 0.95),
+            Err(MetricsError::Invalid { .. })
+        ));
     }
 }

@@ -13,10 +13,12 @@
 //! | coverage | [`coverage()`] | share of chart texels with no source | worst | `= 0` |
 //! | ghost fraction | [`ghosting()`] | share of chart texels with ≥ 2 layers of weight ≥ 0.05 | worst | `= 0` |
 //! | contrast ratio ρ | [`contrast_ratio`] | σ(output)/σ_ex of luminance (σ_ex of the mip levels shown: [`shown_sigma`]) | min | `≥ 0.90` |
-//! | distortion | [`distortion()`] | area-weighted p95 of σ₁/σ₂ | worst | `≤ 3` |
+//! | distortion | [`distortion()`] | area-weighted p95 of δ = max(σ₁/s₀, s₀/σ₂), s₀ the texel scale at the patch's creation (σ₁/σ₂ beside it, for information) | worst | `≤ 3` |
 //! | exemplar fidelity | [`FidelityReference::measure`] | mean over levels of SWD(output, exemplar)/SWD(half, half) | worst | `≤ 2.5` |
 //! | flow fidelity | [`provenance_motion`] (or [`image_motion`]), then [`compare_motion`] | median EPE (px), share with cos > 0.9 | median | `≤ 0.25 px`, `≥ 90%` |
 //! | popping | [`popping()`] | share with \|I₁ − warp(I₀)\| > 0.5 σ_ex | mean and worst | `≤ 2%`, `≤ 5%` |
+//! | source switch share | [`source_switch()`] | share of points carried by the flow, with a patch at both ends, whose patch changed | every frame against the floor method's same frame | `≤ advect + 0.02` |
+//! | colour follow ratio | [`colour_follow()`] | median \|c₁(carried) − c₀\| ÷ median \|c₁(unmoved) − c₀\| over points moving ≥ 3 texels | worst | `≤ 0.5` |
 //! | static stop | [`StaticStop`] | frames after the stop that differ from the first still frame | — | `= 0` |
 //! | exemplar-size cost | [`size_cost_ratio`] | time(2048²)/time(256²) | — | `≤ 1.15` |
 //!
@@ -48,7 +50,10 @@
 //!
 //! **What the harness must supply** (details in each function's doc).
 //! - Atlases: `source`, `uv`, per-texel surface `points` (NaN outside
-//!   charts); chart ids where charts may touch without a gutter.
+//!   charts); chart ids where charts may touch without a gutter. For
+//!   distortion, s₀: exemplar texels per world unit at the patches'
+//!   creation (exemplar width / S for a method whose exemplar covers S
+//!   world units).
 //! - Renders (flow and popping are measured on renders only: the atlas is
 //!   unwrapped anew every frame, so texel (x, y) of two frames are
 //!   unrelated): a foreground mask and depth for [`interior_mask`]; per
@@ -59,11 +64,21 @@
 //!   O(dt²), 0.12 px median in the vortex control, which is half the flow
 //!   threshold and is charged to the method. Popping needs the same motion
 //!   backwards (per pixel of frame t+1, from its position at frame t).
+//! - Source switch and colour follow: per sample point of frame t, its
+//!   source and grey value there, and at frame t+1 the source and grey
+//!   value at the point carried by the flow and the grey value at the same
+//!   point not moved, plus the distance moved in atlas texels. These are
+//!   two-frame metrics on *points*, not texels (the atlas is unwrapped anew
+//!   every frame); [`crate::coherence`] samples, carries and looks them up
+//!   on atlases. The switch share's pass rule is relative: the report
+//!   compares each frame with the floor method (`advect`) on the same
+//!   scene and frames ([`Thresholds::summarize_against_floor`]).
 //! - Fidelity: the output at the exemplar's texel scale. Where the output
 //!   shows `s` exemplar texels per output texel
 //!   ([`Distortion::exemplar_texels_per_texel`]), build the
 //!   [`FidelityReference`] from `rescale(exemplar, 1/s)`, once per sequence.
 
+mod colour_follow;
 mod contrast;
 mod coverage;
 mod distortion;
@@ -73,6 +88,7 @@ mod image_flow;
 mod luma;
 mod mask;
 mod popping;
+mod source_switch;
 mod stop;
 mod thresholds;
 
@@ -81,6 +97,7 @@ mod controls;
 
 use thiserror::Error;
 
+pub use colour_follow::{ColourFollow, colour_follow};
 pub use contrast::{contrast_ratio, exemplar_sigma, exemplar_sigma_by_lod, shown_sigma};
 pub use coverage::{Coverage, Ghosting, coverage, ghosting, layers_from_weights};
 pub use distortion::{Distortion, SurfaceSamples, anisotropy_map, distortion};
@@ -92,11 +109,13 @@ pub use image_flow::image_motion;
 pub use luma::luminance;
 pub use mask::{chart_mask, interior_mask};
 pub use popping::{Popping, popping};
+pub use source_switch::{SourceSwitch, is_patch, source_switch};
 pub use stop::{StaticStop, bit_identical, size_cost_ratio};
 pub use thresholds::{
-    ContrastThresholds, CoverageThresholds, DistortionThresholds, FidelityThresholds,
-    FlowThresholds, GhostingThresholds, Metric, PoppingThresholds, SilhouetteSettings,
-    SizeCostThresholds, StaticStopThresholds, Summary, Thresholds, Verdict,
+    ColourFollowThresholds, ContrastThresholds, CoverageThresholds, DistortionThresholds,
+    FidelityThresholds, FlowThresholds, GhostingThresholds, Metric, PoppingThresholds,
+    SilhouetteSettings, SizeCostThresholds, SourceSwitchThresholds, StaticStopThresholds, Summary,
+    Thresholds, Verdict,
 };
 
 /// A texel outside every chart, or a background pixel.

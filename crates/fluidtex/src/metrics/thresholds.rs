@@ -41,14 +41,14 @@ pub struct ContrastThresholds {
     pub min_ratio: f64,
 }
 
-/// Distortion: area-weighted quantile of σ₁/σ₂.
+/// Distortion: area-weighted quantile of Sorkine's δ = max(σ₁/s₀, s₀/σ₂).
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct DistortionThresholds {
     /// The quantile, in (0, 1]. EVALUATION: 0.95.
     pub quantile: f32,
-    /// δ_max, the largest passing anisotropy (inclusive), ≥ 1. 3.
-    pub max_anisotropy: f64,
+    /// δ_max, the largest passing δ (inclusive), ≥ 1. 3.
+    pub max_delta: f64,
 }
 
 /// Exemplar fidelity: relative sliced Wasserstein distance.
@@ -109,6 +109,33 @@ pub struct PoppingThresholds {
     pub max_worst_share: f64,
 }
 
+/// Source switch share (points carried by the flow whose patch changes).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SourceSwitchThresholds {
+    /// Points sampled per frame pair, 100–10 000 000. 20 000.
+    pub samples: u32,
+    /// Seed of the sample positions.
+    pub seed: u64,
+    /// Largest passing excess over the floor method's share on the same
+    /// frame (absolute share, 0.02 = 2 points), in [0, 1].
+    pub max_excess_over_floor: f64,
+    /// The method whose share is the floor ("advect").
+    pub floor_method: String,
+}
+
+/// Colour follow ratio.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ColourFollowThresholds {
+    /// Points moving fewer atlas texels are not compared, ≥ 0. 3.
+    pub min_move_texels: f32,
+    /// Frames with fewer moving points have no value, ≥ 1. 200.
+    pub min_moving_samples: u32,
+    /// Largest passing ratio (the worst frame must pass), > 0. 0.5.
+    pub max_ratio: f64,
+}
+
 /// Static stop.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -137,6 +164,8 @@ pub struct Thresholds {
     pub flow: FlowThresholds,
     pub silhouette: SilhouetteSettings,
     pub popping: PoppingThresholds,
+    pub source_switch: SourceSwitchThresholds,
+    pub colour_follow: ColourFollowThresholds,
     pub static_stop: StaticStopThresholds,
     pub size_cost: SizeCostThresholds,
 }
@@ -152,13 +181,15 @@ pub enum Metric {
     FlowEpe,
     FlowAligned,
     Popping,
+    SourceSwitch,
+    ColourFollow,
     StaticStop,
     SizeCost,
 }
 
 impl Metric {
     /// Every metric, in report order.
-    pub const ALL: [Metric; 10] = [
+    pub const ALL: [Metric; 12] = [
         Metric::Coverage,
         Metric::Ghosting,
         Metric::Contrast,
@@ -167,6 +198,8 @@ impl Metric {
         Metric::FlowEpe,
         Metric::FlowAligned,
         Metric::Popping,
+        Metric::SourceSwitch,
+        Metric::ColourFollow,
         Metric::StaticStop,
         Metric::SizeCost,
     ];
@@ -177,11 +210,13 @@ impl Metric {
             Metric::Coverage => "uncovered share",
             Metric::Ghosting => "ghost fraction",
             Metric::Contrast => "contrast ratio",
-            Metric::Distortion => "distortion p95",
+            Metric::Distortion => "distortion p95 (δ)",
             Metric::Fidelity => "SWD ratio",
             Metric::FlowEpe => "flow median EPE (px)",
             Metric::FlowAligned => "flow aligned share",
             Metric::Popping => "popping share",
+            Metric::SourceSwitch => "source switch share",
+            Metric::ColourFollow => "colour follow ratio",
             Metric::StaticStop => "frames changed after stop",
             Metric::SizeCost => "exemplar-size cost",
         }
@@ -311,9 +346,9 @@ impl Thresholds {
         let q = d.quantile as f64;
         check("distortion.quantile", q, q > 0.0 && q <= 1.0, "(0, 1]")?;
         check(
-            "distortion.max_anisotropy",
-            d.max_anisotropy,
-            d.max_anisotropy >= 1.0,
+            "distortion.max_delta",
+            d.max_delta,
+            d.max_delta >= 1.0,
             "[1, inf)",
         )?;
         let f = &self.fidelity;
@@ -416,6 +451,44 @@ impl Thresholds {
             share(p.max_worst_share),
             "[0, 1]",
         )?;
+        let sw = &self.source_switch;
+        check(
+            "source_switch.samples",
+            sw.samples as f64,
+            (100..=10_000_000).contains(&sw.samples),
+            "100..=10000000",
+        )?;
+        check(
+            "source_switch.max_excess_over_floor",
+            sw.max_excess_over_floor,
+            share(sw.max_excess_over_floor),
+            "[0, 1]",
+        )?;
+        if sw.floor_method.trim().is_empty() {
+            return Err(MetricsError::Thresholds {
+                file: FILE,
+                message: "source_switch.floor_method is empty".into(),
+            });
+        }
+        let cf = &self.colour_follow;
+        check(
+            "colour_follow.min_move_texels",
+            cf.min_move_texels as f64,
+            cf.min_move_texels >= 0.0,
+            "[0, inf)",
+        )?;
+        check(
+            "colour_follow.min_moving_samples",
+            cf.min_moving_samples as f64,
+            cf.min_moving_samples >= 1,
+            "1 or more",
+        )?;
+        check(
+            "colour_follow.max_ratio",
+            cf.max_ratio,
+            cf.max_ratio > 0.0,
+            "(0, inf)",
+        )?;
         check(
             "size_cost.max_ratio",
             self.size_cost.max_ratio,
@@ -427,7 +500,10 @@ impl Thresholds {
     /// The verdict on one frame's value (one sequence's value for
     /// [`Metric::StaticStop`] and [`Metric::SizeCost`]). NaN is
     /// [`Verdict::NoData`]. A single frame of popping is judged against the
-    /// worst-frame threshold.
+    /// worst-frame threshold. The source switch share has no absolute
+    /// threshold: it is judged against the floor method's share on the same
+    /// frame ([`Thresholds::switch_verdict`]), so here it is always
+    /// [`Verdict::NoData`].
     pub fn verdict(&self, metric: Metric, value: f64) -> Verdict {
         if value.is_nan() {
             return Verdict::NoData;
@@ -436,11 +512,13 @@ impl Thresholds {
             Metric::Coverage => value <= self.coverage.max_uncovered_share,
             Metric::Ghosting => value <= self.ghosting.max_share,
             Metric::Contrast => value >= self.contrast.min_ratio,
-            Metric::Distortion => value <= self.distortion.max_anisotropy,
+            Metric::Distortion => value <= self.distortion.max_delta,
             Metric::Fidelity => value <= self.fidelity.max_ratio,
             Metric::FlowEpe => value <= self.flow.max_median_epe_px,
             Metric::FlowAligned => value >= self.flow.min_aligned_share,
             Metric::Popping => value <= self.popping.max_worst_share,
+            Metric::SourceSwitch => return Verdict::NoData,
+            Metric::ColourFollow => value <= self.colour_follow.max_ratio,
             Metric::StaticStop => value <= self.static_stop.max_changed_frames as f64,
             Metric::SizeCost => value <= self.size_cost.max_ratio,
         })
@@ -455,7 +533,10 @@ impl Thresholds {
     ///   faster than `flow.min_speed_px`, and near a stop or a reversal of
     ///   the flow those are few and at the edge of the measurable;
     /// - popping: the mean must pass `max_mean_share` and the worst frame
-    ///   `max_worst_share`.
+    ///   `max_worst_share`;
+    /// - colour follow ratio: the worst (largest) frame must pass;
+    /// - source switch share: [`Verdict::NoData`] here; the report judges it
+    ///   against the floor method with [`Thresholds::summarize_against_floor`].
     ///
     /// NaN values (frames with nothing to measure) are skipped; no values
     /// at all give [`Verdict::NoData`].
@@ -483,8 +564,10 @@ impl Thresholds {
             Metric::Popping => Verdict::of(
                 mean <= self.popping.max_mean_share && max <= self.popping.max_worst_share,
             ),
+            Metric::SourceSwitch => Verdict::NoData,
             Metric::Coverage
             | Metric::Ghosting
+            | Metric::ColourFollow
             | Metric::Distortion
             | Metric::Fidelity
             | Metric::StaticStop
@@ -500,6 +583,43 @@ impl Thresholds {
             mean,
             verdict,
         }
+    }
+}
+
+impl Thresholds {
+    /// The source switch verdict of one frame: `share` may exceed the floor
+    /// method's `floor` share on the same frame by at most
+    /// `source_switch.max_excess_over_floor` (inclusive). NaN on either side
+    /// is [`Verdict::NoData`].
+    pub fn switch_verdict(&self, share: f64, floor: f64) -> Verdict {
+        if share.is_nan() || floor.is_nan() {
+            return Verdict::NoData;
+        }
+        // A hair of tolerance so that "exactly 2 points more" passes although
+        // shares are ratios of counts (0.05 - 0.03 is not 0.02 in binary).
+        Verdict::of(share - floor <= self.source_switch.max_excess_over_floor + 1e-12)
+    }
+
+    /// Summarises a method's per-frame source switch shares and judges them
+    /// against the floor method's shares on the same frames (`floor[i]` is
+    /// frame i's, as `values[i]`): every frame measured by both must pass
+    /// [`Thresholds::switch_verdict`]. No frame measured by both is
+    /// [`Verdict::NoData`]. The spread (median, min, max) is the method's
+    /// own.
+    pub fn summarize_against_floor(&self, values: &[f64], floor: &[f64]) -> Summary {
+        let mut s = self.summarize(Metric::SourceSwitch, values);
+        let verdicts: Vec<Verdict> = values
+            .iter()
+            .zip(floor)
+            .map(|(&v, &f)| self.switch_verdict(v, f))
+            .filter(|v| *v != Verdict::NoData)
+            .collect();
+        s.verdict = if verdicts.is_empty() {
+            Verdict::NoData
+        } else {
+            Verdict::of(verdicts.iter().all(|v| v.is_pass()))
+        };
+        s
     }
 }
 
@@ -519,7 +639,7 @@ mod tests {
         assert_eq!(t.ghosting.max_share, 0.0);
         assert_eq!(t.contrast.min_ratio, 0.90);
         assert_eq!(t.distortion.quantile, 0.95);
-        assert_eq!(t.distortion.max_anisotropy, 3.0);
+        assert_eq!(t.distortion.max_delta, 3.0);
         assert_eq!(t.fidelity.max_ratio, 2.5);
         assert_eq!(t.fidelity.levels, 4);
         assert_eq!(t.fidelity.patch_size, 7);
@@ -533,6 +653,11 @@ mod tests {
         assert_eq!(t.popping.max_worst_share, 0.05);
         assert_eq!(t.static_stop.max_changed_frames, 0);
         assert_eq!(t.size_cost.max_ratio, 1.15);
+        assert_eq!(t.source_switch.samples, 20_000);
+        assert_eq!(t.source_switch.max_excess_over_floor, 0.02);
+        assert_eq!(t.source_switch.floor_method, "advect");
+        assert_eq!(t.colour_follow.min_move_texels, 3.0);
+        assert_eq!(t.colour_follow.max_ratio, 0.5);
     }
 
     #[test]
@@ -588,6 +713,9 @@ mod tests {
             (Metric::StaticStop, 1.0, Fail),
             (Metric::SizeCost, 1.15, Pass),
             (Metric::SizeCost, 1.16, Fail),
+            (Metric::ColourFollow, 0.5, Pass),
+            (Metric::ColourFollow, 0.501, Fail),
+            (Metric::SourceSwitch, 0.01, NoData),
             (Metric::Contrast, f64::NAN, NoData),
         ];
         for (metric, value, expected) in cases {
@@ -625,5 +753,32 @@ mod tests {
         let s = t.summarize(Metric::FlowAligned, &[f64::NAN]);
         assert_eq!((s.frames, s.verdict), (0, Verdict::NoData));
         assert_eq!(s.verdict.to_string(), "n/a");
+        // Colour follow: judged by the worst frame.
+        let s = t.summarize(Metric::ColourFollow, &[0.2, 0.3, 0.51]);
+        assert_eq!(s.verdict, Verdict::Fail);
+    }
+
+    #[test]
+    fn source_switch_is_judged_frame_by_frame_against_the_floor() {
+        let t = committed();
+        use Verdict::{Fail, NoData, Pass};
+        // Exactly 2 points above the floor passes, a little more fails.
+        assert_eq!(t.switch_verdict(0.05, 0.03), Pass);
+        assert_eq!(t.switch_verdict(0.0501, 0.03), Fail);
+        assert_eq!(t.switch_verdict(0.01, 0.03), Pass);
+        assert_eq!(t.switch_verdict(f64::NAN, 0.03), NoData);
+        // One frame 3 points above its floor fails the sequence, although
+        // the medians are within 2 points of each other.
+        let floor = [0.03, 0.03, 0.02, f64::NAN];
+        let s = t.summarize_against_floor(&[0.04, 0.05, 0.05, 0.30], &floor);
+        assert_eq!(s.verdict, Fail);
+        assert_eq!((s.frames, s.median), (4, 0.05));
+        let s = t.summarize_against_floor(&[0.04, 0.05, 0.04, 0.30], &floor);
+        assert_eq!(s.verdict, Pass);
+        // The floor method against itself passes; nothing shared: n/a.
+        let s = t.summarize_against_floor(&floor, &floor);
+        assert_eq!(s.verdict, Pass);
+        let s = t.summarize_against_floor(&[0.1], &[f64::NAN]);
+        assert_eq!(s.verdict, NoData);
     }
 }
