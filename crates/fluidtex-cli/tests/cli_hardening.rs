@@ -127,15 +127,20 @@ fn a_lock_left_by_a_killed_run_is_taken_over() {
     assert!(!out.join("fluidtex.lock").exists());
 }
 
-/// The files of frame `f` of these runs (erosion, debug outputs on).
+/// The files of frame `f` of these runs (erosion, debug outputs on; from
+/// the second frame on, the switch map against the frame before).
 fn frame_files(f: i32) -> Vec<String> {
-    [
+    let mut names: Vec<String> = [
         "color", "mesh", "mesh", "mesh", "patches", "source", "stats",
     ]
     .iter()
     .zip(["png", "mtl", "obj", "glb", "png", "exr", "json"])
     .map(|(n, e)| format!("{n}.{f:04}.{e}"))
-    .collect()
+    .collect();
+    if f > 0 {
+        names.push(format!("switch.{f:04}.png"));
+    }
+    names
 }
 
 /// A disk that fills in the Nth write (`FLUIDTEX_TEST_FAIL_WRITE=N`: the
@@ -146,7 +151,8 @@ fn frame_files(f: i32) -> Vec<String> {
 /// `--resume` writes exactly the files of an uninterrupted run.
 ///
 /// Writes per frame, in order: color.png, mesh.mtl, mesh.obj, mesh.glb,
-/// patches.png, source.exr, stats.json, then state.bin.
+/// patches.png, source.exr, (from frame 1 on) switch.png, stats.json, then
+/// state.bin.
 #[test]
 fn a_full_disk_mid_frame_leaves_no_counted_partial_frame_and_resume_matches() {
     let dir = tempfile::tempdir().unwrap();
@@ -157,8 +163,9 @@ fn a_full_disk_mid_frame_leaves_no_counted_partial_frame_and_resume_matches() {
         (3, "mesh.0000.obj", None),
         (8, "state.bin", Some(0)),
         (12, "mesh.0001.glb", Some(0)),
-        (15, "stats.0001.json", Some(0)),
-        (16, "state.bin", Some(1)),
+        (15, "switch.0001.png", Some(0)),
+        (16, "stats.0001.json", Some(0)),
+        (17, "state.bin", Some(1)),
     ];
     for (n, file, complete_through) in cases {
         let out = dir.path().join(format!("fail{n}"));
@@ -186,10 +193,11 @@ fn a_full_disk_mid_frame_leaves_no_counted_partial_frame_and_resume_matches() {
                 .filter(|x| names.contains_key(*x))
                 .count();
             let all = complete_through.is_some_and(|c| f <= c);
+            let want = frame_files(f).len();
             assert_eq!(
                 present,
-                if all { 7 } else { 0 },
-                "write {n}: frame {f} has {present} of its 7 files"
+                if all { want } else { 0 },
+                "write {n}: frame {f} has {present} of its {want} files"
             );
         }
         // The state counts only frames whose write of state.bin succeeded:

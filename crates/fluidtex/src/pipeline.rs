@@ -426,13 +426,7 @@ pub fn run(
             method,
             &result,
         )?;
-        // The coherence measurement reads this frame's colour atlas back as
-        // written, so the frame's files are committed first; `switch.F.png`
-        // and the stats follow in a second group, and only then does the
-        // state count the frame (a failure in between: the frame is redone).
-        files.commit()?;
         lap("write", &mut seconds);
-        let mut files = Staging::new(Some(&guard), job.hooks.write.as_ref());
         if job.outputs.debug
             && let Some(ids) = &result.source
         {
@@ -441,7 +435,7 @@ pub fn run(
             {
                 coherence_prev = reload_coherence(job, method, last, prev_mesh, observer);
             }
-            let current = CoherencePrevious::of(job, method, number, atlas, ids)?;
+            let current = CoherencePrevious::of(method, number, atlas, ids, &result.channels);
             if let (Some(prev), Some((prev_mesh, prev_index))) = (&coherence_prev, &previous) {
                 let found = measure_coherence(
                     job, &mut files, number, prev, prev_mesh, prev_index, &current, &mesh, &index,
@@ -580,15 +574,19 @@ struct CoherencePrevious {
 }
 
 impl CoherencePrevious {
-    /// This frame's data, after its files were written.
+    /// This frame's data as its files hold it (computed in memory: the
+    /// files are committed together with the stats that carry the result).
     fn of(
-        job: &Job,
         method: &dyn Method,
         number: i32,
         atlas: Atlas,
         source: &[u32],
-    ) -> Result<CoherencePrevious, PipelineError> {
-        let grey = read_grey(job, method, number)?;
+        channels: &[Texture],
+    ) -> CoherencePrevious {
+        let grey = match (method.channel_specs().first(), channels.first()) {
+            (Some(spec), Some(colour)) => written_grey(colour, spec.format),
+            _ => Vec::new(),
+        };
         let source = source
             .iter()
             .map(|&s| {
@@ -599,13 +597,33 @@ impl CoherencePrevious {
                 }
             })
             .collect();
-        Ok(CoherencePrevious {
+        CoherencePrevious {
             number,
             atlas,
             source,
             grey,
-        })
+        }
     }
+}
+
+/// The luminance of a colour atlas as the file written in `format` stores
+/// it: the same clamping and rounding as the PNG encoder and the same
+/// scaling as the decoder (`--resume` reads the file back), so an
+/// uninterrupted and a resumed run measure identical values.
+fn written_grey(colour: &Texture, format: ChannelFormat) -> Vec<f32> {
+    let quantize = |levels: f32| {
+        move |x: f32| (((x.clamp(0.0, 1.0) * levels) as f64 + 0.5) as u32) as f32 / levels
+    };
+    let data: Vec<f32> = match format {
+        ChannelFormat::Png8 => colour.data.iter().map(|&x| quantize(255.0)(x)).collect(),
+        ChannelFormat::Png16 => colour.data.iter().map(|&x| quantize(65535.0)(x)).collect(),
+        ChannelFormat::Exr => colour.data.clone(),
+    };
+    let texture = Texture {
+        data,
+        ..colour.clone()
+    };
+    crate::metrics::luminance(&texture)
 }
 
 /// The luminance of frame `number`'s colour atlas as written.
