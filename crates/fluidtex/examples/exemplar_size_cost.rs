@@ -1,4 +1,4 @@
-//! Exemplar-size cost (EVALUATION: time(2048²) / time(256²) ≤ 1.15) of the
+//! Exemplar-size cost (docs/evaluation.md: time(2048²) / time(256²) ≤ 1.15) of the
 //! erosion method's frame step, with the mip filtering on and off: the same
 //! scene, atlas and exemplar world size, only the exemplar's resolution
 //! changes (so the 2048² exemplar is shown 8× more minified). Exemplars

@@ -1,5 +1,5 @@
 //! The evaluation harness: runs a texturing method over a scene's frames in
-//! memory and measures it with [`crate::metrics`] (shared/EVALUATION.md).
+//! memory and measures it with [`crate::metrics`] (docs/evaluation.md).
 //!
 //! Two halves. [`prepare`] does everything that does not depend on the
 //! method, once per scene: the meshes, their atlases (the same

@@ -1,6 +1,6 @@
-//! The known-good and known-bad controls of EVALUATION protocol 2: every
+//! The known-good and known-bad controls of docs/evaluation.md, rule 2: every
 //! metric must pass a control that is right and fail one that is wrong, on
-//! the CC0 exemplars in `shared/exemplars/`, with the committed thresholds.
+//! the CC0 exemplars in `tests/data/exemplars/`, with the committed thresholds.
 //! A metric that cannot fail is not a metric.
 //!
 //! The values each control measured when these tests were written are in
@@ -20,10 +20,10 @@ fn thresholds() -> Thresholds {
     Thresholds::committed().expect("the committed thresholds parse")
 }
 
-/// A CC0 exemplar from `shared/exemplars/` (beside the repository in CI).
+/// A CC0 exemplar committed in `tests/data/exemplars/` (provenance in its README).
 fn exemplar(name: &str) -> Texture {
     let path = format!(
-        "{}/../../../shared/exemplars/{name}",
+        "{}/tests/data/exemplars/{name}",
         env!("CARGO_MANIFEST_DIR")
     );
     let img = image::open(&path)
@@ -309,7 +309,7 @@ fn stretch_x(t: &Texture, width: u32) -> Texture {
 /// One frame of a synthetic scene: provenance (source, uv) and the image.
 type Frame = (Vec<u32>, Vec<Vec2>, Texture);
 
-/// EVALUATION's single vortex on the unit square, period T = 8 s
+/// docs/evaluation.md's single vortex on the unit square, period T = 8 s
 /// (domain units per second).
 fn vortex(p: Vec2, t: f32) -> Vec2 {
     use std::f32::consts::PI;
@@ -338,7 +338,7 @@ fn trace(mut p: Vec2, t0: f32, t1: f32) -> Vec2 {
 }
 
 /// Image side (px) and frame time of the vortex controls: the median
-/// speed is then ≈ 2 px/frame, as in EVALUATION's calibration.
+/// speed is then ≈ 2 px/frame, as in docs/evaluation.md's calibration.
 const N: u32 = 128;
 const DT: f32 = 1.0 / 24.0;
 /// The time of the first frame of the pair (s).
@@ -369,7 +369,7 @@ fn advected(ex: &Texture, t: f32) -> Frame {
     )
 }
 
-/// EVALUATION's true motion: the projected velocity times the frame time.
+/// docs/evaluation.md's true motion: the projected velocity times the frame time.
 fn velocity_px(t: f32) -> Vec<Vec2> {
     (0..(N * N) as usize)
         .map(|i| vortex(pixel_to_domain(i), t) * N as f32 * DT)

@@ -24,7 +24,7 @@
 //!   Lucas–Kanade. It measures apparent motion, so it has an error floor of
 //!   its own (see the controls) and cannot follow flat texture.
 //!
-//! The true motion the harness supplies is either EVALUATION's projected
+//! The true motion the harness supplies is either docs/evaluation.md's projected
 //! velocity times the frame time (first order: on a curved path it differs
 //! from the real displacement by O(dt²), which is most of the ≈ 0.07 px an
 //! ideal advection shows under the vortex) or the exact displacement of the

@@ -1,5 +1,5 @@
 //! Texture motion from the images alone, for methods without per-pixel
-//! provenance (EVALUATION: "on unlit renders otherwise").
+//! provenance (docs/evaluation.md: "on unlit renders otherwise").
 //!
 //! A (2b+1)² block of frame t's luminance around the pixel is matched in
 //! frame t+1: first the integer offset with the least sum of squared

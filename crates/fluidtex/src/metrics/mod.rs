@@ -1,4 +1,4 @@
-//! The measurements of `shared/EVALUATION.md`, each a pure function on plain
+//! The measurements of `docs/evaluation.md`, each a pure function on plain
 //! per-texel or per-pixel arrays, and the committed pass thresholds.
 //!
 //! The evaluation harness feeds these from atlases (per-texel provenance and
@@ -6,7 +6,7 @@
 //! provenance, 3-D point, projected true velocity). Nothing here knows about
 //! methods, atlases or renderers: a metric takes slices, dimensions and the
 //! exemplar, and returns numbers. Every metric has a known-good and a
-//! known-bad control in the tests (EVALUATION protocol 2).
+//! known-bad control in the tests (docs/evaluation.md, rule 2).
 //!
 //! | metric | function | value per frame | over frames | pass |
 //! | --- | --- | --- | --- | --- |
@@ -60,7 +60,7 @@
 //!   pixel the *true motion* over the frame in pixels. Prefer the exact
 //!   displacement of the surface point seen at the pixel (trace it through
 //!   the scene's velocity field over the frame and project both ends) to
-//!   EVALUATION's velocity × frame time: on curved paths the two differ by
+//!   docs/evaluation.md's velocity × frame time: on curved paths the two differ by
 //!   O(dt²), 0.12 px median in the vortex control, which is half the flow
 //!   threshold and is charged to the method. Popping needs the same motion
 //!   backwards (per pixel of frame t+1, from its position at frame t).

@@ -19,7 +19,7 @@ const COMMITTED: &str = include_str!("thresholds.toml");
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct CoverageThresholds {
-    /// Largest passing share, in [0, 1]. EVALUATION: 0.
+    /// Largest passing share, in [0, 1]. docs/evaluation.md: 0.
     pub max_uncovered_share: f64,
 }
 
@@ -27,9 +27,9 @@ pub struct CoverageThresholds {
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct GhostingThresholds {
-    /// Weight from which a layer counts, in (0, 1]. EVALUATION: 0.05.
+    /// Weight from which a layer counts, in (0, 1]. docs/evaluation.md: 0.05.
     pub min_layer_weight: f32,
-    /// Largest passing share, in [0, 1]. EVALUATION: 0.
+    /// Largest passing share, in [0, 1]. docs/evaluation.md: 0.
     pub max_share: f64,
 }
 
@@ -45,7 +45,7 @@ pub struct ContrastThresholds {
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct DistortionThresholds {
-    /// The quantile, in (0, 1]. EVALUATION: 0.95.
+    /// The quantile, in (0, 1]. docs/evaluation.md: 0.95.
     pub quantile: f32,
     /// δ_max, the largest passing δ (inclusive), ≥ 1. 3.
     pub max_delta: f64,
@@ -527,7 +527,7 @@ impl Thresholds {
     /// Summarises per-frame values and judges the sequence:
     /// - coverage, ghosting, distortion, fidelity, static stop, size cost:
     ///   the worst (largest) value must pass;
-    /// - contrast: the smallest ρ must pass (EVALUATION: "min over frames");
+    /// - contrast: the smallest ρ must pass (docs/evaluation.md: "min over frames");
     /// - flow EPE and aligned share: the median over frames must pass. The
     ///   median, because a frame's flow is measured on the pixels that move
     ///   faster than `flow.min_speed_px`, and near a stop or a reversal of

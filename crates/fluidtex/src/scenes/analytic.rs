@@ -3,7 +3,7 @@
 //! Every frame is computed from scratch (no state between frames), so frames
 //! can be asked for in any order and the same frame is always bit-identical.
 //! Constants, domains and default resolutions are below, one function per
-//! scene; the surface formulas are in [`super::flow`] and EVALUATION.md.
+//! scene; the surface formulas are in [`super::flow`] and docs/evaluation.md.
 
 use std::f64::consts::PI;
 

@@ -606,7 +606,7 @@ mod tests {
 
     #[test]
     fn fields_match_the_written_formulas() {
-        // Evaluated here straight from EVALUATION.md, with sin(2πs) as is.
+        // Evaluated here straight from docs/evaluation.md, with sin(2πs) as is.
         let s = |v: f64| v.sin();
         let mut rng = Pcg64::seed_from_u64(11);
         for _ in 0..50 {

@@ -10,7 +10,7 @@
 //!   flows of the form u(x, t) = a(t)·v(x), particle paths are those of the
 //!   steady field v run for the reparametrised time τ(t) = ∫₀ᵗ a, so the
 //!   surface is φ₀(Φ₋τ(x)) — the initial signed distance pulled back along
-//!   the flow (EVALUATION.md, "Scenes"). Grid nodes are traced back with RK4
+//!   the flow (docs/evaluation.md, "Scenes"). Grid nodes are traced back with RK4
 //!   (or a closed-form flow map where one exists, see [`flow`]), the zero
 //!   level set is extracted by marching cubes independently every frame
 //!   ([`marching_cubes`]), and the mesh is improved by tangential relaxation

@@ -47,7 +47,7 @@ fn bits(m: &TriMesh) -> MeshBits {
     )
 }
 
-/// The velocity formulas of EVALUATION.md with this crate's constants,
+/// The velocity formulas of docs/evaluation.md with this crate's constants,
 /// written out again here so that the scenes are checked against them.
 fn formula(name: &str, x: Vec3, t: f64) -> Option<Vec3> {
     let p = x.as_dvec3();

@@ -3,7 +3,7 @@
 //! texel contributes, alpha-blended by its interpolated weight w_V (Eqs.
 //! 1–3), instead of the topmost surviving one alone. This is the look of
 //! the 2019 deformable-patch predecessor: no hard seams, but ghosts and a
-//! loss of contrast wherever patches overlap (EVALUATION: blending n layers
+//! loss of contrast wherever patches overlap (docs/evaluation.md: blending n layers
 //! with weights w_i leaves ρ² = Σ w_i² of the exemplar's contrast).
 //!
 //! Patches are located exactly as in [`super::fill`] (same candidates, same
@@ -19,7 +19,7 @@ use super::fill::{
 use crate::atlas::Atlas;
 
 /// Layers below this normalised weight are not counted as visible layers
-/// (the ghost-fraction rule of EVALUATION.md); they still contribute.
+/// (the ghost-fraction rule of docs/evaluation.md); they still contribute.
 pub const VISIBLE_LAYER_WEIGHT: f32 = 0.05;
 
 /// What the blended fill produced besides the buffers.
