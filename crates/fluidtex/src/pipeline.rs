@@ -336,6 +336,13 @@ pub fn run(
     let first_frame = source.frames().first().copied().unwrap_or(0);
     // What the coherence measurement keeps of the frame before.
     let mut coherence_prev: Option<CoherencePrevious> = None;
+    // The coherence settings are committed constants: parsed once per run.
+    let coherence_settings = crate::coherence::CoherenceSettings::from_thresholds(
+        &crate::metrics::Thresholds::committed().map_err(|e| PipelineError::Output {
+            path: job.out_dir.clone(),
+            message: format!("internal: {e}"),
+        })?,
+    );
     let mut done = 0;
     for (k, &number) in frames.iter().enumerate() {
         observer(Event::Start {
@@ -438,7 +445,16 @@ pub fn run(
             let current = CoherencePrevious::of(method, number, atlas, ids, &result.channels);
             if let (Some(prev), Some((prev_mesh, prev_index))) = (&coherence_prev, &previous) {
                 let found = measure_coherence(
-                    job, &mut files, number, prev, prev_mesh, prev_index, &current, &mesh, &index,
+                    job,
+                    &mut files,
+                    number,
+                    prev,
+                    prev_mesh,
+                    prev_index,
+                    &current,
+                    &mesh,
+                    &index,
+                    &coherence_settings,
                 )?;
                 if let Some(c) = found {
                     stats.source_switch_share = Some(c.switch_share());
@@ -701,20 +717,13 @@ fn measure_coherence(
     current: &CoherencePrevious,
     mesh: &TriMesh,
     index: &SurfaceIndex,
+    settings: &crate::coherence::CoherenceSettings,
 ) -> Result<Option<crate::coherence::Coherence>, PipelineError> {
-    use crate::coherence::{
-        self, CoherenceSettings, TexelFrame, carry_by_velocity, sample_surface, switch_map,
-    };
+    use crate::coherence::{self, TexelFrame, carry_by_velocity, sample_surface, switch_map};
     use crate::surface::velocity::FlowFrame;
     let (Some(v0), Some(v1)) = (prev_mesh.velocity(), mesh.velocity()) else {
         return Ok(None);
     };
-    let settings = CoherenceSettings::from_thresholds(
-        &crate::metrics::Thresholds::committed().map_err(|e| PipelineError::Output {
-            path: job.out_dir.clone(),
-            message: format!("internal: {e}"),
-        })?,
-    );
     let dt = 1.0 / job.fps;
     let before = TexelFrame {
         atlas: &prev.atlas,
@@ -736,7 +745,7 @@ fn measure_coherence(
     let seed = crate::methods::erosion::mix(settings.seed, 7, prev.number as u64);
     let points = sample_surface(prev_mesh, settings.samples, seed);
     let carried = carry_by_velocity(prev_mesh, v0, next, dt, points);
-    let Ok(found) = coherence::measure(&carried, &before, &after, &settings) else {
+    let Ok(found) = coherence::measure(&carried, &before, &after, settings) else {
         return Ok(None);
     };
     let from = FlowFrame {

@@ -22,10 +22,7 @@ fn thresholds() -> Thresholds {
 
 /// A CC0 exemplar committed in `tests/data/exemplars/` (provenance in its README).
 fn exemplar(name: &str) -> Texture {
-    let path = format!(
-        "{}/tests/data/exemplars/{name}",
-        env!("CARGO_MANIFEST_DIR")
-    );
+    let path = format!("{}/tests/data/exemplars/{name}", env!("CARGO_MANIFEST_DIR"));
     let img = image::open(&path)
         .unwrap_or_else(|e| panic!("{path}: {e}"))
         .to_luma32f();

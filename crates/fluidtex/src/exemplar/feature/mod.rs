@@ -130,14 +130,22 @@ impl FeatureMap {
     /// `D(s, t) = max(0, 1 − ‖(0.5, 0.5) − (s, t)‖ / 0.5)`. A constant of the
     /// map: compute it once per exemplar.
     pub fn erosion_normaliser(&self) -> f32 {
+        self.erosion_normaliser_with_reach(0.5)
+    }
+
+    /// [`FeatureMap::erosion_normaliser`] for a D that reaches 0 at uv
+    /// distance `reach` from the centre instead of 0.5 (the erosion
+    /// method's footprint falloff).
+    pub fn erosion_normaliser_with_reach(&self, reach: f32) -> f32 {
         let (w, h) = (self.map.width as usize, self.map.height as usize);
         let c = self.map.channels.max(1);
+        let inv_reach = 1.0 / reach;
         let mut best = 0.0f32;
         for y in 0..h {
             let t = (y as f32 + 0.5) / h as f32;
             for x in 0..w {
                 let s = (x as f32 + 0.5) / w as f32;
-                let d = (1.0 - ((s - 0.5).powi(2) + (t - 0.5).powi(2)).sqrt() / 0.5).max(0.0);
+                let d = (1.0 - ((s - 0.5).powi(2) + (t - 0.5).powi(2)).sqrt() * inv_reach).max(0.0);
                 let f = self.map.data.get((y * w + x) * c).copied().unwrap_or(0.0);
                 best = best.max((f + d).sqrt());
             }

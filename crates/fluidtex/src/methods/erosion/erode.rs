@@ -9,7 +9,7 @@
 //! with D(u, v) = max(0, 1 − ‖(0.5, 0.5) − (u, v)‖ / 0.5): texels with low
 //! feature values, far from the patch centre or on distorted parts of the
 //! patch go first. The denominator is a constant of the feature map, computed
-//! once per exemplar by [`normaliser`]. The equation is implemented as
+//! once per exemplar by [`FeatureMap::erosion_normaliser_with_reach`]. The equation is implemented as
 //! written (the authors' public code replaced it by a pre-baked image
 //! sequence), with one documented choice: by default D reaches 0 at the
 //! patch's own footprint, uv distance r/S, rather than at the exemplar
@@ -17,7 +17,7 @@
 //! from its creation on (`Falloff` in the method's parameters; the paper's
 //! reach stays selectable).
 
-use crate::texture::Texture;
+use crate::exemplar::FeatureMap;
 
 /// The uv distance at which the paper's D(u, v) reaches 0: the edge of the
 /// exemplar square.
@@ -36,25 +36,6 @@ pub fn centre_falloff(u: f32, v: f32) -> f32 {
 fn falloff_with_reach(u: f32, v: f32, inv_reach: f32) -> f32 {
     let (du, dv) = (u - 0.5, v - 0.5);
     (1.0 - (du * du + dv * dv).sqrt() * inv_reach).max(0.0)
-}
-
-/// max over the feature map's texels of sqrt(F_m + D), D reaching 0 at uv
-/// distance `reach`: the normalising constant of the test, once per
-/// exemplar and reach.
-pub fn normaliser(map: &Texture, reach: f32) -> f32 {
-    let (w, h) = (map.width as usize, map.height as usize);
-    let c = map.channels.max(1);
-    let inv_reach = 1.0 / reach;
-    let mut best = 0.0f32;
-    for y in 0..h {
-        let t = (y as f32 + 0.5) / h as f32;
-        for x in 0..w {
-            let s = (x as f32 + 0.5) / w as f32;
-            let f = map.data.get((y * w + x) * c).copied().unwrap_or(0.0);
-            best = best.max((f + falloff_with_reach(s, t, inv_reach)).sqrt());
-        }
-    }
-    best
 }
 
 /// The erosion decision with its constants bound.
@@ -81,11 +62,11 @@ impl ErosionTest {
     /// The test with D reaching 0 at uv distance `reach` from the centre
     /// (the patch footprint r/S instead of the paper's 0.5), normalised over
     /// the feature map `map` for that D.
-    pub fn with_reach(map: &Texture, epsilon: f32, reach: f32) -> ErosionTest {
+    pub fn with_reach(feature: &FeatureMap, epsilon: f32, reach: f32) -> ErosionTest {
         let reach = reach.max(1e-3);
         ErosionTest {
             inv_reach: 1.0 / reach,
-            ..ErosionTest::new(normaliser(map, reach), epsilon)
+            ..ErosionTest::new(feature.erosion_normaliser_with_reach(reach), epsilon)
         }
     }
 

@@ -9,15 +9,13 @@
 //! F_m from a level whose texels match the atlas texel's footprint keeps
 //! the border a smooth curve that moves with the patch.
 //!
-//! Levels are 2×2 box averages with wrap-around (the map repeats, as the
-//! exemplar does); sampling is bilinear within a level and linear between
-//! levels. Written here rather than taken from an image crate because the
-//! levels must stay [`FeatureMap`]s (values checked in [0, 1]) sampled with
-//! the same lattice as level 0, so that level 0 gives exactly the paper's
-//! bilinear F_m.
+//! Levels are the exemplar's own pyramid ([`crate::exemplar::mip_levels`]),
+//! each kept as a [`FeatureMap`] sampled with the same lattice as level 0,
+//! so that level 0 gives exactly the paper's bilinear F_m; sampling is
+//! bilinear within a level and linear between levels.
 
 use crate::exemplar::feature::{FeatureMap, FeatureSampler};
-use crate::texture::Texture;
+use crate::exemplar::mip_levels;
 
 /// The feature map and its successive 2×2 reductions down to one texel
 /// along the shorter side.
@@ -27,36 +25,17 @@ pub struct FeatureLevels {
 
 impl FeatureLevels {
     pub fn new(map: &FeatureMap) -> FeatureLevels {
-        let mut levels = vec![map.clone()];
-        while let Some(last) = levels.last() {
-            let t = &last.map;
-            if t.width < 2 || t.height < 2 {
-                break;
-            }
-            let (w, h) = (t.width / 2, t.height / 2);
-            let c = t.channels.max(1);
-            let at = |x: u32, y: u32| t.data[((y % t.height) * t.width + x % t.width) as usize * c];
-            let mut data = Vec::with_capacity((w * h) as usize);
-            for y in 0..h {
-                for x in 0..w {
-                    let (x2, y2) = (2 * x, 2 * y);
-                    data.push(
-                        0.25 * (at(x2, y2) + at(x2 + 1, y2) + at(x2, y2 + 1) + at(x2 + 1, y2 + 1)),
-                    );
-                }
-            }
-            let texture = Texture {
-                width: w,
-                height: h,
-                channels: 1,
-                data,
-            };
+        let mut levels = Vec::new();
+        for texture in mip_levels(&map.map) {
             // Averages of values in [0, 1] stay in [0, 1]; should a check
             // still refuse, the coarser levels are simply not used.
-            match FeatureMap::new(texture, last.origin.clone(), "feature map level") {
+            match FeatureMap::new(texture, map.origin.clone(), "feature map level") {
                 Ok(level) => levels.push(level),
                 Err(_) => break,
             }
+        }
+        if levels.is_empty() {
+            levels.push(map.clone());
         }
         FeatureLevels { levels }
     }
@@ -112,6 +91,7 @@ impl FeatureLevelSampler<'_> {
 mod tests {
     use super::*;
     use crate::exemplar::feature::FeatureOrigin;
+    use crate::texture::Texture;
 
     fn checker(n: u32) -> FeatureMap {
         let data = (0..n * n).map(|i| ((i % n + i / n) % 2) as f32).collect();

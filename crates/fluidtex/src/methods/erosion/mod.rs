@@ -336,7 +336,7 @@ impl Erosion {
             // Patches larger than the exemplar square cannot reach further than it.
             Falloff::Footprint => footprint.clamp(1e-3, erode::PAPER_REACH),
         };
-        ErosionTest::with_reach(&self.exemplar.feature.map, self.params.epsilon, reach)
+        ErosionTest::with_reach(&self.exemplar.feature, self.params.epsilon, reach)
     }
 
     fn shape(&self, radius: f32, exemplar_size: f32, atlas: &crate::atlas::Atlas) -> PatchShape {

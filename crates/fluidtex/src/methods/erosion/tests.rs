@@ -281,7 +281,7 @@ fn lapped_fill_matches_a_brute_force_reference() {
     let exemplar_size = method.state().exemplar_size.expect("resolved");
     // The method's defaults: D reaches 0 at the footprint r/S, and F_m is
     // read at each patch triangle's footprint level.
-    let test = ErosionTest::with_reach(&ex.feature.map, 0.1, radius / exemplar_size);
+    let test = ErosionTest::with_reach(&ex.feature, 0.1, radius / exemplar_size);
     let levels = super::feature_levels::FeatureLevels::new(&ex.feature);
     let feature = levels.samplers();
     let source = sources(last);
@@ -884,12 +884,17 @@ fn the_footprint_falloff_erodes_the_rim_of_an_undistorted_patch() {
     // A flat feature map: F = 0.5 everywhere. At w = 1 the paper's D keeps
     // the rim (uv distance 0.385 from the centre), the footprint D erodes
     // it; both keep the centre.
-    let map = crate::texture::Texture {
-        width: 8,
-        height: 8,
-        channels: 1,
-        data: vec![0.0; 64],
-    };
+    let map = crate::exemplar::FeatureMap::new(
+        crate::texture::Texture {
+            width: 8,
+            height: 8,
+            channels: 1,
+            data: vec![0.0; 64],
+        },
+        crate::exemplar::FeatureOrigin::Builtin,
+        "flat",
+    )
+    .expect("valid map");
     let footprint = ErosionTest::with_reach(&map, 0.1, 1.0 / 2.6);
     let paper = ErosionTest::with_reach(&map, 0.1, 0.5);
     let rim = 0.5 + 0.999 / 2.6;
@@ -897,7 +902,7 @@ fn the_footprint_falloff_erodes_the_rim_of_an_undistorted_patch() {
     assert!(!paper.eroded(0.0, rim, 0.5, 1.0));
     assert!(!footprint.eroded(0.0, 0.5, 0.5, 1.0));
     // with_reach(0.5) is the paper's test exactly.
-    let classic = ErosionTest::new(super::erode::normaliser(&map, 0.5), 0.1);
+    let classic = ErosionTest::new(map.erosion_normaliser(), 0.1);
     for (u, v, w) in [(0.2, 0.7, 0.3), (0.5, 0.5, 0.9), (0.8, 0.4, 0.6)] {
         assert_eq!(paper.lhs(0.0, u, v), classic.lhs(0.0, u, v));
         assert_eq!(paper.eroded(0.0, u, v, w), classic.eroded(0.0, u, v, w));
