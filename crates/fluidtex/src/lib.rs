@@ -22,6 +22,7 @@
 
 pub mod atlas;
 pub mod coherence;
+pub mod driver;
 pub mod eval;
 pub mod exemplar;
 pub mod fuzz;

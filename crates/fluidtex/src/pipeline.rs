@@ -27,15 +27,17 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::atlas::{Atlas, AtlasError, AtlasParams};
+use std::sync::Arc;
+
+use crate::atlas::{AtlasError, AtlasParams};
+use crate::driver::{
+    DrivenFrame, Driver, DriverError, FrameGeometry, FrameSink, PendingFrame, StageClock,
+};
 use crate::io::image::{ExrOptions, ExrSample, PngDepth, PngOptions};
 use crate::io::{InputGuard, IoError, Staging, WriteHook};
 use crate::mesh::{TriMesh, ValidationReport};
-use crate::methods::{
-    FrameContext, Method, MethodError, PreviousFrame, SOURCE_OUTSIDE, SOURCE_UNCOVERED,
-};
+use crate::methods::{Method, MethodError, SOURCE_OUTSIDE, SOURCE_UNCOVERED};
 use crate::render::{self, Camera};
-use crate::surface::SurfaceIndex;
 use crate::texture::Texture;
 use glam::Vec3;
 
@@ -274,7 +276,8 @@ const STATE_FILE: &str = "state.bin";
 /// 2: the checksum was added.
 const STATE_VERSION: u32 = 2;
 
-/// Runs `method` over every frame of `source`.
+/// Runs `method` over every frame of `source`: the [`Driver`] with a sink
+/// that writes each frame's files.
 pub fn run(
     job: &Job,
     source: &mut dyn FrameSource,
@@ -307,7 +310,7 @@ pub fn run(
     // A run killed inside a write leaves its temporary behind.
     crate::io::remove_stale_temporaries(&job.out_dir, &guard)?;
     let mut frames = source.frames();
-    let mut previous: Option<(TriMesh, SurfaceIndex)> = None;
+    let mut previous: Option<Arc<FrameGeometry>> = None;
     let mut resumed_after = None;
     if job.resume
         && let Some(saved) = read_state(&job.out_dir)?
@@ -323,149 +326,147 @@ pub fn run(
         method.load_state(&saved.method_state)?;
         let last = saved.last_frame;
         if frames.contains(&last) {
-            let (mesh, _) = source.read(last)?;
-            let index = SurfaceIndex::new(&mesh);
-            previous = Some((mesh, index));
+            let (mesh, report) = source.read(last)?;
+            let geometry =
+                FrameGeometry::build(last, mesh, report, &job.atlas, &mut StageClock::default())?;
+            previous = Some(Arc::new(geometry));
         }
         frames.retain(|&f| f > last);
         resumed_after = Some(last);
     }
     let total = frames.len();
-    // Previews are taken every n frames counted from the sequence's first
-    // frame, so a resumed run writes the same previews.
-    let first_frame = source.frames().first().copied().unwrap_or(0);
-    // What the coherence measurement keeps of the frame before.
-    let mut coherence_prev: Option<CoherencePrevious> = None;
-    // The coherence settings are committed constants: parsed once per run.
-    let coherence_settings = crate::coherence::CoherenceSettings::from_thresholds(
-        &crate::metrics::Thresholds::committed().map_err(|e| PipelineError::Output {
-            path: job.out_dir.clone(),
-            message: format!("internal: {e}"),
-        })?,
-    );
-    let mut done = 0;
+    let mut sink = FileSink {
+        job,
+        guard: &guard,
+        // Previews are taken every n frames counted from the sequence's
+        // first frame, so a resumed run writes the same previews.
+        first_frame: source.frames().first().copied().unwrap_or(0),
+        coherence_prev: None,
+        // The coherence settings are committed constants: parsed once per run.
+        coherence_settings: crate::coherence::CoherenceSettings::from_thresholds(
+            &crate::metrics::Thresholds::committed().map_err(|e| PipelineError::Output {
+                path: job.out_dir.clone(),
+                message: format!("internal: {e}"),
+            })?,
+        ),
+        resumed_after,
+        observer,
+        done: 0,
+    };
+    let mut driver = Driver::new(method, 1.0 / job.fps, job.atlas.gutter.max(1) * 2);
+    driver.set_previous(previous);
     for (k, &number) in frames.iter().enumerate() {
-        observer(Event::Start {
+        (sink.observer)(Event::Start {
             number,
             index: k,
             total,
         });
-        let mut seconds: Vec<(String, f64)> = Vec::new();
-        let mut lap = {
-            let mut last = Instant::now();
-            move |name: &str, seconds: &mut Vec<(String, f64)>| {
-                let now = Instant::now();
-                seconds.push((name.to_string(), now.duration_since(last).as_secs_f64()));
-                last = now;
-            }
-        };
+        let mut clock = StageClock::default();
         let (mesh, report) = source.read(number)?;
         if report.dropped_degenerate > 0 {
-            observer(Event::Warning(format!(
+            (sink.observer)(Event::Warning(format!(
                 "frame {number}: dropped {} zero-area triangles",
                 report.dropped_degenerate
             )));
         }
-        if method.needs_velocity() && !mesh.is_empty() && mesh.velocity().is_none() {
-            return Err(MethodError::MissingVelocity {
-                frame: number,
-                method: method.name(),
-            }
-            .into());
-        }
-        lap("read", &mut seconds);
-        let index = SurfaceIndex::new(&mesh);
-        lap("bvh", &mut seconds);
-        let atlas = Atlas::build(&mesh, &job.atlas).map_err(|source| PipelineError::Atlas {
-            frame: number,
-            source,
-        })?;
-        lap("atlas", &mut seconds);
-        let ctx = FrameContext {
-            number,
-            dt: 1.0 / job.fps,
-            mesh: &mesh,
-            index: &index,
-            previous: previous
-                .as_ref()
-                .map(|(m, i)| PreviousFrame { mesh: m, index: i }),
-            atlas: &atlas,
-        };
-        let mut result = method.step(&ctx)?;
-        for (name, s) in &result.timings {
-            seconds.push((name.to_string(), *s));
-        }
-        lap("method", &mut seconds);
-        seconds.pop(); // the method's own stages replace this lap
-        for channel in &mut result.channels {
-            atlas
-                .dilate(channel, job.atlas.gutter.max(1) * 2)
-                .map_err(|source| PipelineError::Atlas {
-                    frame: number,
-                    source,
-                })?;
-        }
-        lap("dilate", &mut seconds);
+        clock.lap("read");
+        let geometry = FrameGeometry::build(number, mesh, report, &job.atlas, &mut clock)?;
+        driver.step(
+            PendingFrame {
+                geometry: Arc::new(geometry),
+                clock,
+            },
+            &mut sink,
+        )?;
+    }
+    let done = sink.done;
+    drop(lock);
+    Ok(Summary {
+        frames_done: done,
+        resumed_after,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}
 
+impl From<DriverError> for PipelineError {
+    fn from(e: DriverError) -> PipelineError {
+        match e {
+            DriverError::Atlas { frame, source } => PipelineError::Atlas { frame, source },
+            DriverError::Method(m) => PipelineError::Method(m),
+        }
+    }
+}
+
+/// The sink of `run`: every file of a frame, its coherence numbers and the
+/// saved state.
+struct FileSink<'a, 'o> {
+    job: &'a Job,
+    guard: &'a InputGuard,
+    first_frame: i32,
+    /// What the coherence measurement keeps of the frame before.
+    coherence_prev: Option<CoherencePrevious>,
+    coherence_settings: crate::coherence::CoherenceSettings,
+    resumed_after: Option<i32>,
+    observer: &'o mut dyn FnMut(Event<'_>),
+    done: usize,
+}
+
+impl FrameSink for FileSink<'_, '_> {
+    type Error = PipelineError;
+
+    fn frame(&mut self, frame: DrivenFrame<'_>) -> Result<(), PipelineError> {
+        let DrivenFrame {
+            method,
+            geometry: g,
+            previous,
+            mut result,
+            clock,
+        } = frame;
+        let job = self.job;
+        let number = g.number;
         let mut stats = FrameStats {
             frame: number,
             method: method.name().to_string(),
-            vertices: mesh.vertex_count(),
-            triangles: mesh.triangle_count(),
-            dropped_degenerate: report.dropped_degenerate,
-            charts: atlas.chart_count,
-            atlas_width: atlas.width,
-            atlas_height: atlas.height,
+            vertices: g.mesh.vertex_count(),
+            triangles: g.mesh.triangle_count(),
+            dropped_degenerate: g.report.dropped_degenerate,
+            charts: g.atlas.chart_count,
+            atlas_width: g.atlas.width,
+            atlas_height: g.atlas.height,
             method_stats: std::mem::take(&mut result.stats),
             ..Default::default()
         };
         // Every file of the frame is staged, then all are renamed together,
         // then the state counts the frame; a failure before the state is
         // written leaves the frame uncounted and `--resume` redoes it.
-        let mut files = Staging::new(Some(&guard), job.hooks.write.as_ref());
-        write_frame(
-            job,
-            &mut files,
-            first_frame,
-            number,
-            &mesh,
-            &atlas,
-            method,
-            &result,
-        )?;
-        lap("write", &mut seconds);
+        let mut files = Staging::new(Some(self.guard), job.hooks.write.as_ref());
+        self.write_frame(&mut files, g, method, &result)?;
+        clock.lap("write");
         if job.outputs.debug
             && let Some(ids) = &result.source
         {
-            if coherence_prev.is_none()
-                && let (Some(last), Some((prev_mesh, _))) = (resumed_after, &previous)
+            if self.coherence_prev.is_none()
+                && let (Some(last), Some(_)) = (self.resumed_after, previous)
             {
-                coherence_prev = reload_coherence(job, method, last, prev_mesh, observer);
+                self.coherence_prev = reload_coherence(job, method, last, self.observer);
             }
-            let current = CoherencePrevious::of(method, number, atlas, ids, &result.channels);
-            if let (Some(prev), Some((prev_mesh, prev_index))) = (&coherence_prev, &previous) {
-                let found = measure_coherence(
-                    job,
-                    &mut files,
-                    number,
-                    prev,
-                    prev_mesh,
-                    prev_index,
-                    &current,
-                    &mesh,
-                    &index,
-                    &coherence_settings,
-                )?;
-                if let Some(c) = found {
-                    stats.source_switch_share = Some(c.switch_share());
-                    stats.colour_follow_ratio = Some(c.follow_ratio());
-                }
+            let current = CoherencePrevious::of(method, number, ids, &result.channels);
+            if let (Some(before), Some(prev)) = (&self.coherence_prev, previous)
+                && before.number == prev.number
+                && let Some(c) = self.measure_coherence(&mut files, prev, before, g, &current)?
+            {
+                stats.source_switch_share = Some(c.switch_share());
+                stats.colour_follow_ratio = Some(c.follow_ratio());
             }
-            coherence_prev = Some(current);
-            lap("coherence", &mut seconds);
+            self.coherence_prev = Some(current);
+            clock.lap("coherence");
         }
-        stats.stage_order = seconds.iter().map(|(n, _)| n.clone()).collect();
-        stats.seconds = seconds.into_iter().collect();
+        stats.stage_order = clock.stages.iter().map(|(n, _)| n.to_string()).collect();
+        stats.seconds = clock
+            .stages
+            .iter()
+            .map(|(n, s)| (n.to_string(), *s))
+            .collect();
         let json = serde_json::to_vec_pretty(&stats).map_err(|e| PipelineError::Output {
             path: job.out_dir.clone(),
             message: e.to_string(),
@@ -477,17 +478,11 @@ pub fn run(
             &json,
         )?;
         files.commit()?;
-        save_state(job, &guard, method, number)?;
-        observer(Event::Done { stats: &stats });
-        done += 1;
-        previous = Some((mesh, index));
+        save_state(job, self.guard, method, number)?;
+        (self.observer)(Event::Done { stats: &stats });
+        self.done += 1;
+        Ok(())
     }
-    drop(lock);
-    Ok(Summary {
-        frames_done: done,
-        resumed_after,
-        seconds: start.elapsed().as_secs_f64(),
-    })
 }
 
 /// The frame number as written in file names: at least 4 digits.
@@ -578,13 +573,13 @@ fn save_state(
 }
 
 /// What the coherence measurement of the next frame needs of this one: its
-/// atlas, sources and grey values *as written to the files*
-/// (`source.F.exr` stores ids as f32; the grey values are read back from
-/// the colour atlas file), so that a resumed run, which reloads them from
-/// those files, measures exactly what an uninterrupted one does.
+/// sources and grey values *as written to the files* (`source.F.exr`
+/// stores ids as f32; the grey values are read back from the colour atlas
+/// file), so that a resumed run, which reloads them from those files,
+/// measures exactly what an uninterrupted one does. The atlas is the
+/// driver's previous frame's.
 struct CoherencePrevious {
     number: i32,
-    atlas: Atlas,
     source: Vec<u32>,
     grey: Vec<f32>,
 }
@@ -595,7 +590,6 @@ impl CoherencePrevious {
     fn of(
         method: &dyn Method,
         number: i32,
-        atlas: Atlas,
         source: &[u32],
         channels: &[Texture],
     ) -> CoherencePrevious {
@@ -615,7 +609,6 @@ impl CoherencePrevious {
             .collect();
         CoherencePrevious {
             number,
-            atlas,
             source,
             grey,
         }
@@ -662,14 +655,13 @@ fn read_grey(job: &Job, method: &dyn Method, number: i32) -> Result<Vec<f32>, Pi
 }
 
 /// After `--resume`: the coherence data of the last finished frame, from its
-/// files (`source.F.exr`, the colour atlas) and its atlas rebuilt from its
-/// mesh. `None`, with a warning, when they cannot be read (then the first
-/// resumed frame has no coherence numbers).
+/// files (`source.F.exr`, the colour atlas). `None`, with a warning, when
+/// they cannot be read (then the first resumed frame has no coherence
+/// numbers).
 fn reload_coherence(
     job: &Job,
     method: &dyn Method,
     last: i32,
-    mesh: &TriMesh,
     observer: &mut dyn FnMut(Event<'_>),
 ) -> Option<CoherencePrevious> {
     let load = || -> Result<CoherencePrevious, String> {
@@ -682,11 +674,9 @@ fn reload_coherence(
             .step_by(ids.texture.channels.max(1))
             .map(|&v| if v < 0.0 { SOURCE_OUTSIDE } else { v as u32 })
             .collect();
-        let atlas = Atlas::build(mesh, &job.atlas).map_err(|e| e.to_string())?;
         let grey = read_grey(job, method, last).map_err(|e| e.to_string())?;
         Ok(CoherencePrevious {
             number: last,
-            atlas,
             source,
             grey,
         })
@@ -703,67 +693,68 @@ fn reload_coherence(
     }
 }
 
-/// Source switch share and colour follow ratio from `prev` to `current`
-/// (carried by the meshes' velocity), and `switch.F.png`. `None` when a
-/// frame has no velocity or the data does not fit its atlas.
-#[allow(clippy::too_many_arguments)]
-fn measure_coherence(
-    job: &Job,
-    files: &mut Staging<'_>,
-    number: i32,
-    prev: &CoherencePrevious,
-    prev_mesh: &TriMesh,
-    prev_index: &SurfaceIndex,
-    current: &CoherencePrevious,
-    mesh: &TriMesh,
-    index: &SurfaceIndex,
-    settings: &crate::coherence::CoherenceSettings,
-) -> Result<Option<crate::coherence::Coherence>, PipelineError> {
-    use crate::coherence::{self, TexelFrame, carry_by_velocity, sample_surface, switch_map};
-    use crate::surface::velocity::FlowFrame;
-    let (Some(v0), Some(v1)) = (prev_mesh.velocity(), mesh.velocity()) else {
-        return Ok(None);
-    };
-    let dt = 1.0 / job.fps;
-    let before = TexelFrame {
-        atlas: &prev.atlas,
-        source: &prev.source,
-        grey: &prev.grey,
-    };
-    let after = TexelFrame {
-        atlas: &current.atlas,
-        source: &current.source,
-        grey: &current.grey,
-    };
-    let next = FlowFrame {
-        mesh,
-        index,
-        velocity: v1,
-    };
-    // One sample set per frame pair, seeded by the frame so a resumed run
-    // draws the same points.
-    let seed = crate::methods::erosion::mix(settings.seed, 7, prev.number as u64);
-    let points = sample_surface(prev_mesh, settings.samples, seed);
-    let carried = carry_by_velocity(prev_mesh, v0, next, dt, points);
-    let Ok(found) = coherence::measure(&carried, &before, &after, settings) else {
-        return Ok(None);
-    };
-    let from = FlowFrame {
-        mesh: prev_mesh,
-        index: prev_index,
-        velocity: v0,
-    };
-    if let Ok(map) = switch_map(&before, from, &after, next, dt) {
-        let image = coherence::switch_image(&map, current.atlas.width, current.atlas.height);
-        write_channel(
-            files,
-            &job.out_dir
-                .join(format!("switch.{}.png", frame_tag(number))),
-            &image,
-            ChannelFormat::Png8,
-        )?;
+impl FileSink<'_, '_> {
+    /// Source switch share and colour follow ratio from the frame before
+    /// to this one (carried by the meshes' velocity), and `switch.F.png`.
+    /// `None` when a frame has no velocity or the data does not fit its
+    /// atlas.
+    fn measure_coherence(
+        &self,
+        files: &mut Staging<'_>,
+        prev: &FrameGeometry,
+        before: &CoherencePrevious,
+        frame: &FrameGeometry,
+        current: &CoherencePrevious,
+    ) -> Result<Option<crate::coherence::Coherence>, PipelineError> {
+        use crate::coherence::{self, TexelFrame, carry_by_velocity, sample_surface, switch_map};
+        use crate::surface::velocity::FlowFrame;
+        let (Some(v0), Some(v1)) = (prev.mesh.velocity(), frame.mesh.velocity()) else {
+            return Ok(None);
+        };
+        let settings = &self.coherence_settings;
+        let dt = 1.0 / self.job.fps;
+        let from_texels = TexelFrame {
+            atlas: &prev.atlas,
+            source: &before.source,
+            grey: &before.grey,
+        };
+        let to_texels = TexelFrame {
+            atlas: &frame.atlas,
+            source: &current.source,
+            grey: &current.grey,
+        };
+        let next = FlowFrame {
+            mesh: &frame.mesh,
+            index: &frame.index,
+            velocity: v1,
+        };
+        // One sample set per frame pair, seeded by the frame so a resumed run
+        // draws the same points.
+        let seed = crate::methods::erosion::mix(settings.seed, 7, before.number as u64);
+        let points = sample_surface(&prev.mesh, settings.samples, seed);
+        let carried = carry_by_velocity(&prev.mesh, v0, next, dt, points);
+        let Ok(found) = coherence::measure(&carried, &from_texels, &to_texels, settings) else {
+            return Ok(None);
+        };
+        let from = FlowFrame {
+            mesh: &prev.mesh,
+            index: &prev.index,
+            velocity: v0,
+        };
+        if let Ok(map) = switch_map(&from_texels, from, &to_texels, next, dt) {
+            let image = coherence::switch_image(&map, frame.atlas.width, frame.atlas.height);
+            write_channel(
+                files,
+                &self
+                    .job
+                    .out_dir
+                    .join(format!("switch.{}.png", frame_tag(frame.number))),
+                &image,
+                ChannelFormat::Png8,
+            )?;
+        }
+        Ok(Some(found))
     }
-    Ok(Some(found))
 }
 
 fn write_file(files: &mut Staging<'_>, path: &Path, bytes: &[u8]) -> Result<(), PipelineError> {
@@ -785,162 +776,156 @@ pub fn patch_colour(source: u32) -> [f32; 3] {
     }
 }
 
-#[allow(clippy::too_many_arguments)]
-fn write_frame(
-    job: &Job,
-    files: &mut Staging<'_>,
-    first_frame: i32,
-    number: i32,
-    mesh: &TriMesh,
-    atlas: &Atlas,
-    method: &dyn Method,
-    result: &crate::methods::FrameResult,
-) -> Result<(), PipelineError> {
-    let tag = frame_tag(number);
-    let dir = &job.out_dir;
-    let specs = method.channel_specs();
-    if specs.len() != result.channels.len() {
-        return Err(PipelineError::Output {
-            path: dir.clone(),
-            message: format!(
-                "internal: method {} returned {} channels for {} names",
-                method.name(),
-                result.channels.len(),
-                specs.len()
-            ),
-        });
-    }
-    let mut colour_png: Option<(String, Vec<u8>)> = None;
-    for (spec, texture) in specs.iter().zip(&result.channels) {
-        let file = format!("{}.{tag}.{}", spec.name, spec.format.extension());
-        let path = dir.join(&file);
-        if let Some(bytes) = write_channel(files, &path, texture, spec.format)?
-            && colour_png.is_none()
-        {
-            colour_png = Some((file, bytes));
-        }
-    }
-    let uv = &atlas.uv_mesh;
-    let normals = uv_mesh_normals(mesh, atlas);
-    if job.outputs.obj {
-        let obj = dir.join(format!("mesh.{tag}.obj"));
-        let material = colour_png
-            .as_ref()
-            .map(|(file, _)| crate::io::obj_write::ObjMaterial {
-                name: "fluidtex".to_string(),
-                map_kd: file.clone(),
+impl FileSink<'_, '_> {
+    /// Stages every file of one frame: channels, meshes, previews, debug.
+    fn write_frame(
+        &self,
+        files: &mut Staging<'_>,
+        g: &FrameGeometry,
+        method: &dyn Method,
+        result: &crate::methods::FrameResult,
+    ) -> Result<(), PipelineError> {
+        let (job, first_frame, number, mesh, atlas) =
+            (self.job, self.first_frame, g.number, &g.mesh, &g.atlas);
+        let tag = frame_tag(number);
+        let dir = &job.out_dir;
+        let specs = method.channel_specs();
+        if specs.len() != result.channels.len() {
+            return Err(PipelineError::Output {
+                path: dir.clone(),
+                message: format!(
+                    "internal: method {} returned {} channels for {} names",
+                    method.name(),
+                    result.channels.len(),
+                    specs.len()
+                ),
             });
-        crate::io::obj_write::stage_obj(
-            files,
-            &obj,
-            &uv.positions,
-            &uv.uvs,
-            Some(&normals),
-            &uv.triangles,
-            material.as_ref(),
-        )?;
-    }
-    if job.outputs.glb {
-        let path = dir.join(format!("mesh.{tag}.glb"));
-        let png = colour_png.as_ref().map(|(_, b)| b.as_slice());
-        let glb =
-            crate::io::gltf::encode_glb(&uv.positions, &uv.uvs, Some(&normals), &uv.triangles, png)
-                .map_err(|reason| IoError::Unwritable {
-                    path: path.clone(),
-                    reason,
-                })?;
-        write_file(files, &path, &glb)?;
-    }
-    let patches = result.source.as_ref().map(|source| {
-        let mut colours = Texture::filled(atlas.width, atlas.height, 3, 0.0);
-        for (t, &s) in source.iter().enumerate() {
-            colours.data[t * 3..t * 3 + 3].copy_from_slice(&patch_colour(s));
         }
-        atlas
-            .dilate(&mut colours, job.atlas.gutter.max(1) * 2)
-            .map(|()| colours)
-            .map_err(|source| PipelineError::Atlas {
-                frame: number,
-                source,
-            })
-    });
-    let patches = patches.transpose()?;
-    if job.outputs.preview_every > 0
-        && (number - first_frame).rem_euclid(job.outputs.preview_every as i32) == 0
-        && let (Some(colour), Some((lo, hi))) = (result.channels.first(), mesh.bounding_box())
-    {
-        let size = job.outputs.preview_size.clamp(16, 8192);
-        let camera = Camera::framing(lo, hi, Vec3::new(-0.45, -0.8, -0.4), size, size);
-        let gb = render::rasterize(&uv.positions, &uv.triangles, &camera);
-        let background = [0.12, 0.12, 0.14];
-        let lit = render::shade_lit(
-            &gb,
-            &uv.triangles,
-            &normals,
-            &uv.uvs,
-            colour,
-            &camera,
-            background,
-        );
-        let mut views = vec![lit];
-        if let Some(p) = &patches {
-            views.push(render::shade_lit(
+        let mut colour_png: Option<(String, Vec<u8>)> = None;
+        for (spec, texture) in specs.iter().zip(&result.channels) {
+            let file = format!("{}.{tag}.{}", spec.name, spec.format.extension());
+            let path = dir.join(&file);
+            if let Some(bytes) = write_channel(files, &path, texture, spec.format)?
+                && colour_png.is_none()
+            {
+                colour_png = Some((file, bytes));
+            }
+        }
+        let uv = &atlas.uv_mesh;
+        let normals = g.uv_mesh_normals();
+        if job.outputs.obj {
+            let obj = dir.join(format!("mesh.{tag}.obj"));
+            let material = colour_png
+                .as_ref()
+                .map(|(file, _)| crate::io::obj_write::ObjMaterial {
+                    name: "fluidtex".to_string(),
+                    map_kd: file.clone(),
+                });
+            crate::io::obj_write::stage_obj(
+                files,
+                &obj,
+                &uv.positions,
+                &uv.uvs,
+                Some(&normals),
+                &uv.triangles,
+                material.as_ref(),
+            )?;
+        }
+        if job.outputs.glb {
+            let path = dir.join(format!("mesh.{tag}.glb"));
+            let png = colour_png.as_ref().map(|(_, b)| b.as_slice());
+            let glb = crate::io::gltf::encode_glb(
+                &uv.positions,
+                &uv.uvs,
+                Some(&normals),
+                &uv.triangles,
+                png,
+            )
+            .map_err(|reason| IoError::Unwritable {
+                path: path.clone(),
+                reason,
+            })?;
+            write_file(files, &path, &glb)?;
+        }
+        let patches = result.source.as_ref().map(|source| {
+            let mut colours = Texture::filled(atlas.width, atlas.height, 3, 0.0);
+            for (t, &s) in source.iter().enumerate() {
+                colours.data[t * 3..t * 3 + 3].copy_from_slice(&patch_colour(s));
+            }
+            atlas
+                .dilate(&mut colours, job.atlas.gutter.max(1) * 2)
+                .map(|()| colours)
+                .map_err(|source| PipelineError::Atlas {
+                    frame: number,
+                    source,
+                })
+        });
+        let patches = patches.transpose()?;
+        if job.outputs.preview_every > 0
+            && (number - first_frame).rem_euclid(job.outputs.preview_every as i32) == 0
+            && let (Some(colour), Some((lo, hi))) = (result.channels.first(), mesh.bounding_box())
+        {
+            let size = job.outputs.preview_size.clamp(16, 8192);
+            let camera = Camera::framing(lo, hi, Vec3::new(-0.45, -0.8, -0.4), size, size);
+            let gb = render::rasterize(&uv.positions, &uv.triangles, &camera);
+            let background = [0.12, 0.12, 0.14];
+            let lit = render::shade_lit(
                 &gb,
                 &uv.triangles,
                 &normals,
                 &uv.uvs,
-                p,
+                colour,
                 &camera,
                 background,
-            ));
+            );
+            let mut views = vec![lit];
+            if let Some(p) = &patches {
+                views.push(render::shade_lit(
+                    &gb,
+                    &uv.triangles,
+                    &normals,
+                    &uv.uvs,
+                    p,
+                    &camera,
+                    background,
+                ));
+            }
+            let sheet = render::side_by_side(&views.iter().collect::<Vec<_>>(), 8, background);
+            write_channel(
+                files,
+                &dir.join(format!("preview.{tag}.png")),
+                &sheet,
+                ChannelFormat::Png8,
+            )?;
         }
-        let sheet = render::side_by_side(&views.iter().collect::<Vec<_>>(), 8, background);
-        write_channel(
-            files,
-            &dir.join(format!("preview.{tag}.png")),
-            &sheet,
-            ChannelFormat::Png8,
-        )?;
+        if job.outputs.debug
+            && let (Some(source), Some(colours)) = (&result.source, &patches)
+        {
+            write_channel(
+                files,
+                &dir.join(format!("patches.{tag}.png")),
+                colours,
+                ChannelFormat::Png8,
+            )?;
+            let ids: Vec<f32> = source
+                .iter()
+                .map(|&s| if s == SOURCE_OUTSIDE { -1.0 } else { s as f32 })
+                .collect();
+            let ids = Texture {
+                width: atlas.width,
+                height: atlas.height,
+                channels: 1,
+                data: ids,
+            };
+            write_channel(
+                files,
+                &dir.join(format!("source.{tag}.exr")),
+                &ids,
+                ChannelFormat::Exr,
+            )?;
+        }
+        Ok(())
     }
-    if job.outputs.debug
-        && let (Some(source), Some(colours)) = (&result.source, &patches)
-    {
-        write_channel(
-            files,
-            &dir.join(format!("patches.{tag}.png")),
-            colours,
-            ChannelFormat::Png8,
-        )?;
-        let ids: Vec<f32> = source
-            .iter()
-            .map(|&s| if s == SOURCE_OUTSIDE { -1.0 } else { s as f32 })
-            .collect();
-        let ids = Texture {
-            width: atlas.width,
-            height: atlas.height,
-            channels: 1,
-            data: ids,
-        };
-        write_channel(
-            files,
-            &dir.join(format!("source.{tag}.exr")),
-            &ids,
-            ChannelFormat::Exr,
-        )?;
-    }
-    Ok(())
-}
-
-/// Per-vertex normals of the atlas's output mesh (seam copies share the
-/// normal of their source vertex, so shading is smooth across seams).
-fn uv_mesh_normals(mesh: &TriMesh, atlas: &Atlas) -> Vec<glam::Vec3> {
-    let normals = mesh.vertex_normals();
-    atlas
-        .uv_mesh
-        .source_vertex
-        .iter()
-        .map(|&v| normals.get(v as usize).copied().unwrap_or(glam::Vec3::Z))
-        .collect()
 }
 
 /// Writes one channel atlas; returns the PNG bytes for PNG formats (the

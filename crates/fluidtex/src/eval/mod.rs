@@ -51,18 +51,19 @@ pub mod truth;
 #[cfg(test)]
 mod tests;
 
-use std::time::Instant;
+use std::sync::Arc;
 
 use glam::{Vec2, Vec3};
 use thiserror::Error;
 
 use crate::atlas::AtlasError;
-use crate::methods::{FrameContext, Method, MethodError, PreviousFrame};
+use crate::driver::{DrivenFrame, Driver, DriverError, FrameSink, PendingFrame, StageClock};
+use crate::methods::{FrameResult, Method, MethodError};
 use crate::metrics::{
     self, FidelityReference, Metric, MetricsError, StaticStop, Summary, SurfaceSamples,
     SwdSettings, Thresholds, chart_mask,
 };
-use crate::render::{self, Camera};
+use crate::render::{self, Camera, GBuffer};
 use crate::scenes::SceneError;
 use crate::texture::Texture;
 
@@ -282,129 +283,252 @@ pub fn evaluate(
     settings.validate()?;
     let name = method.name().to_string();
     let first_frame = scene.frames.first().map_or(0, |f| f.number);
-    let metric_err = |frame: i32, what: &'static str| {
-        move |source: MetricsError| EvalError::Metrics {
-            frame,
-            what,
-            source,
-        }
-    };
     let sigma_ex = metrics::exemplar_sigma(exemplar);
     if sigma_ex.is_nan() || sigma_ex <= 0.0 {
-        return Err(metric_err(first_frame, "exemplar")(MetricsError::Invalid {
-            name: "sigma_ex",
-            value: sigma_ex as f64,
-            allowed: "(0, inf): a flat exemplar has no contrast to keep",
-        }));
+        return Err(EvalError::Metrics {
+            frame: first_frame,
+            what: "exemplar",
+            source: MetricsError::Invalid {
+                name: "sigma_ex",
+                value: sigma_ex as f64,
+                allowed: "(0, inf): a flat exemplar has no contrast to keep",
+            },
+        });
     }
-    let swd = SwdSettings {
-        levels: thresholds.fidelity.levels,
-        patch_size: thresholds.fidelity.patch_size,
-        projections: thresholds.fidelity.projections,
-        patches_per_level: thresholds.fidelity.patches_per_level,
-        seed: thresholds.fidelity.seed,
+    let mut sink = MetricsSink {
+        scene,
+        exemplar,
+        settings,
+        thresholds,
+        name: name.clone(),
+        sigma_ex,
+        swd: SwdSettings {
+            levels: thresholds.fidelity.levels,
+            patch_size: thresholds.fidelity.patch_size,
+            projections: thresholds.fidelity.projections,
+            patches_per_level: thresholds.fidelity.patches_per_level,
+            seed: thresholds.fidelity.seed,
+        },
+        notes: Vec::new(),
+        sigma_by_lod: None,
+        fidelity: None,
+        fidelity_scale: f64::NAN,
+        stop: StaticStop::new(),
+        previous_still: None,
+        changed_from_previous: Vec::new(),
+        records: Vec::with_capacity(scene.frames.len()),
+        renders: Vec::new(),
+        previous_view: None,
+        previous_texels: None,
+        image_flow_noted: false,
+        rest_scale: f64::NAN,
     };
-    let mut notes = Vec::new();
-    let mut sigma_by_lod: Option<Vec<f32>> = None;
-    let mut fidelity: Option<FidelityReference> = None;
-    let mut fidelity_scale = f64::NAN;
-    let mut stop = StaticStop::new();
-    // Still frames that differ from the still frame before them: tells a
-    // method that settles late (a few changes, then identical) from one
-    // that never settles.
-    let mut previous_still: Option<Texture> = None;
-    let mut changed_from_previous = Vec::new();
-    let mut records = Vec::with_capacity(scene.frames.len());
-    let mut renders = Vec::new();
-    let mut previous_view: Option<FrameView> = None;
-    // Sources and grey values of the frame before, for the coherence
-    // metrics.
-    let mut previous_texels: Option<(Vec<u32>, Vec<f32>)> = None;
-    let mut image_flow_noted = false;
-    // s₀ of the distortion metric (exemplar texels per world unit at the
-    // patches' creation), fixed at the first frame that gives it.
-    let mut rest_scale = f64::NAN;
-
-    for (k, frame) in scene.frames.iter().enumerate() {
-        let number = frame.number;
-        let prev = k.checked_sub(1).and_then(|j| scene.frames.get(j));
-        let ctx = FrameContext {
-            number,
-            dt: scene.dt,
-            mesh: &frame.mesh,
-            index: &frame.index,
-            previous: prev.map(|p| PreviousFrame {
-                mesh: &p.mesh,
-                index: &p.index,
-            }),
-            atlas: &frame.atlas,
+    let mut driver = Driver::new(method, scene.dt, settings.dilate_radius);
+    for frame in &scene.frames {
+        let pending = PendingFrame {
+            geometry: Arc::clone(&frame.geometry),
+            clock: StageClock::default(),
         };
-        let clock = Instant::now();
-        let mut result = method.step(&ctx).map_err(|source| EvalError::Method {
-            method: name.clone(),
-            source,
+        driver.step(pending, &mut sink).map_err(|e| match e {
+            EvalError::Method { source, .. } => EvalError::Method {
+                method: name.clone(),
+                source,
+            },
+            e => e,
         })?;
-        for channel in &mut result.channels {
-            frame
-                .atlas
-                .dilate(channel, settings.dilate_radius)
-                .map_err(|source| EvalError::Atlas {
-                    frame: number,
-                    source,
-                })?;
+    }
+    Ok(sink.finish())
+}
+
+impl From<DriverError> for EvalError {
+    fn from(e: DriverError) -> EvalError {
+        match e {
+            DriverError::Atlas { frame, source } => EvalError::Atlas { frame, source },
+            // `evaluate` names the method.
+            DriverError::Method(source) => EvalError::Method {
+                method: String::new(),
+                source,
+            },
         }
-        let seconds = clock.elapsed().as_secs_f64();
+    }
+}
+
+/// The sink of `evaluate`: every metric of every frame, in memory.
+struct MetricsSink<'a> {
+    scene: &'a PreparedScene,
+    exemplar: &'a Texture,
+    settings: &'a EvalSettings,
+    thresholds: &'a Thresholds,
+    name: String,
+    sigma_ex: f32,
+    swd: SwdSettings,
+    notes: Vec<String>,
+    sigma_by_lod: Option<Vec<f32>>,
+    fidelity: Option<FidelityReference>,
+    fidelity_scale: f64,
+    stop: StaticStop,
+    /// Still frames that differ from the still frame before them: tells a
+    /// method that settles late (a few changes, then identical) from one
+    /// that never settles.
+    previous_still: Option<Texture>,
+    changed_from_previous: Vec<i32>,
+    records: Vec<FrameRecord>,
+    renders: Vec<(i32, Texture)>,
+    previous_view: Option<FrameView>,
+    /// Sources and grey values of the frame before, for the coherence
+    /// metrics.
+    previous_texels: Option<(Vec<u32>, Vec<f32>)>,
+    image_flow_noted: bool,
+    /// s₀ of the distortion metric (exemplar texels per world unit at the
+    /// patches' creation), fixed at the first frame that gives it.
+    rest_scale: f64,
+}
+
+/// What the atlas of one frame holds, as the metrics read it.
+struct AtlasView<'r> {
+    colour: &'r Texture,
+    source: Option<&'r [u32]>,
+    uv: Option<&'r [Vec2]>,
+    /// Chart texels: from the method's provenance where it has one, else
+    /// from the atlas itself.
+    charts: Vec<bool>,
+}
+
+impl FrameSink for MetricsSink<'_> {
+    type Error = EvalError;
+
+    fn frame(&mut self, driven: DrivenFrame<'_>) -> Result<(), EvalError> {
+        let k = self.records.len();
+        let scene = self.scene;
+        let frame = scene.frames.get(k).ok_or_else(|| {
+            EvalError::Frames(format!("frame {} was not prepared", driven.geometry.number))
+        })?;
+        let prev = k.checked_sub(1).and_then(|j| scene.frames.get(j));
+        let number = frame.number;
+        let result = &driven.result;
+        let seconds = driven.clock.total();
         let colour = result.channels.first().ok_or_else(|| EvalError::NoColour {
-            method: name.clone(),
+            method: self.name.clone(),
             frame: number,
         })?;
-        let n_texels = frame.atlas.width as usize * frame.atlas.height as usize;
-        // Chart texels: from the method's provenance where it has one,
-        // else from the atlas itself.
+        let atlas = &frame.geometry.atlas;
+        let n_texels = atlas.width as usize * atlas.height as usize;
         let source: Option<&[u32]> = result.source.as_deref().filter(|s| s.len() == n_texels);
-        let charts = match source {
-            Some(s) => chart_mask(s),
-            None => frame.chart.iter().map(|&c| c != u32::MAX).collect(),
+        let view = AtlasView {
+            colour,
+            source,
+            uv: result.uv.as_deref().filter(|u| u.len() == n_texels),
+            charts: match source {
+                Some(s) => chart_mask(s),
+                None => frame.chart.iter().map(|&c| c != u32::MAX).collect(),
+            },
         };
-        let uv: Option<&[Vec2]> = result.uv.as_deref().filter(|u| u.len() == n_texels);
-
         let mut values = [f64::NAN; 10];
         let mut set = |m: Metric, v: f64| {
             if let Some(k) = PER_FRAME.iter().position(|&p| p == m) {
                 values[k] = v;
             }
         };
-        if let Some(s) = source {
+        let anisotropy = self.atlas_metrics(k, frame, result, &view, &mut set)?;
+        let rendered = self.render_metrics(frame, prev, &view, &mut set)?;
+        self.coherence_metrics(frame, prev, &view, &mut set)?;
+        if frame.still {
+            self.stop.push(colour);
+            if let Some(p) = &self.previous_still
+                && !metrics::bit_identical(p, colour)
+            {
+                self.changed_from_previous.push(number);
+            }
+            self.previous_still = Some(colour.clone());
+        }
+        if self.settings.keep_renders.contains(&number) {
+            self.renders.push((
+                number,
+                lit_render(frame, &scene.camera, colour, self.settings.supersample),
+            ));
+        }
+        let patches = result.stats.get("patches_alive").and_then(|v| v.as_f64());
+        self.records.push(FrameRecord {
+            frame: number,
+            seconds,
+            patches,
+            values,
+            still: frame.still,
+            anisotropy,
+        });
+        self.previous_view = Some(rendered);
+        Ok(())
+    }
+}
+
+impl MetricsSink<'_> {
+    fn metric_err(frame: i32, what: &'static str) -> impl Fn(MetricsError) -> EvalError {
+        move |source: MetricsError| EvalError::Metrics {
+            frame,
+            what,
+            source,
+        }
+    }
+
+    /// Coverage, ghosting, contrast, distortion and fidelity of the atlas;
+    /// returns the anisotropy shown beside distortion.
+    fn atlas_metrics(
+        &mut self,
+        k: usize,
+        frame: &PreparedFrame,
+        result: &FrameResult,
+        view: &AtlasView<'_>,
+        set: &mut impl FnMut(Metric, f64),
+    ) -> Result<f64, EvalError> {
+        let number = frame.number;
+        let err = |what| Self::metric_err(number, what);
+        let n_texels = view.charts.len();
+        if let Some(s) = view.source {
             set(Metric::Coverage, metrics::coverage(s).share());
             let ghost = match &result.layers {
                 Some(layers) => metrics::ghosting(s, layers)
-                    .map_err(metric_err(number, "ghost fraction"))?
+                    .map_err(err("ghost fraction"))?
                     .share(),
                 None => 0.0,
             };
             set(Metric::Ghosting, ghost);
         }
+        let charts = &view.charts;
         if charts.iter().any(|&c| c) {
             // A filtered output is compared with the exemplar filtered to
             // the levels it shows (metrics::contrast doc).
             let shown = match result.exemplar_lod.as_deref() {
                 Some(lod) if lod.len() == n_texels => {
-                    let table = sigma_by_lod
+                    let exemplar = self.exemplar;
+                    let table = self
+                        .sigma_by_lod
                         .get_or_insert_with(|| metrics::exemplar_sigma_by_lod(exemplar));
-                    metrics::shown_sigma(table, lod, Some(&charts))
-                        .map_err(metric_err(number, "contrast"))?
+                    metrics::shown_sigma(table, lod, Some(charts)).map_err(err("contrast"))?
                 }
-                _ => sigma_ex,
+                _ => self.sigma_ex,
             };
             set(
                 Metric::Contrast,
-                metrics::contrast_ratio(colour, Some(&charts), shown)
-                    .map_err(metric_err(number, "contrast"))?,
+                metrics::contrast_ratio(view.colour, Some(charts), shown)
+                    .map_err(err("contrast"))?,
             );
         }
-        let mut texel_scale = f64::NAN;
-        let mut anisotropy = f64::NAN;
-        if rest_scale.is_nan()
+        let (texel_scale, anisotropy) = self.distortion(frame, result, view, set)?;
+        self.fidelity(k, frame, texel_scale, view, set)?;
+        Ok(anisotropy)
+    }
+
+    /// Distortion (set) and (exemplar texels per atlas texel, anisotropy).
+    fn distortion(
+        &mut self,
+        frame: &PreparedFrame,
+        result: &FrameResult,
+        view: &AtlasView<'_>,
+        set: &mut impl FnMut(Metric, f64),
+    ) -> Result<(f64, f64), EvalError> {
+        let number = frame.number;
+        let exemplar = self.exemplar;
+        if self.rest_scale.is_nan()
             && let Some(size) = result
                 .stats
                 .get("exemplar_size")
@@ -412,48 +536,60 @@ pub fn evaluate(
                 .filter(|s| s.is_finite() && *s > 0.0)
         {
             // The exemplar's [0, 1]² covers S world units at creation.
-            rest_scale = f64::from(exemplar.width) / size;
+            self.rest_scale = f64::from(exemplar.width) / size;
         }
-        if let (Some(s), Some(u)) = (source, uv) {
-            let samples = SurfaceSamples {
-                width: frame.atlas.width,
-                height: frame.atlas.height,
-                source: s,
-                uv: u,
-                points: &frame.points,
-                chart: Some(&frame.chart),
-            };
-            let measure = |s0: f64| {
-                metrics::distortion(
-                    &samples,
-                    (exemplar.width, exemplar.height),
-                    s0,
-                    thresholds.distortion.quantile,
-                )
-                .map_err(metric_err(number, "distortion"))
-            };
-            let d = if rest_scale.is_nan() {
-                // No S from the method: take the scale the texture shows on
-                // its first measured frame as the rest scale.
-                let first = measure(1.0)?;
-                rest_scale = first.exemplar_texels_per_unit;
-                notes.push(format!(
-                    "distortion: the method reports no exemplar size S; s0 = {rest_scale:.4} \
-                     exemplar texels per world unit, the median scale of frame {number}"
-                ));
-                measure(rest_scale)?
-            } else {
-                measure(rest_scale)?
-            };
-            set(Metric::Distortion, d.delta);
-            anisotropy = d.anisotropy;
-            texel_scale = d.exemplar_texels_per_texel;
-        }
-        if fidelity_scale.is_nan() {
+        let (Some(s), Some(u)) = (view.source, view.uv) else {
+            return Ok((f64::NAN, f64::NAN));
+        };
+        let atlas = &frame.geometry.atlas;
+        let samples = SurfaceSamples {
+            width: atlas.width,
+            height: atlas.height,
+            source: s,
+            uv: u,
+            points: &frame.points,
+            chart: Some(&frame.chart),
+        };
+        let quantile = self.thresholds.distortion.quantile;
+        let measure = |s0: f64| {
+            metrics::distortion(&samples, (exemplar.width, exemplar.height), s0, quantile)
+                .map_err(Self::metric_err(number, "distortion"))
+        };
+        let d = if self.rest_scale.is_nan() {
+            // No S from the method: take the scale the texture shows on
+            // its first measured frame as the rest scale.
+            let first = measure(1.0)?;
+            self.rest_scale = first.exemplar_texels_per_unit;
+            self.notes.push(format!(
+                "distortion: the method reports no exemplar size S; s0 = {:.4} \
+                 exemplar texels per world unit, the median scale of frame {number}",
+                self.rest_scale
+            ));
+            measure(self.rest_scale)?
+        } else {
+            measure(self.rest_scale)?
+        };
+        set(Metric::Distortion, d.delta);
+        Ok((d.exemplar_texels_per_texel, d.anisotropy))
+    }
+
+    /// Exemplar fidelity (SWD) against a reference built once, at the
+    /// output's texel scale.
+    fn fidelity(
+        &mut self,
+        k: usize,
+        frame: &PreparedFrame,
+        texel_scale: f64,
+        view: &AtlasView<'_>,
+        set: &mut impl FnMut(Metric, f64),
+    ) -> Result<(), EvalError> {
+        let number = frame.number;
+        let exemplar = self.exemplar;
+        if self.fidelity_scale.is_nan() {
             let s = if texel_scale.is_finite() && texel_scale > 0.0 {
                 texel_scale
             } else {
-                notes.push(
+                self.notes.push(
                     "fidelity: no exemplar uv, the exemplar is compared at its own scale".into(),
                 );
                 1.0
@@ -462,47 +598,55 @@ pub fn evaluate(
                 exemplar.clone()
             } else {
                 metrics::rescale(exemplar, (1.0 / s) as f32)
-                    .map_err(metric_err(number, "fidelity reference"))?
+                    .map_err(Self::metric_err(number, "fidelity reference"))?
             };
-            match FidelityReference::new(&reference, &swd) {
-                Ok(r) => {
-                    fidelity = Some(r);
-                    fidelity_scale = s;
-                }
-                Err(e) => {
-                    notes.push(format!(
-                        "fidelity not measured: the exemplar at {s:.2} exemplar texels per \
-                         atlas texel is {}x{}: {e}",
-                        reference.width, reference.height
-                    ));
-                    fidelity_scale = s;
-                }
+            match FidelityReference::new(&reference, &self.swd) {
+                Ok(r) => self.fidelity = Some(r),
+                Err(e) => self.notes.push(format!(
+                    "fidelity not measured: the exemplar at {s:.2} exemplar texels per \
+                     atlas texel is {}x{}: {e}",
+                    reference.width, reference.height
+                )),
             }
+            self.fidelity_scale = s;
         }
-        if let Some(reference) = &fidelity
-            && (k as u32).is_multiple_of(settings.fidelity_every)
-            && charts.iter().any(|&c| c)
+        if let Some(reference) = &self.fidelity
+            && (k as u32).is_multiple_of(self.settings.fidelity_every)
+            && view.charts.iter().any(|&c| c)
         {
             // Too little chart area for the pyramid's patches is a frame
             // without a value, not a failed evaluation.
-            match reference.measure(colour, Some(&charts)) {
+            match reference.measure(view.colour, Some(&view.charts)) {
                 Ok(f) => set(Metric::Fidelity, f.ratio),
                 Err(e @ (MetricsError::Empty(_) | MetricsError::TooSmall { .. })) => {
                     let note = format!("fidelity not measured on some frames: {e}");
-                    if !notes.contains(&note) {
-                        notes.push(note);
+                    if !self.notes.contains(&note) {
+                        self.notes.push(note);
                     }
                 }
-                Err(e) => return Err(metric_err(number, "fidelity")(e)),
+                Err(e) => return Err(Self::metric_err(number, "fidelity")(e)),
             }
         }
+        Ok(())
+    }
 
-        // Renders.
+    /// Renders the frame, measures flow fidelity and popping against the
+    /// frame before; returns the frame's view for the next one.
+    fn render_metrics(
+        &mut self,
+        frame: &PreparedFrame,
+        prev: Option<&PreparedFrame>,
+        atlas_view: &AtlasView<'_>,
+        set: &mut impl FnMut(Metric, f64),
+    ) -> Result<FrameView, EvalError> {
+        let (settings, thresholds) = (self.settings, self.thresholds);
+        let err = |what| Self::metric_err(frame.number, what);
         let gb = &frame.gbuffer;
-        let mesh = &frame.atlas.uv_mesh;
+        let mesh = &frame.geometry.atlas.uv_mesh;
+        let colour = atlas_view.colour;
         let unlit = if settings.supersample > 1 {
             let k = settings.supersample;
-            let (fine, _) = fine_gbuffer(frame, &scene.camera, k);
+            let (fine, _) = fine_gbuffer(frame, &self.scene.camera, k);
             let image = render::shade_textured(
                 &fine,
                 &mesh.triangles,
@@ -514,8 +658,8 @@ pub fn evaluate(
         } else {
             render::shade_textured(gb, &mesh.triangles, &mesh.uvs, colour, RENDER_BACKGROUND)
         };
-        let (px_source, px_uv) = match (source, uv) {
-            (Some(s), Some(u)) => pixel_provenance(gb, &frame.atlas, s, u),
+        let (px_source, px_uv) = match (atlas_view.source, atlas_view.uv) {
+            (Some(s), Some(u)) => pixel_provenance(gb, &frame.geometry.atlas, s, u),
             _ => (Vec::new(), Vec::new()),
         };
         let view = FrameView {
@@ -524,160 +668,155 @@ pub fn evaluate(
             source: px_source,
             uv: px_uv,
         };
-        if let (Some(p), Some(pv)) = (prev, &previous_view) {
-            let forward = p.forward.as_deref();
-            if let Some(truth) = forward {
-                let motion = if pv.has_provenance && view.has_provenance {
-                    metrics::provenance_motion(
-                        &metrics::ProvenanceFrame {
-                            width: gb.width,
-                            height: gb.height,
-                            source: &pv.source,
-                            uv: &pv.uv,
-                        },
-                        &metrics::ProvenanceFrame {
-                            width: gb.width,
-                            height: gb.height,
-                            source: &view.source,
-                            uv: &view.uv,
-                        },
-                        truth,
-                        &p.interior,
-                        &frame.interior,
-                        thresholds.flow.search_radius_px,
-                    )
-                } else {
-                    if !image_flow_noted {
-                        notes.push(
-                            "flow: no per-texel exemplar uv, motion measured by block matching \
-                             on the renders (image_motion)"
-                                .into(),
-                        );
-                        image_flow_noted = true;
+        let (Some(p), Some(pv)) = (prev, &self.previous_view) else {
+            return Ok(view);
+        };
+        if let Some(truth) = p.forward.as_deref() {
+            let motion = if pv.has_provenance && view.has_provenance {
+                fn frame_of<'v>(v: &'v FrameView, gb: &GBuffer) -> metrics::ProvenanceFrame<'v> {
+                    metrics::ProvenanceFrame {
+                        width: gb.width,
+                        height: gb.height,
+                        source: &v.source,
+                        uv: &v.uv,
                     }
-                    metrics::image_motion(
-                        &pv.colour,
-                        &view.colour,
-                        truth,
-                        &p.interior,
-                        &frame.interior,
-                        thresholds.flow.search_radius_px,
-                        thresholds.flow.block_half_px,
-                    )
                 }
-                .map_err(metric_err(number, "flow"))?;
-                let stats = metrics::compare_motion(
-                    &motion,
+                metrics::provenance_motion(
+                    &frame_of(pv, gb),
+                    &frame_of(&view, gb),
                     truth,
-                    thresholds.flow.min_speed_px,
-                    thresholds.flow.min_cos,
+                    &p.interior,
+                    &frame.interior,
+                    thresholds.flow.search_radius_px,
                 )
-                .map_err(metric_err(number, "flow"))?;
-                set(Metric::FlowEpe, stats.median_epe_px);
-                set(Metric::FlowAligned, stats.aligned_share);
-            }
-            if let Some((back, visible)) = &frame.backward {
-                let usable_next: Vec<bool> = frame
-                    .interior
-                    .iter()
-                    .zip(visible)
-                    .map(|(&a, &b)| a && b)
-                    .collect();
-                let pop = metrics::popping(
+            } else {
+                if !self.image_flow_noted {
+                    self.notes.push(
+                        "flow: no per-texel exemplar uv, motion measured by block matching \
+                         on the renders (image_motion)"
+                            .into(),
+                    );
+                    self.image_flow_noted = true;
+                }
+                metrics::image_motion(
                     &pv.colour,
                     &view.colour,
-                    back,
+                    truth,
                     &p.interior,
-                    &usable_next,
-                    sigma_ex,
-                    thresholds.popping.sigma_factor,
+                    &frame.interior,
+                    thresholds.flow.search_radius_px,
+                    thresholds.flow.block_half_px,
                 )
-                .map_err(metric_err(number, "popping"))?;
-                set(Metric::Popping, pop.share());
             }
+            .map_err(err("flow"))?;
+            let stats = metrics::compare_motion(
+                &motion,
+                truth,
+                thresholds.flow.min_speed_px,
+                thresholds.flow.min_cos,
+            )
+            .map_err(err("flow"))?;
+            set(Metric::FlowEpe, stats.median_epe_px);
+            set(Metric::FlowAligned, stats.aligned_share);
         }
-        // Coherence: the previous frame's points carried here. Without
-        // per-texel sources nothing is covered (no switch share) but the
-        // colour still says whether the texture follows.
+        if let Some((back, visible)) = &frame.backward {
+            let usable_next: Vec<bool> = frame
+                .interior
+                .iter()
+                .zip(visible)
+                .map(|(&a, &b)| a && b)
+                .collect();
+            let pop = metrics::popping(
+                &pv.colour,
+                &view.colour,
+                back,
+                &p.interior,
+                &usable_next,
+                self.sigma_ex,
+                thresholds.popping.sigma_factor,
+            )
+            .map_err(err("popping"))?;
+            set(Metric::Popping, pop.share());
+        }
+        Ok(view)
+    }
+
+    /// Source switch share and colour follow ratio: the previous frame's
+    /// points carried here. Without per-texel sources nothing is covered
+    /// (no switch share) but the colour still says whether the texture
+    /// follows.
+    fn coherence_metrics(
+        &mut self,
+        frame: &PreparedFrame,
+        prev: Option<&PreparedFrame>,
+        view: &AtlasView<'_>,
+        set: &mut impl FnMut(Metric, f64),
+    ) -> Result<(), EvalError> {
+        let n_texels = view.charts.len();
         let texels = (
-            source.map_or_else(|| vec![metrics::SOURCE_OUTSIDE; n_texels], <[u32]>::to_vec),
-            metrics::luminance(colour),
+            view.source
+                .map_or_else(|| vec![metrics::SOURCE_OUTSIDE; n_texels], <[u32]>::to_vec),
+            metrics::luminance(view.colour),
         );
-        if let (Some(p), Some((ps, pg))) = (prev, &previous_texels)
+        if let (Some(p), Some((ps, pg))) = (prev, &self.previous_texels)
             && let Some(carried) = &p.carried
         {
             let c = crate::coherence::measure(
                 carried,
                 &crate::coherence::TexelFrame {
-                    atlas: &p.atlas,
+                    atlas: &p.geometry.atlas,
                     source: ps,
                     grey: pg,
                 },
                 &crate::coherence::TexelFrame {
-                    atlas: &frame.atlas,
+                    atlas: &frame.geometry.atlas,
                     source: &texels.0,
                     grey: &texels.1,
                 },
-                &crate::coherence::CoherenceSettings::from_thresholds(thresholds),
+                &crate::coherence::CoherenceSettings::from_thresholds(self.thresholds),
             )
-            .map_err(metric_err(number, "coherence"))?;
+            .map_err(Self::metric_err(frame.number, "coherence"))?;
             set(Metric::SourceSwitch, c.switch_share());
             set(Metric::ColourFollow, c.follow_ratio());
         }
-        previous_texels = Some(texels);
-        if frame.still {
-            stop.push(colour);
-            if let Some(p) = &previous_still
-                && !metrics::bit_identical(p, colour)
-            {
-                changed_from_previous.push(number);
-            }
-            previous_still = Some(colour.clone());
-        }
-        if settings.keep_renders.contains(&number) {
-            renders.push((
-                number,
-                lit_render(frame, &scene.camera, colour, settings.supersample),
-            ));
-        }
-        let patches = result.stats.get("patches_alive").and_then(|v| v.as_f64());
-        records.push(FrameRecord {
-            frame: number,
-            seconds,
-            patches,
-            values,
-            still: frame.still,
-            anisotropy,
-        });
-        previous_view = Some(view);
+        self.previous_texels = Some(texels);
+        Ok(())
     }
 
-    if stop.frames_after() > 0 {
-        notes.push(format!(
-            "static stop: {} of {} frames after the first still frame differ from it; \
-             still frames that differ from the frame before: {:?}",
-            stop.changed(),
-            stop.frames_after(),
-            changed_from_previous
-        ));
+    /// The run: per-frame records and their summaries.
+    fn finish(mut self) -> MethodRun {
+        let stop = &self.stop;
+        if stop.frames_after() > 0 {
+            self.notes.push(format!(
+                "static stop: {} of {} frames after the first still frame differ from it; \
+                 still frames that differ from the frame before: {:?}",
+                stop.changed(),
+                stop.frames_after(),
+                self.changed_from_previous
+            ));
+        }
+        let summaries = Metric::ALL
+            .iter()
+            .map(|&m| {
+                let values: Vec<f64> = match m {
+                    Metric::StaticStop if stop.frames_after() > 0 => {
+                        vec![stop.changed() as f64]
+                    }
+                    Metric::StaticStop | Metric::SizeCost => Vec::new(),
+                    _ => self.records.iter().map(|r| r.value(m)).collect(),
+                };
+                self.thresholds.summarize(m, &values)
+            })
+            .collect();
+        MethodRun {
+            method: self.name,
+            frames: self.records,
+            summaries,
+            notes: self.notes,
+            renders: self.renders,
+            fidelity_scale: self.fidelity_scale,
+        }
     }
-    let mut summaries = Vec::with_capacity(Metric::ALL.len());
-    for m in Metric::ALL {
-        let values: Vec<f64> = match m {
-            Metric::StaticStop if stop.frames_after() > 0 => vec![stop.changed() as f64],
-            Metric::StaticStop | Metric::SizeCost => Vec::new(),
-            _ => records.iter().map(|r| r.value(m)).collect(),
-        };
-        summaries.push(thresholds.summarize(m, &values));
-    }
-    Ok(MethodRun {
-        method: name,
-        frames: records,
-        summaries,
-        notes,
-        renders,
-        fidelity_scale,
-    })
 }
 
 /// Judges every run's source switch share against the floor method's
@@ -735,7 +874,7 @@ fn fine_gbuffer(frame: &PreparedFrame, camera: &Camera, k: u32) -> (render::GBuf
         height: camera.height * k,
         ..*camera
     };
-    let mesh = &frame.atlas.uv_mesh;
+    let mesh = &frame.geometry.atlas.uv_mesh;
     (
         render::rasterize(&mesh.positions, &mesh.triangles, &fine),
         fine,
@@ -769,13 +908,8 @@ fn box_filter(image: &Texture, k: u32) -> Texture {
 /// A lit render of the colour atlas for pictures (antialiased like the
 /// metric renders).
 fn lit_render(frame: &PreparedFrame, camera: &Camera, colour: &Texture, k: u32) -> Texture {
-    let mesh = &frame.atlas.uv_mesh;
-    let normals = frame.mesh.vertex_normals();
-    let normals: Vec<Vec3> = mesh
-        .source_vertex
-        .iter()
-        .map(|&v| normals.get(v as usize).copied().unwrap_or(Vec3::Z))
-        .collect();
+    let mesh = &frame.geometry.atlas.uv_mesh;
+    let normals = frame.geometry.uv_mesh_normals();
     let background = [0.12, 0.12, 0.14];
     if k > 1 {
         let (gb, fine) = fine_gbuffer(frame, camera, k);

@@ -8,13 +8,16 @@ use rayon::prelude::*;
 
 use super::truth::{TruthMotion, true_motion};
 use super::{EvalError, EvalSettings};
+use std::sync::Arc;
+
 use crate::atlas::{Atlas, AtlasParams};
 use crate::coherence::{Carried, CoherenceSettings, carry_by_velocity, sample_surface};
+use crate::driver::{DriverError, FrameGeometry, StageClock};
 use crate::mesh::TriMesh;
 use crate::metrics::{Thresholds, interior_mask};
 use crate::render::{BACKGROUND, Camera, GBuffer, rasterize};
 use crate::scenes::{Scene, SceneInfo};
-use crate::surface::{SurfaceIndex, SurfacePoint};
+use crate::surface::SurfacePoint;
 
 /// One frame of a prepared scene.
 pub struct PreparedFrame {
@@ -22,9 +25,9 @@ pub struct PreparedFrame {
     pub number: i32,
     /// Scene time of the frame (s).
     pub time: f64,
-    pub mesh: TriMesh,
-    pub index: SurfaceIndex,
-    pub atlas: Atlas,
+    /// Mesh, surface index, atlas, topology and normals, as the driver
+    /// hands them to every method.
+    pub geometry: Arc<FrameGeometry>,
     /// Surface point per atlas texel (NaN outside charts).
     pub points: Vec<Vec3>,
     /// Chart id per atlas texel (`u32::MAX` outside charts).
@@ -92,15 +95,15 @@ pub fn prepare(
     let mut meshes = Vec::with_capacity(frames.len());
     for &f in frames {
         let mut mesh = scene.frame(f)?;
-        crate::mesh::validate(&mut mesh).map_err(|e| EvalError::Mesh {
+        let report = crate::mesh::validate(&mut mesh).map_err(|e| EvalError::Mesh {
             frame: f,
             message: e.to_string(),
         })?;
-        meshes.push(mesh);
+        meshes.push((mesh, report));
     }
     // One camera for the whole window, framing every frame's surface, so
     // a surface that travels stays in view.
-    let (lo, hi) = meshes.iter().filter_map(TriMesh::bounding_box).fold(
+    let (lo, hi) = meshes.iter().filter_map(|(m, _)| m.bounding_box()).fold(
         (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
         |(l, h), (a, b)| (l.min(a), h.max(b)),
     );
@@ -117,14 +120,20 @@ pub fn prepare(
         settings.render_size,
     );
     let mut out: Vec<PreparedFrame> = Vec::with_capacity(frames.len());
-    for (&number, mesh) in frames.iter().zip(meshes) {
+    for (&number, (mesh, report)) in frames.iter().zip(meshes) {
         let time = (f64::from(number - info.first)) / info.fps;
-        let index = SurfaceIndex::new(&mesh);
-        let a = Atlas::build(&mesh, atlas).map_err(|source| EvalError::Atlas {
-            frame: number,
-            source,
-        })?;
-        let (points, chart) = texel_points(&mesh, &a);
+        let geometry =
+            FrameGeometry::build(number, mesh, report, atlas, &mut StageClock::default()).map_err(
+                |e| match e {
+                    DriverError::Atlas { frame, source } => EvalError::Atlas { frame, source },
+                    DriverError::Method(m) => EvalError::Method {
+                        method: String::new(),
+                        source: m,
+                    },
+                },
+            )?;
+        let (mesh, a) = (&geometry.mesh, &geometry.atlas);
+        let (points, chart) = texel_points(mesh, a);
         let still = mesh
             .velocity()
             .is_some_and(|v| !v.is_empty() && v.iter().all(|v| *v == Vec3::ZERO));
@@ -145,9 +154,7 @@ pub fn prepare(
         out.push(PreparedFrame {
             number,
             time,
-            mesh,
-            index,
-            atlas: a,
+            geometry: Arc::new(geometry),
             points,
             chart,
             still,
@@ -167,7 +174,7 @@ pub fn prepare(
             true_motion(
                 &*scene,
                 &truth,
-                &prev.mesh,
+                &prev.geometry.mesh,
                 &prev.gbuffer,
                 &camera,
                 prev.time,
@@ -178,7 +185,7 @@ pub fn prepare(
         let (back, depth) = true_motion(
             &*scene,
             &truth,
-            &next.mesh,
+            &next.geometry.mesh,
             &next.gbuffer,
             &camera,
             next.time,
@@ -211,32 +218,37 @@ fn carry_points(
 ) -> Carried {
     let settings = CoherenceSettings::from_thresholds(thresholds);
     let seed = crate::methods::erosion::mix(settings.seed, 7, prev.number as u64);
-    let points = sample_surface(&prev.mesh, settings.samples, seed);
-    match (truth, prev.mesh.velocity(), next.mesh.velocity()) {
+    let points = sample_surface(&prev.geometry.mesh, settings.samples, seed);
+    match (
+        truth,
+        prev.geometry.mesh.velocity(),
+        next.geometry.mesh.velocity(),
+    ) {
         (TruthMotion::Exact { substeps }, _, _) => {
             // Sequential: `Scene` is `Send` but not `Sync`.
             let carried: Vec<Option<Vec3>> = points
                 .iter()
                 .map(|sp| {
-                    let p = sp.interpolate(&prev.mesh.triangles, &prev.mesh.positions);
+                    let p = sp
+                        .interpolate(&prev.geometry.mesh.triangles, &prev.geometry.mesh.positions);
                     super::trace(scene, p, prev.time, step, *substeps)
                 })
                 .collect();
-            Carried::locate(&prev.mesh, points, &carried, &next.index)
+            Carried::locate(&prev.geometry.mesh, points, &carried, &next.geometry.index)
         }
         (TruthMotion::MeshVelocity, Some(v0), Some(v1)) => carry_by_velocity(
-            &prev.mesh,
+            &prev.geometry.mesh,
             v0,
             crate::surface::velocity::FlowFrame {
-                mesh: &next.mesh,
-                index: &next.index,
+                mesh: &next.geometry.mesh,
+                index: &next.geometry.index,
                 velocity: v1,
             },
             step as f32,
             points,
         ),
         // No way to carry: nothing is measured.
-        _ => Carried::locate(&prev.mesh, points, &[], &next.index),
+        _ => Carried::locate(&prev.geometry.mesh, points, &[], &next.geometry.index),
     }
 }
 

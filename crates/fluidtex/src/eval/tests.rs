@@ -12,7 +12,7 @@ use super::report::{MethodReport, Report, SceneReport};
 use super::*;
 use crate::atlas::AtlasParams;
 use crate::methods::atlas_check::{AtlasCheck, AtlasCheckParams};
-use crate::methods::{ChannelFormat, ChannelSpec, FrameResult, SOURCE_OUTSIDE};
+use crate::methods::{ChannelFormat, ChannelSpec, FrameContext, FrameResult, SOURCE_OUTSIDE};
 use crate::metrics::Verdict;
 use crate::scenes::{self, SceneParams};
 use crate::texture::{Texture, Wrap};
@@ -215,7 +215,7 @@ fn true_motion_of_a_rigid_rotation_is_the_projected_rotation() {
             continue;
         }
         let p = crate::surface::SurfacePoint::new(tri, f0.gbuffer.bary[i])
-            .interpolate(&f0.mesh.triangles, &f0.mesh.positions);
+            .interpolate(&f0.geometry.mesh.triangles, &f0.geometry.mesh.positions);
         let d = p.as_dvec3() - CENTRE;
         let q = (CENTRE + DVec3::new(c * d.x - s * d.y, s * d.x + c * d.y, d.z)).as_vec3();
         let (a, _) = scene.camera.project(p).unwrap();

@@ -362,6 +362,11 @@ mod tests {
                 number: k as i32,
                 dt: 1.0 / 24.0,
                 mesh: &meshes[k],
+                topology: &crate::mesh::Topology::new(
+                    meshes[k].vertex_count(),
+                    &meshes[k].triangles,
+                ),
+                normals: &meshes[k].vertex_normals(),
                 index: &indices[k],
                 previous: (k > 0).then(|| PreviousFrame {
                     mesh: &meshes[k - 1],

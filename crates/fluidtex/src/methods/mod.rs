@@ -17,16 +17,17 @@ pub mod dual_rest;
 pub mod erosion;
 pub mod footprint;
 
+use glam::{Vec2, Vec3};
 use std::collections::BTreeMap;
-use std::time::Instant;
-
-use glam::Vec2;
 use thiserror::Error;
 
 use crate::atlas::Atlas;
-use crate::mesh::TriMesh;
+use crate::driver::FrameGeometry;
+pub use crate::driver::StageClock;
+use crate::mesh::{Topology, TriMesh};
 pub use crate::pipeline::{ChannelFormat, ChannelSpec};
 use crate::surface::SurfaceIndex;
+use crate::surface::velocity::{FlowFrame, FlowInterval};
 use crate::texture::Texture;
 
 /// A frame as methods see it.
@@ -37,9 +38,61 @@ pub struct FrameContext<'a> {
     pub dt: f32,
     pub mesh: &'a TriMesh,
     pub index: &'a SurfaceIndex,
+    /// The mesh's adjacency, built once per frame by the driver.
+    pub topology: &'a Topology,
+    /// Area-weighted vertex normals of `mesh`.
+    pub normals: &'a [Vec3],
     /// The frame before, when this is not the first frame of the run.
     pub previous: Option<PreviousFrame<'a>>,
     pub atlas: &'a Atlas,
+}
+
+impl<'a> FrameContext<'a> {
+    /// The context of `frame` after `previous`.
+    pub fn new(
+        dt: f32,
+        frame: &'a FrameGeometry,
+        previous: Option<&'a FrameGeometry>,
+    ) -> FrameContext<'a> {
+        FrameContext {
+            number: frame.number,
+            dt,
+            mesh: &frame.mesh,
+            index: &frame.index,
+            topology: &frame.topology,
+            normals: &frame.normals,
+            previous: previous.map(|p| PreviousFrame {
+                mesh: &p.mesh,
+                index: &p.index,
+            }),
+            atlas: &frame.atlas,
+        }
+    }
+
+    /// The flow that carries points from the previous frame to this one
+    /// (RK4 with `substeps` per frame, closest-point searches starting at
+    /// `search_hint`), when both frames have a surface with velocity.
+    pub fn flow(&self, substeps: u32, search_hint: f32) -> Option<FlowInterval<'a>> {
+        let prev = self.previous?;
+        if prev.mesh.is_empty() || self.mesh.is_empty() {
+            return None;
+        }
+        Some(FlowInterval {
+            from: FlowFrame {
+                mesh: prev.mesh,
+                index: prev.index,
+                velocity: prev.mesh.velocity()?,
+            },
+            to: Some(FlowFrame {
+                mesh: self.mesh,
+                index: self.index,
+                velocity: self.mesh.velocity()?,
+            }),
+            dt: self.dt,
+            substeps,
+            search_hint,
+        })
+    }
 }
 
 /// The previous frame's surface, which carries the flow to this one.
@@ -115,31 +168,6 @@ pub trait Method: Send {
 
     /// Restores a state written by [`Method::save_state`].
     fn load_state(&mut self, bytes: &[u8]) -> Result<(), MethodError>;
-}
-
-/// Records the duration of consecutive stages.
-pub struct StageClock {
-    last: Instant,
-    pub stages: Vec<(&'static str, f64)>,
-}
-
-impl Default for StageClock {
-    fn default() -> Self {
-        StageClock {
-            last: Instant::now(),
-            stages: Vec::new(),
-        }
-    }
-}
-
-impl StageClock {
-    /// Closes the stage that started at the previous call.
-    pub fn lap(&mut self, name: &'static str) {
-        let now = Instant::now();
-        self.stages
-            .push((name, now.duration_since(self.last).as_secs_f64()));
-        self.last = now;
-    }
 }
 
 /// Checks `lo <= value <= hi` for a parameter.

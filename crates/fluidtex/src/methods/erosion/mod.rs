@@ -36,9 +36,7 @@ use self::patch::{FrameSurface, Patch, PatchShape};
 pub use self::update::Placement;
 use super::{ChannelSpec, FrameContext, FrameResult, Method, MethodError, StageClock, check_range};
 use crate::exemplar::Exemplar;
-use crate::mesh::Topology;
 use crate::surface::poisson::sample_mesh;
-use crate::surface::velocity::{FlowFrame, FlowInterval};
 use crate::texture::Texture;
 
 /// Parameters of the erosion method. Defaults follow DESIGN §1 and the
@@ -437,26 +435,18 @@ impl Method for Erosion {
                 && !self.state.patches.is_empty()
                 && !prev.mesh.is_empty()
             {
-                let pv = prev.mesh.velocity().ok_or(MethodError::MissingVelocity {
-                    frame: ctx.number - 1,
-                    method: self.name(),
-                })?;
-                let cv = mesh.velocity().unwrap_or(&[]);
-                let flow = FlowInterval {
-                    from: FlowFrame {
-                        mesh: prev.mesh,
-                        index: prev.index,
-                        velocity: pv,
+                if prev.mesh.velocity().is_none() {
+                    return Err(MethodError::MissingVelocity {
+                        frame: ctx.number - 1,
+                        method: self.name(),
+                    });
+                }
+                let flow = ctx.flow(self.params.substeps, 0.25 * radius).ok_or(
+                    MethodError::MissingVelocity {
+                        frame: ctx.number,
+                        method: self.name(),
                     },
-                    to: Some(FlowFrame {
-                        mesh,
-                        index: ctx.index,
-                        velocity: cv,
-                    }),
-                    dt: ctx.dt,
-                    substeps: self.params.substeps,
-                    search_hint: 0.25 * radius,
-                };
+                )?;
                 self.state.patches.par_iter_mut().for_each(|p| {
                     if !p.advect(&flow, ctx.index, &shape) {
                         p.triangles.clear();
@@ -471,12 +461,10 @@ impl Method for Erosion {
             deleted_before = before - self.state.patches.len();
             clock.lap("advection");
 
-            let topology = Topology::new(mesh.vertex_count(), &mesh.triangles);
-            let normals = mesh.vertex_normals();
             let surface = FrameSurface {
                 mesh,
-                topology: &topology,
-                vertex_normals: &normals,
+                topology: ctx.topology,
+                vertex_normals: ctx.normals,
             };
 
             // Initial distribution (frame 0, or a surface that reappears).

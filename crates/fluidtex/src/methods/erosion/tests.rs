@@ -246,6 +246,11 @@ fn step_all(method: &mut Erosion, clip: &Clip) -> Vec<FrameResult> {
                 number: k as i32,
                 dt: 1.0 / 24.0,
                 mesh: &clip.meshes[k],
+                topology: &crate::mesh::Topology::new(
+                    clip.meshes[k].vertex_count(),
+                    &clip.meshes[k].triangles,
+                ),
+                normals: &clip.meshes[k].vertex_normals(),
                 index: &clip.indices[k],
                 previous: (k > 0).then(|| PreviousFrame {
                     mesh: &clip.meshes[k - 1],
@@ -448,6 +453,8 @@ fn saved_state_continues_exactly() {
         number: 2,
         dt: 1.0 / 24.0,
         mesh: &c.meshes[2],
+        topology: &crate::mesh::Topology::new(c.meshes[2].vertex_count(), &c.meshes[2].triangles),
+        normals: &c.meshes[2].vertex_normals(),
         index: &c.indices[2],
         previous: Some(PreviousFrame {
             mesh: &c.meshes[1],
@@ -486,6 +493,8 @@ fn missing_velocity_and_bad_parameters_are_errors() {
         number: 3,
         dt: 0.04,
         mesh: &c.meshes[0],
+        topology: &crate::mesh::Topology::new(c.meshes[0].vertex_count(), &c.meshes[0].triangles),
+        normals: &c.meshes[0].vertex_normals(),
         index: &c.indices[0],
         previous: None,
         atlas: &c.atlases[0],

@@ -209,7 +209,7 @@ fn filtering_lowers_popping_on_a_rigid_rotation() {
     let colour = pebbles.colour.clone();
     // The exemplar spans a small world size: ~8 exemplar texels per atlas
     // texel.
-    let texel = 1.0 / prepared.frames[0].atlas.scale as f32;
+    let texel = 1.0 / prepared.frames[0].geometry.atlas.scale as f32;
     let erosion = ErosionParams {
         exemplar_size: Some(512.0 / 8.0 * texel),
         // Small patches on this coarse sphere: many patch borders in view.
@@ -279,6 +279,11 @@ fn erosion_atlas_of_a_minified_checker_keeps_its_mean() {
                 number: k as i32,
                 dt: 1.0 / 24.0,
                 mesh: &meshes[k],
+                topology: &crate::mesh::Topology::new(
+                    meshes[k].vertex_count(),
+                    &meshes[k].triangles,
+                ),
+                normals: &meshes[k].vertex_normals(),
                 index: &indices[k],
                 previous: (k > 0).then(|| PreviousFrame {
                     mesh: &meshes[k - 1],
