@@ -13,6 +13,8 @@ use clap::Args;
 use fluidtex::methods::atlas_check::AtlasCheckParams;
 use fluidtex::methods::dual_rest::DualRestParams;
 use fluidtex::methods::erosion::{ErosionParams, Falloff, Orientation, Placement, WeightMode};
+use fluidtex::methods::registry::{MethodKind, MethodParams};
+use fluidtex::named::Named;
 use fluidtex::pipeline::OutputOptions;
 use serde::{Deserialize, Serialize};
 
@@ -26,8 +28,8 @@ pub struct Config {
     pub frames: Option<String>,
     /// Output folder.
     pub out: Option<PathBuf>,
-    /// Method name [erosion].
-    pub method: Option<String>,
+    /// Method name [erosion] (see [`MethodKind`]).
+    pub method: Option<MethodKind>,
     /// Atlas width and height in texels [4096].
     pub atlas: Option<u32>,
     /// Gutter between charts in texels [4].
@@ -129,6 +131,35 @@ impl Config {
     }
 }
 
+/// A clap parser for a [`Named`] setting: its names are the possible values
+/// (listed by `--help`, checked by clap).
+pub fn named<T: Named + Send + Sync + Clone>() -> impl clap::builder::TypedValueParser<Value = T> {
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(T::ALL.iter().map(|v| v.name()))
+        .try_map(|s: String| T::parse_named("value", &s))
+}
+
+/// The same check for settings the config keeps as text.
+pub fn names<T: Named>() -> clap::builder::PossibleValuesParser {
+    clap::builder::PossibleValuesParser::new(T::ALL.iter().map(|v| v.name()))
+}
+
+impl Config {
+    /// The method the config names (erosion when none).
+    pub fn method_kind(&self) -> MethodKind {
+        self.method.unwrap_or_default()
+    }
+
+    /// Every method's parameter section.
+    pub fn method_params(&self) -> MethodParams {
+        MethodParams {
+            erosion: self.erosion.clone(),
+            atlas_check: self.atlas_check.clone(),
+            dual_rest: self.dual_rest.clone(),
+        }
+    }
+}
+
 /// Flags of `fluidtex run` that mirror the config (flags win).
 #[derive(Args, Clone, Debug, Default)]
 pub struct RunFlags {
@@ -141,9 +172,9 @@ pub struct RunFlags {
     /// Output folder
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Texturing method: erosion (default), advect, dual-rest, blend-deformable, atlas-check
-    #[arg(long)]
-    pub method: Option<String>,
+    /// Texturing method [erosion]
+    #[arg(long, value_parser = named::<MethodKind>())]
+    pub method: Option<MethodKind>,
     /// Atlas size in texels (square) [4096]
     #[arg(long)]
     pub atlas: Option<u32>,
@@ -162,12 +193,12 @@ pub struct RunFlags {
     /// Feature map (grey image, bright = important features, eroded last)
     #[arg(long)]
     pub feature: Option<PathBuf>,
-    /// How to derive a missing feature map: auto, luminance, distance
-    #[arg(long)]
+    /// How to derive a missing feature map [auto]
+    #[arg(long, value_parser = names::<fluidtex::exemplar::FeatureMethod>())]
     pub feature_method: Option<String>,
     /// Exemplar filtering where it is shown minified: trilinear (mip
     /// pyramid at each texel's footprint) or none (bilinear, aliases)
-    #[arg(long, value_name = "trilinear|none")]
+    #[arg(long, value_parser = names::<fluidtex::exemplar::ExemplarFilter>())]
     pub exemplar_filter: Option<String>,
     /// Extra channel NAME=IMG, written as NAME.F.png|exr (repeatable)
     #[arg(long = "channel", value_name = "NAME=IMG")]
@@ -200,20 +231,20 @@ pub struct RunFlags {
     #[arg(long)]
     pub no_rotation: bool,
     /// New patch placement: local (the paper) or global
-    #[arg(long)]
-    pub placement: Option<String>,
+    #[arg(long, value_parser = named::<Placement>())]
+    pub placement: Option<Placement>,
     /// Weights over time: progressive (monotone, rate-limited) or paper
-    #[arg(long)]
-    pub weights: Option<String>,
+    #[arg(long, value_parser = named::<WeightMode>())]
+    pub weights: Option<WeightMode>,
     /// Progressive weights: largest fall of w per second [2.4]
     #[arg(long)]
     pub erosion_rate: Option<f32>,
     /// Where the erosion falloff D reaches 0: footprint (r/S) or paper (0.5)
-    #[arg(long)]
-    pub falloff: Option<String>,
+    #[arg(long, value_parser = named::<Falloff>())]
+    pub falloff: Option<Falloff>,
     /// Exemplar orientation on new patches: random or aligned (with --up-axis)
-    #[arg(long)]
-    pub orientation: Option<String>,
+    #[arg(long, value_parser = named::<Orientation>())]
+    pub orientation: Option<Orientation>,
     /// World direction the exemplar's up follows with --orientation aligned [0,1,0]
     #[arg(long, value_delimiter = ',', num_args = 3, allow_hyphen_values = true)]
     pub up_axis: Option<Vec<f32>>,
@@ -303,36 +334,20 @@ impl RunFlags {
         if self.no_rotation {
             e.random_rotation = false;
         }
-        if let Some(p) = &self.placement {
-            e.placement = match p.as_str() {
-                "local" => Placement::Local,
-                "global" => Placement::Global,
-                other => bail!("--placement {other}: expected local or global"),
-            };
+        if let Some(v) = self.placement {
+            e.placement = v;
         }
-        if let Some(w) = &self.weights {
-            e.weights = match w.as_str() {
-                "progressive" => WeightMode::Progressive,
-                "paper" => WeightMode::Paper,
-                other => bail!("--weights {other}: expected progressive or paper"),
-            };
+        if let Some(v) = self.weights {
+            e.weights = v;
         }
         if let Some(v) = self.erosion_rate {
             e.erosion_rate = v;
         }
-        if let Some(f) = &self.falloff {
-            e.falloff = match f.as_str() {
-                "footprint" => Falloff::Footprint,
-                "paper" => Falloff::Paper,
-                other => bail!("--falloff {other}: expected footprint or paper"),
-            };
+        if let Some(v) = self.falloff {
+            e.falloff = v;
         }
-        if let Some(o) = &self.orientation {
-            e.orientation = match o.as_str() {
-                "random" => Orientation::Random,
-                "aligned" => Orientation::Aligned,
-                other => bail!("--orientation {other}: expected random or aligned"),
-            };
+        if let Some(v) = self.orientation {
+            e.orientation = v;
         }
         if let Some(a) = &self.up_axis {
             let [x, y, z] = a.as_slice() else {
@@ -387,7 +402,7 @@ mod tests {
         let flags = RunFlags {
             atlas: Some(512),
             epsilon: Some(0.05),
-            placement: Some("global".into()),
+            placement: Some(Placement::Global),
             ..Default::default()
         };
         flags.apply(&mut c).expect("valid flags");
@@ -410,11 +425,6 @@ mod tests {
         let mut c = Config::default();
         let bad = RunFlags {
             channels: vec!["nodelimiter".into()],
-            ..Default::default()
-        };
-        assert!(bad.apply(&mut c).is_err());
-        let bad = RunFlags {
-            placement: Some("everywhere".into()),
             ..Default::default()
         };
         assert!(bad.apply(&mut c).is_err());

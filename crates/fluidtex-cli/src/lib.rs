@@ -67,14 +67,36 @@ pub fn main_entry() -> i32 {
         Ok(()) => 0,
         Err(e) => {
             if let Some(clap_err) = e.downcast_ref::<clap::Error>() {
-                // Help and version are not errors.
-                let _ = clap_err.print();
+                use clap::error::ErrorKind;
+                if matches!(
+                    clap_err.kind(),
+                    ErrorKind::DisplayHelp
+                        | ErrorKind::DisplayVersion
+                        | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
+                ) {
+                    // Help and version are not errors.
+                    let _ = clap_err.print();
+                } else {
+                    eprintln!("{}", clap_one_line(clap_err));
+                }
                 return clap_err.exit_code();
             }
             eprintln!("error: {}", one_line(&e));
             1
         }
     }
+}
+
+/// A usage error of clap on one line, like every other error: the message
+/// and the valid values, without the usage block and the pointer to --help.
+pub fn clap_one_line(e: &clap::Error) -> String {
+    e.render()
+        .to_string()
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty() && !l.starts_with("Usage:") && !l.starts_with("For more"))
+        .collect::<Vec<_>>()
+        .join(" ")
 }
 
 /// The error's context chain on one line, outermost first. Many of our

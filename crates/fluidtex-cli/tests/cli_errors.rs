@@ -224,7 +224,7 @@ fn bad_flags_are_refused_before_any_work() {
     let cases: &[(&[&str], &str)] = &[
         (
             &["--method", "lapped"],
-            "error: unknown method lapped; available: erosion, advect, dual-rest, blend-deformable, atlas-check",
+            "error: invalid value 'lapped' for '--method <METHOD>' [possible values: erosion, advect, dual-rest, blend-deformable, atlas-check]",
         ),
         (
             &["--atlas", "0"],

@@ -30,6 +30,7 @@ pub mod io;
 pub mod mesh;
 pub mod methods;
 pub mod metrics;
+pub mod named;
 pub mod param;
 pub mod pipeline;
 pub mod render;

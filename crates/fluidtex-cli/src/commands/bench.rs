@@ -14,7 +14,9 @@ use fluidtex::scenes;
 
 use super::run::{build_job, build_method};
 use super::scene::scene_params;
-use crate::config::Config;
+use crate::config::{Config, named};
+use fluidtex::methods::erosion::Placement;
+use fluidtex::methods::registry::MethodKind;
 
 #[derive(Args, Debug)]
 pub struct BenchArgs {
@@ -34,11 +36,11 @@ pub struct BenchArgs {
     #[arg(long, default_value = "enright")]
     pub scene: String,
     /// Method to time
-    #[arg(long, default_value = "erosion")]
-    pub method: String,
-    /// New patch placement: local or global
-    #[arg(long, default_value = "local")]
-    pub placement: String,
+    #[arg(long, default_value = "erosion", value_parser = named::<MethodKind>())]
+    pub method: MethodKind,
+    /// New patch placement
+    #[arg(long, default_value = "local", value_parser = named::<Placement>())]
+    pub placement: Placement,
     /// Rayon threads (default: all cores)
     #[arg(long)]
     pub threads: Option<usize>,
@@ -113,7 +115,7 @@ pub fn bench(a: &BenchArgs) -> Result<()> {
     }
     let tris = frames[0].1.triangle_count();
     let mut config = Config {
-        method: Some(a.method.clone()),
+        method: Some(a.method),
         atlas: Some(a.atlas),
         fps: Some(params.fps as f32),
         ..Default::default()
@@ -121,11 +123,7 @@ pub fn bench(a: &BenchArgs) -> Result<()> {
     config.outputs.obj = true;
     config.outputs.glb = true;
     config.outputs.debug = false;
-    config.erosion.placement = match a.placement.as_str() {
-        "local" => fluidtex::methods::erosion::Placement::Local,
-        "global" => fluidtex::methods::erosion::Placement::Global,
-        other => bail!("--placement {other}: expected local or global"),
-    };
+    config.erosion.placement = a.placement;
     if let Some(n) = a.patches {
         let area = frames[0].1.area();
         // Dart throwing reaches about 0.7 A / r² disks.

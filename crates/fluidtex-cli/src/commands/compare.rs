@@ -15,8 +15,10 @@ use fluidtex::metrics::Thresholds;
 use fluidtex::scenes;
 use fluidtex::texture::Texture;
 
-use super::run::{METHODS, build_exemplar, build_job, build_method};
+use super::run::{build_exemplar, build_job, build_method};
 use crate::config::Config;
+use fluidtex::methods::registry::MethodKind;
+use fluidtex::named::Named;
 
 /// Scenes compared by default.
 pub const DEFAULT_SCENES: &str = "vortex,differential-rotation,stop";
@@ -107,13 +109,15 @@ pub fn compare(a: &CompareArgs) -> Result<()> {
     }
     let method_names = match &a.methods {
         Some(m) => split_list("methods", m)?,
-        None => METHODS.iter().map(|m| m.to_string()).collect(),
+        None => MethodKind::ALL
+            .iter()
+            .map(|m| m.name().to_string())
+            .collect(),
     };
-    for m in &method_names {
-        if !METHODS.contains(&m.as_str()) {
-            bail!("unknown method {m}; available: {}", METHODS.join(", "));
-        }
-    }
+    let kinds = method_names
+        .iter()
+        .map(|m| MethodKind::parse_named("method", m).map_err(anyhow::Error::msg))
+        .collect::<Result<Vec<MethodKind>>>()?;
     let range = a
         .frames
         .as_deref()
@@ -134,9 +138,9 @@ pub fn compare(a: &CompareArgs) -> Result<()> {
     let thresholds = Thresholds::committed()?;
     // Build every method once up front so a bad configuration fails before
     // any scene is generated.
-    for m in &method_names {
+    for &kind in &kinds {
         build_method(&Config {
-            method: Some(m.clone()),
+            method: Some(kind),
             ..base.clone()
         })?;
     }
@@ -189,9 +193,9 @@ pub fn compare(a: &CompareArgs) -> Result<()> {
             .with_context(|| format!("scene {name}"))?;
         let mut runs: Vec<MethodRun> = Vec::new();
         let mut parameters = Vec::new();
-        for m in &method_names {
+        for (m, &kind) in method_names.iter().zip(&kinds) {
             let config = Config {
-                method: Some(m.clone()),
+                method: Some(kind),
                 ..base.clone()
             };
             let mut method = build_method(&config)?;

@@ -29,8 +29,8 @@ pub struct DemoArgs {
     #[arg(long, default_value = "0-47")]
     pub frames: String,
     /// Texturing method
-    #[arg(long, default_value = "erosion")]
-    pub method: String,
+    #[arg(long, default_value = "erosion", value_parser = crate::config::named::<fluidtex::methods::registry::MethodKind>())]
+    pub method: fluidtex::methods::registry::MethodKind,
     /// Atlas size in texels
     #[arg(long, default_value_t = 1024)]
     pub atlas: u32,
@@ -47,7 +47,7 @@ pub fn demo(a: &DemoArgs) -> Result<()> {
     let scene = scenes::by_name(&a.scene, Some(params))?;
     let mut source = SceneSource::new(scene);
     let mut config = Config {
-        method: Some(a.method.clone()),
+        method: Some(a.method),
         atlas: Some(a.atlas),
         fps: Some(params.fps as f32),
         ..Default::default()

@@ -3,16 +3,13 @@
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Error, Result, bail};
 use clap::Args;
 use fluidtex::atlas::AtlasParams;
 use fluidtex::exemplar::{Exemplar, ExemplarFilter, FeatureMethod, builtin_pebbles};
 use fluidtex::io::ReadOptions;
 use fluidtex::methods::Method;
-use fluidtex::methods::atlas_check::AtlasCheck;
-use fluidtex::methods::dual_rest::DualRest;
-use fluidtex::methods::erosion::Erosion;
-use fluidtex::methods::erosion::Variant;
+use fluidtex::named::Named;
 use fluidtex::pipeline::{self, Event, FrameSource, Job, SequenceSource};
 
 use crate::config::{Config, RunFlags};
@@ -32,15 +29,6 @@ pub struct RunArgs {
     #[arg(long)]
     pub quiet: bool,
 }
-
-/// Methods `--method` accepts.
-pub const METHODS: &[&str] = &[
-    "erosion",
-    "advect",
-    "dual-rest",
-    "blend-deformable",
-    "atlas-check",
-];
 
 /// Size of the built-in exemplar in texels.
 pub const BUILTIN_EXEMPLAR_SIZE: u32 = 512;
@@ -137,15 +125,12 @@ pub fn read_options(velocity: Option<&[String]>) -> Result<ReadOptions> {
 /// The exemplar the config names, or the built-in pebbles.
 pub fn build_exemplar(config: &Config) -> Result<Exemplar> {
     let method = match config.feature_method.as_deref() {
-        None | Some("auto") => FeatureMethod::Auto,
-        Some("luminance") => FeatureMethod::Luminance,
-        Some("distance") => FeatureMethod::DistanceTransform,
-        Some(other) => bail!("feature method {other}: expected auto, luminance or distance"),
+        None => FeatureMethod::default(),
+        Some(name) => FeatureMethod::parse_named("feature method", name).map_err(Error::msg)?,
     };
     let filter = match config.exemplar_filter.as_deref() {
-        None | Some("trilinear") => ExemplarFilter::Trilinear,
-        Some("none") => ExemplarFilter::Unfiltered,
-        Some(other) => bail!("exemplar filter {other}: expected trilinear or none"),
+        None => ExemplarFilter::default(),
+        Some(name) => ExemplarFilter::parse_named("exemplar filter", name).map_err(Error::msg)?,
     };
     let channels: Vec<(String, PathBuf)> = config
         .channels
@@ -166,35 +151,14 @@ pub fn build_exemplar(config: &Config) -> Result<Exemplar> {
     Ok(exemplar.with_filter(filter))
 }
 
-/// The method the config names.
+/// The method the config names, its parameters checked before the
+/// exemplar is read.
 pub fn build_method(config: &Config) -> Result<Box<dyn Method>> {
-    let seed = config.seed.unwrap_or(0);
-    let name = config.method.as_deref().unwrap_or("erosion");
-    Ok(match name {
-        "erosion" => Box::new(Erosion::new(
-            config.erosion.clone(),
-            Arc::new(build_exemplar(config)?),
-            seed,
-        )?),
-        "advect" | "blend-deformable" => Box::new(Erosion::with_variant(
-            if name == "advect" {
-                Variant::Advect
-            } else {
-                Variant::Blend
-            },
-            config.erosion.clone(),
-            Arc::new(build_exemplar(config)?),
-            seed,
-        )?),
-        "dual-rest" => Box::new(DualRest::new(
-            config.dual_rest.clone(),
-            config.erosion.clone(),
-            Arc::new(build_exemplar(config)?),
-            seed,
-        )?),
-        "atlas-check" => Box::new(AtlasCheck::new(config.atlas_check.clone())?),
-        other => bail!("unknown method {other}; available: {}", METHODS.join(", ")),
-    })
+    config
+        .method_params()
+        .build(config.method_kind(), config.seed.unwrap_or(0), || {
+            Ok::<_, Error>(Arc::new(build_exemplar(config)?))
+        })
 }
 
 /// The frame job the config describes.
@@ -254,6 +218,6 @@ mod tests {
             ExemplarFilter::Unfiltered
         );
         let err = with(Some("bicubic")).expect_err("unknown filter");
-        assert!(err.to_string().contains("trilinear or none"), "{err}");
+        assert!(err.to_string().contains("trilinear, none"), "{err}");
     }
 }

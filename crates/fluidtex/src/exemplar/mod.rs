@@ -51,6 +51,11 @@ pub enum ExemplarFilter {
     Unfiltered,
 }
 
+crate::named!(ExemplarFilter {
+    Trilinear => "trilinear",
+    Unfiltered => "none",
+});
+
 /// How a channel's samples were stored, and so how its atlas is written.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum SampleFormat {

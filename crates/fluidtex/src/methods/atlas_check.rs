@@ -25,6 +25,22 @@ pub struct AtlasCheckParams {
     pub cells_per_diagonal: f32,
 }
 
+impl AtlasCheckParams {
+    /// Checks every field.
+    pub fn validate(&self) -> Result<(), MethodError> {
+        if let Some(c) = self.cell {
+            check_range("cell", c, f32::MIN_POSITIVE, f32::MAX, "> 0")?;
+        }
+        check_range(
+            "cells_per_diagonal",
+            self.cells_per_diagonal,
+            1.0,
+            1e6,
+            "[1, 1e6]",
+        )
+    }
+}
+
 impl Default for AtlasCheckParams {
     fn default() -> Self {
         AtlasCheckParams {
@@ -42,16 +58,7 @@ pub struct AtlasCheck {
 
 impl AtlasCheck {
     pub fn new(params: AtlasCheckParams) -> Result<AtlasCheck, MethodError> {
-        if let Some(c) = params.cell {
-            check_range("cell", c, f32::MIN_POSITIVE, f32::MAX, "> 0")?;
-        }
-        check_range(
-            "cells_per_diagonal",
-            params.cells_per_diagonal,
-            1.0,
-            1e6,
-            "[1, 1e6]",
-        )?;
+        params.validate()?;
         Ok(AtlasCheck {
             cell: params.cell,
             params,

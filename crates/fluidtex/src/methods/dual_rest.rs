@@ -33,6 +33,20 @@ pub struct DualRestParams {
     pub period: u32,
 }
 
+impl DualRestParams {
+    /// Checks every field.
+    pub fn validate(&self) -> Result<(), MethodError> {
+        if self.period < 2 {
+            return Err(MethodError::InvalidParameter {
+                name: "dual_rest.period",
+                value: self.period.to_string(),
+                allowed: "at least 2 frames",
+            });
+        }
+        Ok(())
+    }
+}
+
 impl Default for DualRestParams {
     fn default() -> Self {
         DualRestParams { period: 24 }
@@ -65,13 +79,7 @@ impl DualRest {
         exemplar: Arc<Exemplar>,
         seed: u64,
     ) -> Result<DualRest, MethodError> {
-        if params.period < 2 {
-            return Err(MethodError::InvalidParameter {
-                name: "dual_rest.period",
-                value: params.period.to_string(),
-                allowed: "at least 2 frames",
-            });
-        }
+        params.validate()?;
         let a = Erosion::with_variant(
             Variant::Advect,
             erosion.clone(),

@@ -53,6 +53,12 @@ pub enum FeatureMethod {
     Auto,
 }
 
+crate::named!(FeatureMethod {
+    Auto => "auto",
+    Luminance => "luminance",
+    DistanceTransform => "distance",
+});
+
 /// Where a feature map came from.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum FeatureOrigin {

@@ -207,6 +207,19 @@ impl ErosionParams {
     }
 }
 
+crate::named!(WeightMode {
+    Progressive => "progressive",
+    Paper => "paper",
+});
+crate::named!(Falloff {
+    Footprint => "footprint",
+    Paper => "paper",
+});
+crate::named!(Orientation {
+    Random => "random",
+    Aligned => "aligned",
+});
+
 /// Patch state carried from frame to frame (saved for `--resume`).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct ErosionState {

@@ -43,6 +43,11 @@ pub enum Placement {
     Global,
 }
 
+crate::named!(Placement {
+    Local => "local",
+    Global => "global",
+});
+
 /// What the update did.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct UpdateStats {

@@ -1,0 +1,170 @@
+//! The methods fluidtex offers, by name: what `--method` accepts, what
+//! `compare` runs, and how each is built from its parameters.
+//!
+//! Adding a method: its folder under `methods/`, a variant here with its
+//! name, and its arm in [`MethodParams::build`] (plus its parameter section
+//! in [`MethodParams`] if it has parameters).
+
+use std::sync::Arc;
+
+use serde::{Deserialize, Serialize};
+
+use super::atlas_check::{AtlasCheck, AtlasCheckParams};
+use super::dual_rest::{DualRest, DualRestParams};
+use super::erosion::{Erosion, ErosionParams, Variant};
+use super::{Method, MethodError};
+use crate::exemplar::Exemplar;
+use crate::named::Named;
+
+/// A texturing method.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum MethodKind {
+    /// Eroded deformable lapped textures (Gagnon et al. 2021), the default.
+    #[default]
+    Erosion,
+    /// Baseline: the first frame's patches carried by the flow, never renewed.
+    Advect,
+    /// Baseline: two erosion layers reset in turn, cross-faded.
+    DualRest,
+    /// Baseline: deformable patches alpha-blended by weight.
+    BlendDeformable,
+    /// A world-space checker, to inspect the atlas chain.
+    AtlasCheck,
+}
+
+crate::named!(MethodKind {
+    Erosion => "erosion",
+    Advect => "advect",
+    DualRest => "dual-rest",
+    BlendDeformable => "blend-deformable",
+    AtlasCheck => "atlas-check",
+});
+
+impl MethodKind {
+    /// Whether the method reads an exemplar (all but the checker).
+    pub fn needs_exemplar(self) -> bool {
+        self != MethodKind::AtlasCheck
+    }
+}
+
+impl std::fmt::Display for MethodKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for MethodKind {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<MethodKind, String> {
+        MethodKind::parse_named("method", s)
+    }
+}
+
+/// The parameters of every method, one section each (config keys
+/// `[erosion]`, `[dual_rest]`, `[atlas_check]`); a method reads its own
+/// section and, for the baselines built from erosion's patches, erosion's.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MethodParams {
+    pub erosion: ErosionParams,
+    pub atlas_check: AtlasCheckParams,
+    pub dual_rest: DualRestParams,
+}
+
+impl MethodParams {
+    /// Range checks of the sections `kind` reads, before any frame is read.
+    pub fn validate(&self, kind: MethodKind) -> Result<(), MethodError> {
+        match kind {
+            MethodKind::Erosion | MethodKind::Advect | MethodKind::BlendDeformable => {
+                self.erosion.validate()
+            }
+            MethodKind::DualRest => {
+                self.erosion.validate()?;
+                self.dual_rest.validate()
+            }
+            MethodKind::AtlasCheck => self.atlas_check.validate(),
+        }
+    }
+
+    /// Builds `kind`. `exemplar` is called only for methods that read one
+    /// ([`MethodKind::needs_exemplar`]).
+    pub fn build<E>(
+        &self,
+        kind: MethodKind,
+        seed: u64,
+        exemplar: impl FnOnce() -> Result<Arc<Exemplar>, E>,
+    ) -> Result<Box<dyn Method>, E>
+    where
+        E: From<MethodError>,
+    {
+        self.validate(kind)?;
+        if kind == MethodKind::AtlasCheck {
+            return Ok(Box::new(AtlasCheck::new(self.atlas_check.clone())?));
+        }
+        let exemplar = exemplar()?;
+        let erosion = |variant| -> Result<Box<dyn Method>, MethodError> {
+            Ok(Box::new(Erosion::with_variant(
+                variant,
+                self.erosion.clone(),
+                Arc::clone(&exemplar),
+                seed,
+            )?))
+        };
+        Ok(match kind {
+            MethodKind::Erosion => erosion(Variant::Erode)?,
+            MethodKind::Advect => erosion(Variant::Advect)?,
+            MethodKind::BlendDeformable => erosion(Variant::Blend)?,
+            MethodKind::DualRest => Box::new(DualRest::new(
+                self.dual_rest.clone(),
+                self.erosion.clone(),
+                exemplar,
+                seed,
+            )?),
+            MethodKind::AtlasCheck => Box::new(AtlasCheck::new(self.atlas_check.clone())?),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_method_builds_under_its_own_name() {
+        let params = MethodParams::default();
+        for &kind in MethodKind::ALL {
+            let method = params
+                .build(kind, 0, || {
+                    Ok::<_, MethodError>(Arc::new(crate::exemplar::builtin_pebbles(16, 0)))
+                })
+                .expect("defaults are valid");
+            assert_eq!(method.name(), kind.name());
+        }
+    }
+
+    #[test]
+    fn parameters_are_checked_before_the_exemplar_is_built() {
+        let mut params = MethodParams::default();
+        params.erosion.epsilon = 2.0;
+        let mut asked = false;
+        let err = params
+            .build(MethodKind::Erosion, 0, || {
+                asked = true;
+                Ok::<_, MethodError>(Arc::new(crate::exemplar::builtin_pebbles(16, 0)))
+            })
+            .err()
+            .expect("epsilon out of range");
+        assert!(err.to_string().contains("epsilon"), "{err}");
+        assert!(
+            !asked,
+            "the exemplar was loaded before the parameters were checked"
+        );
+        // The checker reads no exemplar at all.
+        let built = MethodParams::default().build(MethodKind::AtlasCheck, 0, || {
+            Err::<Arc<Exemplar>, _>(MethodError::State("not needed".into()))
+        });
+        assert!(built.is_ok());
+    }
+}
