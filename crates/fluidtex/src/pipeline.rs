@@ -41,57 +41,7 @@ use crate::render::{self, Camera};
 use crate::texture::Texture;
 use glam::Vec3;
 
-/// How an atlas channel is written.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub enum ChannelFormat {
-    /// 8-bit PNG.
-    Png8,
-    /// 16-bit PNG.
-    Png16,
-    /// 32-bit float EXR.
-    Exr,
-}
-
-impl ChannelFormat {
-    pub fn extension(self) -> &'static str {
-        match self {
-            ChannelFormat::Png8 | ChannelFormat::Png16 => "png",
-            ChannelFormat::Exr => "exr",
-        }
-    }
-}
-
-/// Name and format of one output channel (`color`, `displacement`, ...).
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub struct ChannelSpec {
-    pub name: String,
-    pub format: ChannelFormat,
-}
-
-impl From<crate::exemplar::SampleFormat> for ChannelFormat {
-    fn from(f: crate::exemplar::SampleFormat) -> ChannelFormat {
-        use crate::exemplar::SampleFormat;
-        match f {
-            SampleFormat::U8 => ChannelFormat::Png8,
-            SampleFormat::U16 => ChannelFormat::Png16,
-            SampleFormat::F32 => ChannelFormat::Exr,
-        }
-    }
-}
-
-/// The output channels of an exemplar: `color`, then its extra channels by
-/// name, each written in the format it was read in.
-pub fn exemplar_channels(e: &crate::exemplar::Exemplar) -> Vec<ChannelSpec> {
-    let mut specs = vec![ChannelSpec {
-        name: "color".into(),
-        format: e.colour_format.into(),
-    }];
-    specs.extend(e.channels.iter().map(|c| ChannelSpec {
-        name: c.name.clone(),
-        format: c.format.into(),
-    }));
-    specs
-}
+pub use crate::exemplar::channels::{ChannelFormat, ChannelSpec, exemplar_channels};
 
 /// Which files are written per frame besides the channel atlases.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -730,7 +680,7 @@ impl FileSink<'_, '_> {
         };
         // One sample set per frame pair, seeded by the frame so a resumed run
         // draws the same points.
-        let seed = crate::methods::erosion::mix(settings.seed, 7, before.number as u64);
+        let seed = crate::seed::mix(settings.seed, 7, before.number as u64);
         let points = sample_surface(&prev.mesh, settings.samples, seed);
         let carried = carry_by_velocity(&prev.mesh, v0, next, dt, points);
         let Ok(found) = coherence::measure(&carried, &from_texels, &to_texels, settings) else {
@@ -769,7 +719,7 @@ pub fn patch_colour(source: u32) -> [f32; 3] {
         SOURCE_OUTSIDE => [0.0, 0.0, 0.0],
         SOURCE_UNCOVERED => [1.0, 0.0, 1.0],
         s => {
-            let h = crate::methods::erosion::mix(0x5eed, 3, s as u64);
+            let h = crate::seed::mix(0x5eed, 3, s as u64);
             let c = |k: u32| 0.25 + 0.7 * (((h >> (k * 16)) & 0xffff) as f32 / 65535.0);
             [c(0), c(1), c(2)]
         }

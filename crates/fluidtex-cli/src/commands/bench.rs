@@ -17,6 +17,7 @@ use super::scene::scene_params;
 use crate::config::{Config, named};
 use fluidtex::methods::erosion::Placement;
 use fluidtex::methods::registry::MethodKind;
+use fluidtex::methods::{Stat, StatsExt};
 
 #[derive(Args, Debug)]
 pub struct BenchArgs {
@@ -179,15 +180,15 @@ pub fn bench(a: &BenchArgs) -> Result<()> {
                 *sums.entry(s.clone()).or_default() += v;
             }
         }
-        let get = |key: &str| {
-            ms.get(key)
+        let get = |key| {
+            ms.value(key)
                 .map(|v| v.to_string())
                 .unwrap_or_else(|| "-".into())
         };
         println!(
             "{total:>10.3}{:>9}{:>9}",
-            get("patches_alive"),
-            get("patches_created")
+            get(Stat::PatchesAlive),
+            get(Stat::PatchesCreated)
         );
     }
     let n = (rows.len() - 1).max(1) as f64;

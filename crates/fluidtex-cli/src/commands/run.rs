@@ -8,7 +8,7 @@ use clap::Args;
 use fluidtex::atlas::AtlasParams;
 use fluidtex::exemplar::{Exemplar, ExemplarFilter, FeatureMethod, builtin_pebbles};
 use fluidtex::io::ReadOptions;
-use fluidtex::methods::Method;
+use fluidtex::methods::{Method, Stat, StatsExt};
 use fluidtex::named::Named;
 use fluidtex::pipeline::{self, Event, FrameSource, Job, SequenceSource};
 
@@ -69,16 +69,12 @@ pub fn execute(
         Event::Start { number, .. } => progress.set_message(format!("frame {number}")),
         Event::Done { stats } => {
             // Say once which patch radius the method chose, and why.
-            if let Some(rule) = stats
-                .method_stats
-                .get("radius_rule")
-                .and_then(|r| r.as_str())
-            {
+            if let Some(rule) = stats.method_stats.text(Stat::RadiusRule) {
                 progress.info(&format!("patch radius: {rule}"));
             }
             let patches = stats
                 .method_stats
-                .get("patches_alive")
+                .value(Stat::PatchesAlive)
                 .map(|p| format!(", {p} patches"))
                 .unwrap_or_default();
             let secs: f64 = stats.seconds.values().sum();

@@ -58,7 +58,7 @@ use thiserror::Error;
 
 use crate::atlas::AtlasError;
 use crate::driver::{DrivenFrame, Driver, DriverError, FrameSink, PendingFrame, StageClock};
-use crate::methods::{FrameResult, Method, MethodError};
+use crate::methods::{FrameResult, Method, MethodError, Stat, StatsExt};
 use crate::metrics::{
     self, FidelityReference, Metric, MetricsError, StaticStop, Summary, SurfaceSamples,
     SwdSettings, Thresholds, chart_mask,
@@ -447,7 +447,7 @@ impl FrameSink for MetricsSink<'_> {
                 lit_render(frame, &scene.camera, colour, self.settings.supersample),
             ));
         }
-        let patches = result.stats.get("patches_alive").and_then(|v| v.as_f64());
+        let patches = result.stats.number(Stat::PatchesAlive);
         self.records.push(FrameRecord {
             frame: number,
             seconds,
@@ -531,8 +531,7 @@ impl MetricsSink<'_> {
         if self.rest_scale.is_nan()
             && let Some(size) = result
                 .stats
-                .get("exemplar_size")
-                .and_then(|v| v.as_f64())
+                .number(Stat::ExemplarSize)
                 .filter(|s| s.is_finite() && *s > 0.0)
         {
             // The exemplar's [0, 1]² covers S world units at creation.

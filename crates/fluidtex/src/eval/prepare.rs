@@ -217,7 +217,7 @@ fn carry_points(
     thresholds: &Thresholds,
 ) -> Carried {
     let settings = CoherenceSettings::from_thresholds(thresholds);
-    let seed = crate::methods::erosion::mix(settings.seed, 7, prev.number as u64);
+    let seed = crate::seed::mix(settings.seed, 7, prev.number as u64);
     let points = sample_surface(&prev.geometry.mesh, settings.samples, seed);
     match (
         truth,

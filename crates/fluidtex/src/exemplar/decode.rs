@@ -24,12 +24,7 @@ use image::DynamicImage;
 use super::{ExemplarError, SampleFormat};
 use crate::texture::Texture;
 
-/// A decoded image and how its samples were stored.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Decoded {
-    pub texture: Texture,
-    pub format: SampleFormat,
-}
+pub use super::Decoded;
 
 const EXR_MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
 

@@ -19,6 +19,7 @@
 //!   texels that show the exemplar minified; [`Exemplar::filter`] says
 //!   whether methods use it ([`ExemplarFilter`]).
 
+pub mod channels;
 pub mod decode;
 pub mod feature;
 pub mod mip;
@@ -55,6 +56,13 @@ crate::named!(ExemplarFilter {
     Trilinear => "trilinear",
     Unfiltered => "none",
 });
+
+/// A decoded image and how its samples were stored.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Decoded {
+    pub texture: Texture,
+    pub format: SampleFormat,
+}
 
 /// How a channel's samples were stored, and so how its atlas is written.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

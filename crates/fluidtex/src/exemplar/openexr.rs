@@ -12,8 +12,7 @@ use std::io::Cursor;
 
 use exr::prelude::{AnyChannels, FlatSamples, Image, Layer, ReadChannels, ReadLayers};
 
-use super::decode::Decoded;
-use super::{ExemplarError, SampleFormat};
+use super::{Decoded, ExemplarError, SampleFormat};
 use crate::texture::Texture;
 
 type FlatImage = Image<Layer<AnyChannels<FlatSamples>>>;

@@ -20,6 +20,7 @@ use serde::{Deserialize, Serialize};
 use super::erosion::{Erosion, ErosionParams, Variant};
 use super::{
     ChannelSpec, FrameContext, FrameResult, Method, MethodError, SOURCE_OUTSIDE, SOURCE_UNCOVERED,
+    Stat, StatsExt,
 };
 use crate::exemplar::Exemplar;
 use crate::texture::Texture;
@@ -236,17 +237,17 @@ fn cross_fade(a: FrameResult, b: FrameResult, wa: f32) -> FrameResult {
             stats.insert(format!("layer_{prefix}_{k}"), v.clone());
         }
     }
-    let sum = |key: &str| {
-        a.stats.get(key).and_then(|v| v.as_u64()).unwrap_or(0)
-            + b.stats.get(key).and_then(|v| v.as_u64()).unwrap_or(0)
+    let sum = |key| {
+        let n = |s: &super::MethodStats| s.value(key).and_then(|v| v.as_u64()).unwrap_or(0);
+        n(&a.stats) + n(&b.stats)
     };
     for key in [
-        "patches_alive",
-        "patches_created",
-        "patches_deleted",
-        "forced_texels",
+        Stat::PatchesAlive,
+        Stat::PatchesCreated,
+        Stat::PatchesDeleted,
+        Stat::ForcedTexels,
     ] {
-        stats.insert(key.to_string(), sum(key).into());
+        stats.set(key, sum(key));
     }
     let in_charts = source.iter().filter(|&&s| s != SOURCE_OUTSIDE).count();
     let uncovered = source.iter().filter(|&&s| s == SOURCE_UNCOVERED).count();

@@ -25,8 +25,8 @@ use thiserror::Error;
 use crate::atlas::Atlas;
 use crate::driver::FrameGeometry;
 pub use crate::driver::StageClock;
+pub use crate::exemplar::channels::{ChannelFormat, ChannelSpec};
 use crate::mesh::{Topology, TriMesh};
-pub use crate::pipeline::{ChannelFormat, ChannelSpec};
 use crate::surface::SurfaceIndex;
 use crate::surface::velocity::{FlowFrame, FlowInterval};
 use crate::texture::Texture;
@@ -123,15 +123,76 @@ pub struct FrameResult {
     /// at level 0 (unfiltered or blended), as far as the method knows.
     pub exemplar_lod: Option<Vec<f32>>,
     /// Method statistics for `stats.F.json` (patches alive, created, ...).
-    pub stats: BTreeMap<String, serde_json::Value>,
+    pub stats: MethodStats,
     /// Seconds per stage, in order.
     pub timings: Vec<(&'static str, f64)>,
 }
 
-/// Source value of a texel outside every chart.
-pub const SOURCE_OUTSIDE: u32 = u32::MAX;
-/// Source value of a chart texel nothing covers.
-pub const SOURCE_UNCOVERED: u32 = 0;
+pub use crate::provenance::{SOURCE_OUTSIDE, SOURCE_UNCOVERED};
+
+/// A method statistic of `stats.F.json`, by key: the one spelling that
+/// methods write and front ends, reports and the harness read.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Stat {
+    PatchesAlive,
+    PatchesCreated,
+    PatchesDeleted,
+    PatchesDeletedUnused,
+    PatchesDeletedAdvection,
+    TexelsInCharts,
+    UncoveredTexels,
+    ForcedTexels,
+    CandidatePairs,
+    /// Patch radius r in world units.
+    Radius,
+    /// Why the default radius is what it is (a sentence).
+    RadiusRule,
+    /// World size S covered by the exemplar's [0, 1]² (the distortion
+    /// metric's rest scale).
+    ExemplarSize,
+}
+
+crate::named!(Stat {
+    PatchesAlive => "patches_alive",
+    PatchesCreated => "patches_created",
+    PatchesDeleted => "patches_deleted",
+    PatchesDeletedUnused => "patches_deleted_unused",
+    PatchesDeletedAdvection => "patches_deleted_advection",
+    TexelsInCharts => "texels_in_charts",
+    UncoveredTexels => "uncovered_texels",
+    ForcedTexels => "forced_texels",
+    CandidatePairs => "candidate_pairs",
+    Radius => "radius",
+    RadiusRule => "radius_rule",
+    ExemplarSize => "exemplar_size",
+});
+
+/// Method statistics as written to `stats.F.json`: typed keys, JSON values.
+pub type MethodStats = BTreeMap<String, serde_json::Value>;
+
+/// Typed access to [`MethodStats`].
+pub trait StatsExt {
+    fn set(&mut self, key: Stat, value: impl Into<serde_json::Value>);
+    fn value(&self, key: Stat) -> Option<&serde_json::Value>;
+    fn number(&self, key: Stat) -> Option<f64> {
+        self.value(key).and_then(serde_json::Value::as_f64)
+    }
+    fn text(&self, key: Stat) -> Option<&str> {
+        self.value(key).and_then(serde_json::Value::as_str)
+    }
+}
+
+impl StatsExt for MethodStats {
+    fn set(&mut self, key: Stat, value: impl Into<serde_json::Value>) {
+        use crate::named::Named;
+        self.insert(key.name().to_string(), value.into());
+    }
+
+    fn value(&self, key: Stat) -> Option<&serde_json::Value> {
+        use crate::named::Named;
+        self.get(key.name())
+    }
+}
 
 /// Errors of a method's frame step or state handling.
 #[derive(Debug, Error)]

@@ -118,10 +118,7 @@ pub use thresholds::{
     Thresholds, Verdict,
 };
 
-/// A texel outside every chart, or a background pixel.
-pub const SOURCE_OUTSIDE: u32 = u32::MAX;
-/// A chart texel (or surface pixel) that no patch reached.
-pub const SOURCE_UNCOVERED: u32 = 0;
+pub use crate::provenance::{SOURCE_OUTSIDE, SOURCE_UNCOVERED};
 
 /// Errors of the metrics: inputs that do not fit together, and a thresholds
 /// file that does not parse or holds a value out of range.

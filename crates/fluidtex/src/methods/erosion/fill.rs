@@ -29,10 +29,7 @@ use crate::exemplar::Exemplar;
 use crate::mesh::TriMesh;
 use crate::surface::SurfaceIndex;
 
-/// Source value of a texel outside every chart.
-pub const OUTSIDE: u32 = u32::MAX;
-/// Source value of a chart texel no patch covers.
-pub const UNCOVERED: u32 = 0;
+pub use crate::provenance::{SOURCE_OUTSIDE as OUTSIDE, SOURCE_UNCOVERED as UNCOVERED};
 
 /// How a surface point is located in a patch.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -34,7 +34,10 @@ use self::erode::ErosionTest;
 use self::fill::{Candidates, FillBuffers, FillContext, LocateTolerance};
 use self::patch::{FrameSurface, Patch, PatchShape};
 pub use self::update::Placement;
-use super::{ChannelSpec, FrameContext, FrameResult, Method, MethodError, StageClock, check_range};
+use super::{
+    ChannelSpec, FrameContext, FrameResult, Method, MethodError, StageClock, Stat, StatsExt,
+    check_range,
+};
 use crate::exemplar::Exemplar;
 use crate::surface::poisson::sample_mesh;
 use crate::texture::Texture;
@@ -264,17 +267,7 @@ pub struct Erosion {
     dropped_by_reset: usize,
 }
 
-/// A well-mixed 64-bit value from (seed, stream, index) (SplitMix64
-/// finaliser), so every patch and frame has its own reproducible RNG stream
-/// independent of processing order.
-pub(crate) fn mix(seed: u64, stream: u64, index: u64) -> u64 {
-    let mut z = seed
-        ^ stream.wrapping_mul(0x9E37_79B9_7F4A_7C15)
-        ^ index.wrapping_mul(0xD1B5_4A32_D192_ED03);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
+pub(crate) use crate::seed::mix;
 
 /// The seeded random rotation (radians) for `key`, or 0 when disabled.
 /// Patches of the initial distribution are keyed by id; patches the update
@@ -377,7 +370,7 @@ impl Method for Erosion {
     }
 
     fn channel_specs(&self) -> Vec<ChannelSpec> {
-        crate::pipeline::exemplar_channels(&self.exemplar)
+        crate::exemplar::channels::exemplar_channels(&self.exemplar)
     }
 
     fn step(&mut self, ctx: &FrameContext<'_>) -> Result<FrameResult, MethodError> {
@@ -624,27 +617,24 @@ impl Method for Erosion {
             ..Default::default()
         };
         let stats = &mut result.stats;
-        stats.insert("patches_alive".into(), self.state.patches.len().into());
-        stats.insert("patches_created".into(), created.into());
+        stats.set(Stat::PatchesAlive, self.state.patches.len());
+        stats.set(Stat::PatchesCreated, created);
         let dropped = std::mem::take(&mut self.dropped_by_reset);
-        stats.insert(
-            "patches_deleted".into(),
-            (deleted_before + unused + dropped).into(),
-        );
-        stats.insert("patches_deleted_unused".into(), unused.into());
-        stats.insert("patches_deleted_advection".into(), deleted_before.into());
-        stats.insert("texels_in_charts".into(), texels_in_charts.into());
-        stats.insert("uncovered_texels".into(), uncovered_after.into());
-        stats.insert("forced_texels".into(), forced.into());
-        stats.insert("candidate_pairs".into(), candidate_pairs.into());
+        stats.set(Stat::PatchesDeleted, deleted_before + unused + dropped);
+        stats.set(Stat::PatchesDeletedUnused, unused);
+        stats.set(Stat::PatchesDeletedAdvection, deleted_before);
+        stats.set(Stat::TexelsInCharts, texels_in_charts);
+        stats.set(Stat::UncoveredTexels, uncovered_after);
+        stats.set(Stat::ForcedTexels, forced);
+        stats.set(Stat::CandidatePairs, candidate_pairs);
         if let Some(r) = self.state.radius {
-            stats.insert("radius".into(), serde_json::json!(r));
+            stats.set(Stat::Radius, serde_json::json!(r));
         }
         if let Some(rule) = radius_rule {
-            stats.insert("radius_rule".into(), serde_json::json!(rule));
+            stats.set(Stat::RadiusRule, rule);
         }
         if let Some(s) = self.state.exemplar_size {
-            stats.insert("exemplar_size".into(), serde_json::json!(s));
+            stats.set(Stat::ExemplarSize, serde_json::json!(s));
         }
         result.source = Some(out.source);
         result.uv = Some(out.uv);
