@@ -28,23 +28,23 @@ pub struct Config {
     pub frames: Option<String>,
     /// Output folder.
     pub out: Option<PathBuf>,
-    /// Method name [erosion] (see [`MethodKind`]).
+    /// Method name \[erosion] (see [`MethodKind`]).
     pub method: Option<MethodKind>,
-    /// Atlas width and height in texels [4096].
+    /// Atlas width and height in texels \[4096].
     pub atlas: Option<u32>,
-    /// Gutter between charts in texels [4].
+    /// Gutter between charts in texels \[4].
     pub gutter: Option<u32>,
-    /// Frames per second of the simulation [24].
+    /// Frames per second of the simulation \[24].
     pub fps: Option<f32>,
-    /// Seed of every random choice [0].
+    /// Seed of every random choice \[0].
     pub seed: Option<u64>,
     /// Colour exemplar image; the built-in pebbles when absent.
     pub exemplar: Option<PathBuf>,
     /// Feature map image; derived from the exemplar when absent.
     pub feature: Option<PathBuf>,
-    /// How to derive a missing feature map: auto, luminance, distance [auto].
+    /// How to derive a missing feature map: auto, luminance, distance \[auto].
     pub feature_method: Option<String>,
-    /// How minified exemplar texels are read: trilinear, none [trilinear].
+    /// How minified exemplar texels are read: trilinear, none \[trilinear].
     /// Left out of the file when unset, so fingerprints of older runs hold.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub exemplar_filter: Option<String>,
@@ -161,6 +161,9 @@ impl Config {
 }
 
 /// Flags of `fluidtex run` that mirror the config (flags win).
+// The field docs are the `--help` text, printed verbatim by clap: `[4096]`
+// is a default, not an intra-doc link (escaping it would show in the help).
+#[allow(rustdoc::broken_intra_doc_links)]
 #[derive(Args, Clone, Debug, Default)]
 pub struct RunFlags {
     /// Mesh sequence: fluid.$F4.ply, fluid.####.ply or fluid.%04d.ply (PLY, OBJ or VTK)

@@ -53,9 +53,9 @@ pub struct CoherenceSettings {
     /// Seed of the sample positions [thresholds: 2021].
     pub seed: u64,
     /// Points moving fewer atlas texels are not used by the colour follow
-    /// ratio [3].
+    /// ratio \[3].
     pub min_move_texels: f32,
-    /// Fewer moving points give no colour follow ratio [200].
+    /// Fewer moving points give no colour follow ratio \[200].
     pub min_moving_samples: usize,
 }
 

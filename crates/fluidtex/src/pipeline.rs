@@ -54,9 +54,9 @@ pub struct OutputOptions {
     /// `patches.F.png`, `source.F.exr`, `switch.F.png` and the coherence
     /// numbers of `stats.F.json` [true].
     pub debug: bool,
-    /// Write `preview.F.png` every this many frames (0: never) [0].
+    /// Write `preview.F.png` every this many frames (0: never) \[0].
     pub preview_every: u32,
-    /// Preview width in pixels [512].
+    /// Preview width in pixels \[512].
     pub preview_size: u32,
 }
 
@@ -90,7 +90,7 @@ pub trait FrameSource {
 pub struct Job {
     pub out_dir: PathBuf,
     pub atlas: AtlasParams,
-    /// Frames per second of the input [24].
+    /// Frames per second of the input \[24].
     pub fps: f32,
     pub outputs: OutputOptions,
     /// Continue from `state.bin` in `out_dir`.

@@ -11,6 +11,9 @@ use fluidtex::scenes::{self, SceneParams};
 
 use crate::progress::Progress;
 
+// The field docs are the `--help` text, printed verbatim by clap: `[24]`
+// is a default, not an intra-doc link.
+#[allow(rustdoc::broken_intra_doc_links)]
 #[derive(Args, Debug, Default)]
 pub struct SceneArgs {
     /// Scene name (see --list)

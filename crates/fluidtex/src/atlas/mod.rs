@@ -29,6 +29,8 @@
 //! The unwrap is not coherent over time: each frame gets its own atlas.
 
 pub mod dilate;
+// Test surfaces, not public API: compiled only for tests and examples.
+#[cfg(any(test, feature = "test-fixtures"))]
 pub mod fixtures;
 pub mod rasterize;
 pub mod stretch;

@@ -1,7 +1,7 @@
 //! The evaluation harness: runs a texturing method over a scene's frames in
 //! memory and measures it with [`crate::metrics`] (docs/evaluation.md).
 //!
-//! Two halves. [`prepare`] does everything that does not depend on the
+//! Two halves. [`prepare()`] does everything that does not depend on the
 //! method, once per scene: the meshes, their atlases (the same
 //! [`Atlas::build`](crate::atlas::Atlas::build) as `pipeline::run`), the
 //! surface point of every atlas texel, one fixed camera framing every
@@ -28,7 +28,7 @@
 //!   (backward warp with the true motion, disoccluded pixels left out);
 //! - on surface points (two frames): source switch share and colour follow
 //!   ratio ([`crate::coherence`]), 20k points sampled on each frame and
-//!   carried to the next by the scene's exact flow ([`prepare`]), looked up
+//!   carried to the next by the scene's exact flow ([`prepare()`]), looked up
 //!   in both frames' atlases. The switch share has no absolute threshold:
 //!   [`judge_against_floor`] compares each method with the floor method
 //!   (`advect`) on the same frames once every method has run;
@@ -79,22 +79,22 @@ pub const RENDER_BACKGROUND: [f32; 3] = [0.5, 0.5, 0.5];
 /// [`Thresholds`]).
 #[derive(Clone, Debug, PartialEq)]
 pub struct EvalSettings {
-    /// Side of the square evaluation renders, px [256], 32–4096.
+    /// Side of the square evaluation renders, px \[256], 32–4096.
     pub render_size: u32,
     /// Direction the camera looks along [see [`default_view`]].
     pub view_dir: Vec3,
-    /// RK4 steps per frame when tracing the true motion [4], 1–64.
+    /// RK4 steps per frame when tracing the true motion \[4], 1–64.
     pub trace_substeps: u32,
     /// Frames whose lit renders are kept for pictures.
     pub keep_renders: Vec<i32>,
-    /// Measure exemplar fidelity every this many frames (1: all) [1]; it
+    /// Measure exemplar fidelity every this many frames (1: all) \[1]; it
     /// is the slowest metric.
     pub fidelity_every: u32,
     /// Gutter dilation radius, texels, as `pipeline::run` uses it
     /// (`2 · max(gutter, 1)`).
     pub dilate_radius: u32,
     /// Colour renders are drawn at this many samples per pixel side and
-    /// box-filtered [4], 1–8: what a viewer sees with antialiasing. Without
+    /// box-filtered \[4], 1–8: what a viewer sees with antialiasing. Without
     /// it, atlas detail finer than a pixel aliases, and the aliasing
     /// changes under sub-pixel motion, which popping would charge to the
     /// method. Provenance (flow) is read at one sample per pixel.

@@ -159,7 +159,7 @@ pub struct Exemplar {
     /// Extra channels, in order; same size as `colour`.
     pub channels: Vec<ExtraChannel>,
     pub feature: FeatureMap,
-    /// Whether methods filter minified lookups [trilinear]. Chosen by the
+    /// Whether methods filter minified lookups \[trilinear]. Chosen by the
     /// user at load (`--exemplar-filter`); it changes no texel of the
     /// exemplar, only which lookup the methods' post-pass makes.
     pub filter: ExemplarFilter,

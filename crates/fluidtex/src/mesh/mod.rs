@@ -67,7 +67,7 @@ impl Attribute {
 /// An indexed triangle mesh with named per-vertex attributes.
 ///
 /// Triangles are counter-clockwise seen from the side their normal points to.
-/// Invariants (checked by [`validate`]): every index is below
+/// Invariants (checked by [`validate()`]): every index is below
 /// `positions.len()`, every attribute has `positions.len()` elements.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct TriMesh {

@@ -21,7 +21,7 @@ pub struct AtlasCheckParams {
     /// Checker cell size in world units. `None`: the first non-empty frame's
     /// bounding-box diagonal / `cells_per_diagonal`.
     pub cell: Option<f32>,
-    /// Default number of cells along the bounding-box diagonal [24].
+    /// Default number of cells along the bounding-box diagonal \[24].
     pub cells_per_diagonal: f32,
 }
 

@@ -29,7 +29,7 @@ use crate::texture::Texture;
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct DualRestParams {
-    /// Frames between two resets of the same layer [24]; the layers reset
+    /// Frames between two resets of the same layer \[24]; the layers reset
     /// half a period apart. At least 2.
     pub period: u32,
 }

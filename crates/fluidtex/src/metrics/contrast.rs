@@ -50,7 +50,7 @@ pub fn exemplar_sigma(exemplar: &Texture) -> f32 {
 }
 
 /// σ of the exemplar's luminance as the trilinear mip sampler shows it, at
-/// lod 0, [`LOD_STEP`], 2 [`LOD_STEP`], ... up to the 1 × 1 level (module
+/// lod 0, `LOD_STEP`, 2 `LOD_STEP`, ... up to the 1 × 1 level (module
 /// doc); the first entry is [`exemplar_sigma`].
 pub fn exemplar_sigma_by_lod(exemplar: &Texture) -> Vec<f32> {
     let grey = Texture {

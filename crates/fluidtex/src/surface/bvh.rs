@@ -31,7 +31,7 @@ pub struct SurfaceIndex {
 }
 
 impl SurfaceIndex {
-    /// Builds the BVH. The mesh must be valid (see [`crate::mesh::validate`]).
+    /// Builds the BVH. The mesh must be valid (see [`crate::mesh::validate()`]).
     pub fn new(mesh: &TriMesh) -> SurfaceIndex {
         let inner = if mesh.triangles.is_empty() {
             None

@@ -102,7 +102,7 @@ impl DiskSet {
 }
 
 /// Poisson-disk samples on `mesh` with the given spacing. `candidates_per_sample`
-/// [30] controls how close to maximal the set gets. Deterministic for a given RNG state.
+/// \[30] controls how close to maximal the set gets. Deterministic for a given RNG state.
 pub fn sample_mesh<R: Rng>(
     mesh: &TriMesh,
     spacing: f32,

@@ -52,12 +52,12 @@ pub struct ErosionParams {
     pub radius: Option<f32>,
     /// Default r as a fraction of the first frame's bounding-box diagonal [1/25].
     pub radius_fraction: f32,
-    /// World size S covered by the exemplar's [0,1]². `None`:
+    /// World size S covered by the exemplar's \[0,1]². `None`:
     /// `exemplar_scale` × r.
     pub exemplar_size: Option<f32>,
     /// Default S as a multiple of r [2.6]: the authors' code used (2 + β) r, β = 0.6.
     pub exemplar_scale: f32,
-    /// δ_max of Eq. 1 [3]: triangles at or beyond this distortion have Q_T = 0.
+    /// δ_max of Eq. 1 \[3]: triangles at or beyond this distortion have Q_T = 0.
     pub delta_max: f32,
     /// ε of the erosion test, Sec. 5.2 [0.1], in (0, 1).
     pub epsilon: f32,
@@ -67,28 +67,28 @@ pub struct ErosionParams {
     pub centre_fraction: f32,
     /// Poisson disks whose normals have a smaller dot product do not block each other [0.9].
     pub normal_dot: f32,
-    /// RK4 steps per frame [1].
+    /// RK4 steps per frame \[1].
     pub substeps: u32,
     /// Random rotation of each patch at creation [true] (seeded per patch id,
     /// or per creation point for patches the update adds).
     pub random_rotation: bool,
-    /// New-patch placement [local]: `local` (the paper) or `global`.
+    /// New-patch placement \[local]: `local` (the paper) or `global`.
     pub placement: Placement,
-    /// How vertex weights w_V evolve over time [progressive] (see [`WeightMode`]).
+    /// How vertex weights w_V evolve over time \[progressive] (see [`WeightMode`]).
     pub weights: WeightMode,
     /// Progressive weights: the largest decrease of w_V per second of
     /// animation [2.4, i.e. 0.1 per frame at 24 fps], so a patch takes at
     /// least 1/rate seconds to erode from whole to nothing.
     pub erosion_rate: f32,
     /// Reach of the centre falloff D(u, v) of the erosion test (Sec. 5.2)
-    /// [footprint] (see [`Falloff`]).
+    /// \[footprint] (see [`Falloff`]).
     pub falloff: Falloff,
-    /// Orientation of the exemplar on new patches [random] (see [`Orientation`]).
+    /// Orientation of the exemplar on new patches \[random] (see [`Orientation`]).
     pub orientation: Orientation,
     /// World direction the exemplar's up follows with `orientation = aligned` [0, 1, 0].
     pub up_axis: [f32; 3],
     /// The default r is never below this many median edge lengths of the
-    /// first frame [4]: a patch must hold enough fluid triangles that
+    /// first frame \[4]: a patch must hold enough fluid triangles that
     /// re-meshing noise does not dominate its shape.
     pub radius_edges: f32,
 }

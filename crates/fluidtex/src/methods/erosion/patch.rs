@@ -5,7 +5,7 @@
 //! A patch owns a copy of the fluid triangles around its centre p with its
 //! own topology; from then on it is independent of the fluid mesh, which is
 //! a different mesh every frame. Each vertex keeps its *rest* coordinates:
-//! its exemplar uv, fixed at creation, where the exemplar's [0,1]² covers S
+//! its exemplar uv, fixed at creation, where the exemplar's \[0,1]² covers S
 //! world units (so rest coordinates × S are the triangle rest shapes in
 //! world units that δ_t compares against).
 
@@ -24,7 +24,7 @@ use crate::surface::{SurfaceIndex, SurfacePoint, closest_point_on_triangle};
 pub struct PatchShape {
     /// Patch radius r.
     pub radius: f32,
-    /// World extent S covered by the exemplar's [0,1]².
+    /// World extent S covered by the exemplar's \[0,1]².
     pub exemplar_size: f32,
     /// δ_max of Eq. 1.
     pub delta_max: f32,
