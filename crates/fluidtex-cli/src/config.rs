@@ -207,7 +207,7 @@ pub struct RunFlags {
     #[arg(long = "channel", value_name = "NAME=IMG")]
     pub channels: Vec<String>,
     /// PLY velocity property names, e.g. --velocity vel_x,vel_y,vel_z
-    #[arg(long, value_delimiter = ',', num_args = 3)]
+    #[arg(long, value_delimiter = ',', num_args = 1)]
     pub velocity: Option<Vec<String>>,
     /// Patch radius r in world units [bbox diagonal / 25]
     #[arg(long)]
@@ -249,7 +249,7 @@ pub struct RunFlags {
     #[arg(long, value_parser = named::<Orientation>())]
     pub orientation: Option<Orientation>,
     /// World direction the exemplar's up follows with --orientation aligned [0,1,0]
-    #[arg(long, value_delimiter = ',', num_args = 3, allow_hyphen_values = true)]
+    #[arg(long, value_delimiter = ',', num_args = 1, allow_hyphen_values = true)]
     pub up_axis: Option<Vec<f32>>,
     /// Default r is never below this many median edge lengths [4]
     #[arg(long)]
