@@ -41,6 +41,8 @@ pub enum Command {
     Bench(BenchArgs),
     /// Run methods on scenes and measure them: report.json, report.md, report.html
     Compare(Box<commands::compare::CompareArgs>),
+    /// Show an output folder in a web browser: play, scrub, texture / patch view, stats
+    View(commands::view::ViewArgs),
 }
 
 /// Runs the tool with `args` (the first element is the program name).
@@ -57,6 +59,7 @@ where
         Command::Scene(a) => commands::scene::scene(&a),
         Command::Bench(a) => commands::bench::bench(&a),
         Command::Compare(a) => commands::compare::compare(&a),
+        Command::View(a) => commands::view::view(&a),
     }
 }
 

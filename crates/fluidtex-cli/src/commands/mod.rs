@@ -6,3 +6,4 @@ pub mod demo;
 pub mod info;
 pub mod run;
 pub mod scene;
+pub mod view;
