@@ -58,6 +58,10 @@ pub struct Config {
     pub dual_rest: DualRestParams,
     /// Which files to write.
     pub outputs: OutputOptions,
+    /// After the run, encode the previews as `preview.mp4` with ffmpeg
+    /// [false]. Not part of the fingerprint: it changes no texture.
+    #[serde(skip_serializing)]
+    pub preview_video: Option<bool>,
 }
 
 impl Config {
@@ -235,6 +239,9 @@ pub struct RunFlags {
     /// Write preview.F.png every N frames (0: never)
     #[arg(long)]
     pub preview_every: Option<u32>,
+    /// After the run, encode the previews as preview.mp4 with ffmpeg (previews every frame unless --preview-every says otherwise)
+    #[arg(long)]
+    pub preview_video: bool,
 }
 
 impl RunFlags {
@@ -358,6 +365,13 @@ impl RunFlags {
         }
         if let Some(n) = self.preview_every {
             o.preview_every = n;
+        }
+        if self.preview_video {
+            config.preview_video = Some(true);
+        }
+        // A video needs previews: every frame unless the user chose.
+        if config.preview_video == Some(true) && config.outputs.preview_every == 0 {
+            config.outputs.preview_every = 1;
         }
         Ok(())
     }

@@ -103,7 +103,8 @@ impl Render {
 #[test]
 fn blender_addon_textures_a_baked_liquid_and_renders_it() {
     if !tool_ok("blender", "--version") || !tool_ok("python3", "--version") {
-        let msg = "blender or python3 not found: `apt-get install blender` to test the Blender add-on";
+        let msg =
+            "blender or python3 not found: `apt-get install blender` to test the Blender add-on";
         if std::env::var("FLUIDTEX_REQUIRE_TOOLS").as_deref() == Ok("1") {
             panic!("{msg} (FLUIDTEX_REQUIRE_TOOLS=1)");
         }
@@ -159,7 +160,8 @@ fn blender_addon_textures_a_baked_liquid_and_renders_it() {
     // A failing fluidtex is reported with its own error line.
     let failed = report["failure_message"].as_str().unwrap();
     assert!(
-        failed.contains("fluidtex failed (exit 1): error:") && failed.contains("no-such-exemplar.png"),
+        failed.contains("fluidtex failed (exit 1): error:")
+            && failed.contains("no-such-exemplar.png"),
         "{failed}"
     );
     let missing = report["missing_message"].as_str().unwrap();
@@ -200,7 +202,10 @@ fn blender_addon_textures_a_baked_liquid_and_renders_it() {
     }
     // Textured, unlike the grey control (measured 9.9 / 9.6 against 1.8).
     assert!(detail[0] > 4.0 && detail[1] > 4.0, "{detail:?}");
-    assert!(detail[2] < 2.5, "the grey control looks textured: {detail:?}");
+    assert!(
+        detail[2] < 2.5,
+        "the grey control looks textured: {detail:?}"
+    );
     assert!(detail[0] > 2.0 * detail[2] && detail[1] > 2.0 * detail[2]);
     // Patch colours are saturated; pebbles and the default material are not.
     assert!(sat[1] > 2.0 * sat[0].max(sat[2]), "{sat:?}");

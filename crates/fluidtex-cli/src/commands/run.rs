@@ -120,6 +120,12 @@ pub fn execute(
             out.display()
         );
     }
+    // --preview-video: a post-step; a missing ffmpeg is said, not an error.
+    if config.preview_video == Some(true) {
+        let every = config.outputs.preview_every;
+        let outcome = super::preview_video::write(&out, job.fps, every)?;
+        eprintln!("{}", outcome.describe());
+    }
     Ok(())
 }
 
