@@ -8,7 +8,9 @@
 2. checks that a missing fluidtex is refused with a clear message,
 3. bakes a tiny Mantaflow liquid (a ball of water thrown sideways in a
    2-unit box, resolution 24, frames 1-4, Speed Vectors on),
-4. runs *Texture this liquid* on the domain, then *Import fluidtex result*,
+4. runs *Texture this liquid* on the domain (velocity scale fitted, and
+   once more with the attribute taken as is: the known-bad control for the
+   fit), then *Import fluidtex result*,
 5. checks the imported object's mesh follows the frame, and renders
    (Cycles, CPU) frames 1 and 4; the same two frames with the image node
    holding the one file color.F.png as a still image (the Rust test
@@ -199,6 +201,27 @@ def main():
         check(bpy.ops.fluidtex.texture_liquid() == {"FINISHED"}, "Texture this liquid")
     report["texture_seconds"] = round(time.time() - t, 2)
     out = os.path.join(a.work, "out")
+    with open(os.path.join(a.work, "velocity_scale.txt")) as f:
+        report["velocity_scale"] = float(f.read())
+    shares = []
+    for f in range(FRAMES[0] + 1, FRAMES[1] + 1):
+        with open(os.path.join(out, f"stats.{f:04d}.json")) as st:
+            shares.append(json.load(st).get("source_switch_share"))
+    report["source_switch_share"] = shares
+    # Known-bad control: the attribute taken as world units per second
+    # (scale 1) carries the texture too far, so patches switch more.
+    s.velocity_auto = False
+    s.velocity_scale = 1.0
+    s.work_dir = os.path.join(a.work, "unscaled")
+    with bpy.context.temp_override(active_object=domain, object=domain):
+        check(bpy.ops.fluidtex.texture_liquid() == {"FINISHED"}, "Texture this liquid, unscaled")
+    unscaled = []
+    for f in range(FRAMES[0] + 1, FRAMES[1] + 1):
+        with open(os.path.join(a.work, "unscaled", "out", f"stats.{f:04d}.json")) as st:
+            unscaled.append(json.load(st).get("source_switch_share"))
+    report["source_switch_share_unscaled"] = unscaled
+    s.velocity_auto = True
+    s.work_dir = a.work
     for f in range(FRAMES[0], FRAMES[1] + 1):
         for name in (f"mesh.{f:04d}.obj", f"color.{f:04d}.png", f"patches.{f:04d}.png"):
             check(os.path.exists(os.path.join(out, name)), f"{name} missing")

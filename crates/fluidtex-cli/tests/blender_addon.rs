@@ -12,6 +12,8 @@
 //!   `color.F.png` as a still image,
 //! - the two frames differ where the liquid moved,
 //! - the patch view shows the patch colours (saturated, unlike pebbles),
+//! - the velocity scale the add-on fits makes the texture ride the flow:
+//!   fewer patch switches than with the attribute as is (known-bad control),
 //! - a failing `fluidtex` (missing exemplar) cancels the operator with
 //!   fluidtex's own error line; a missing one names the path looked at.
 //!
@@ -166,6 +168,24 @@ fn blender_addon_textures_a_baked_liquid_and_renders_it() {
     );
     let missing = report["missing_message"].as_str().unwrap();
     assert!(missing.contains("fluidtex not found at"), "{missing}");
+    // The velocity scale fitted to the surface's motion: Mantaflow's
+    // attribute is not in world units per second (a sweep on this bake put
+    // the best factor at 0.42-0.55), and with it the texture rides the flow
+    // (few patch switches) where the unscaled attribute makes it switch.
+    let scale = report["velocity_scale"].as_f64().unwrap();
+    assert!((0.3..0.7).contains(&scale), "fitted velocity scale {scale}");
+    let mean = |key: &str| {
+        let v: Vec<f64> = report[key]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect();
+        v.iter().sum::<f64>() / v.len() as f64
+    };
+    let (fitted, unscaled) = (mean("source_switch_share"), mean("source_switch_share_unscaled"));
+    eprintln!("source switch share: fitted {fitted:.3}, unscaled {unscaled:.3}");
+    assert!(fitted < 0.15 && unscaled > 2.0 * fitted, "fitted {fitted}, unscaled {unscaled}");
     // The imported object's mesh is the frame's own.
     for f in ["1", "3", "4"] {
         let mesh = report["follow"][f]["mesh"].as_str().unwrap();

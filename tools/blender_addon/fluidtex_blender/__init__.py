@@ -105,9 +105,17 @@ class FluidtexSettings(bpy.types.PropertyGroup):
     use_scene_range: BoolProperty(name="Scene frame range", default=True)
     frame_start: IntProperty(name="Start", default=1, min=0)
     frame_end: IntProperty(name="End", default=250, min=0)
+    velocity_auto: BoolProperty(
+        name="Fit velocity scale",
+        description=(
+            "Find the factor that turns the velocity attribute into world units per second "
+            "from the motion of the surface between the first frames (Mantaflow's is not in those units)"
+        ),
+        default=True,
+    )
     velocity_scale: FloatProperty(
         name="Velocity scale",
-        description="Multiplies the velocity attribute to give world units per second",
+        description="Multiplies the velocity attribute to give world units per second (when not fitted)",
         default=1.0,
     )
     work_dir: StringProperty(
@@ -198,8 +206,10 @@ def write_ply(path, positions, velocities, triangles):
     os.replace(tmp, path)
 
 
-def export_frame(ob, depsgraph, frame, path, velocity_scale):
-    """Writes the evaluated mesh of `ob` at the current frame to `path`."""
+def evaluate_frame(ob, depsgraph, frame):
+    """The evaluated mesh of `ob` at the current frame in world space:
+    (positions, velocities per second of the attribute's own unit,
+    triangles) as flat arrays."""
     ob_eval = ob.evaluated_get(depsgraph)
     mesh = ob_eval.to_mesh()
     try:
@@ -217,25 +227,62 @@ def export_frame(ob, depsgraph, frame, path, velocity_scale):
         mesh.calc_loop_triangles()
         triangles = array("i", bytes(12 * len(mesh.loop_triangles)))
         mesh.loop_triangles.foreach_get("vertices", triangles)
-        m = ob.matrix_world
-        identity = all(abs(m[r][c] - (1.0 if r == c else 0.0)) < 1e-12 for r in range(4) for c in range(4))
-        if not identity or velocity_scale != 1.0:
-            lin = m.to_3x3()
-            for i in range(n):
-                p = m @ mathutils_vector(positions, i)
-                v = (lin @ mathutils_vector(velocities, i)) * velocity_scale
-                positions[3 * i : 3 * i + 3] = array("f", p)
-                velocities[3 * i : 3 * i + 3] = array("f", v)
-        write_ply(path, positions, velocities, triangles)
-        return n, len(triangles) // 3
     finally:
         ob_eval.to_mesh_clear()
+    m = ob.matrix_world
+    identity = all(abs(m[r][c] - (1.0 if r == c else 0.0)) < 1e-12 for r in range(4) for c in range(4))
+    if not identity:
+        from mathutils import Vector
+
+        lin = m.to_3x3()
+        for i in range(n):
+            j = 3 * i
+            positions[j : j + 3] = array("f", m @ Vector(positions[j : j + 3]))
+            velocities[j : j + 3] = array("f", lin @ Vector(velocities[j : j + 3]))
+    return positions, velocities, triangles
 
 
-def mathutils_vector(flat, i):
+def fit_velocity_scale(frames, fps, samples=1000):
+    """The factor s that best carries each frame's surface onto the next:
+    vertices of frame k moved by s * velocity / fps land on the surface of
+    frame k + 1 (mean distance, Blender's BVH). Only the normal part of the
+    motion is seen by this, which is enough to find a unit. `frames` is a
+    list of (positions, velocities, triangles) of consecutive frames.
+    Returns (s, mean distance at s, mean distance at s = 0) or None when
+    the surface does not move measurably."""
     from mathutils import Vector
+    from mathutils.bvhtree import BVHTree
 
-    return Vector((flat[3 * i], flat[3 * i + 1], flat[3 * i + 2]))
+    candidates = [0.02 * 1.1**k for k in range(85)]  # 0.02 .. about 68
+    error = [0.0] * len(candidates)
+    still = 0.0
+    count = 0
+    for (pa, va, _ta), (pb, _vb, tb) in zip(frames, frames[1:]):
+        nb = len(pb) // 3
+        if nb == 0 or len(pa) == 0:
+            continue
+        verts = [tuple(pb[3 * i : 3 * i + 3]) for i in range(nb)]
+        polys = [tuple(tb[3 * i : 3 * i + 3]) for i in range(len(tb) // 3)]
+        tree = BVHTree.FromPolygons(verts, polys)
+        na = len(pa) // 3
+        step = max(1, na // samples)
+        for i in range(0, na, step):
+            p = Vector(pa[3 * i : 3 * i + 3])
+            v = Vector(va[3 * i : 3 * i + 3]) / fps
+            hit = tree.find_nearest(p)
+            still += hit[3] if hit[0] is not None else 0.0
+            for k, s in enumerate(candidates):
+                hit = tree.find_nearest(p + v * s)
+                error[k] += hit[3] if hit[0] is not None else 1e30
+            count += 1
+    if count == 0:
+        return None
+    best = min(range(len(candidates)), key=lambda k: error[k])
+    # A fit only counts when moving the points explains the next frame
+    # clearly better than leaving them in place.
+    if error[best] > 0.8 * still:
+        return None
+    return candidates[best], error[best] / count, still / count
 
 
 def texture_job(context, ob, settings):
@@ -252,14 +299,35 @@ def texture_job(context, ob, settings):
     frames = list(range(first, last + 1))
     total = 2 * len(frames)
     keep = scene.frame_current
+    fps = scene.render.fps / scene.render.fps_base
+    scale = settings.velocity_scale
     try:
+        if settings.velocity_auto and len(frames) > 1:
+            sample = []
+            for f in frames[:4]:
+                scene.frame_set(f)
+                sample.append(evaluate_frame(ob, context.evaluated_depsgraph_get(), f))
+            yield 0.0, "fluidtex: fitting the velocity scale"
+            fit = fit_velocity_scale(sample, fps)
+            if fit is None:
+                print(f"fluidtex: velocity scale not fitted (no measurable motion), using {scale:g}")
+            else:
+                scale, moved, still = fit
+                print(
+                    f"fluidtex: velocity scale {scale:.3g} fitted on frames {frames[0]}-{frames[min(3, len(frames) - 1)]} "
+                    f"(mean distance to the next surface {still:.4g} in place, {moved:.4g} carried)"
+                )
         for k, f in enumerate(frames):
             scene.frame_set(f)
-            path = os.path.join(inputs, f"fluid.{f:04d}.ply")
-            export_frame(ob, context.evaluated_depsgraph_get(), f, path, settings.velocity_scale)
+            positions, velocities, triangles = evaluate_frame(ob, context.evaluated_depsgraph_get(), f)
+            if scale != 1.0:
+                velocities = array("f", (x * scale for x in velocities))
+            write_ply(os.path.join(inputs, f"fluid.{f:04d}.ply"), positions, velocities, triangles)
             yield (k + 1) / total, f"fluidtex: exported frame {f} ({k + 1}/{len(frames)})"
     finally:
         scene.frame_set(keep)
+    with open(os.path.join(work, "velocity_scale.txt"), "w") as note:
+        note.write(f"{scale}\n")
 
     args = [
         exe, "run",
@@ -268,7 +336,7 @@ def texture_job(context, ob, settings):
         "--out", out,
         "--method", settings.method,
         "--atlas", str(settings.atlas),
-        "--fps", str(scene.render.fps / scene.render.fps_base),
+        "--fps", str(fps),
         "--quiet",
     ]  # fmt: skip
     if settings.exemplar:
@@ -626,7 +694,9 @@ class FLUIDTEX_PT_panel(bpy.types.Panel):
         col.prop(s, "exemplar")
         col.prop(s, "atlas")
         col.prop(s, "radius")
-        col.prop(s, "velocity_scale")
+        col.prop(s, "velocity_auto")
+        if not s.velocity_auto:
+            col.prop(s, "velocity_scale")
         col.prop(s, "use_scene_range")
         if not s.use_scene_range:
             row = col.row(align=True)
