@@ -183,9 +183,15 @@ fn blender_addon_textures_a_baked_liquid_and_renders_it() {
             .collect();
         v.iter().sum::<f64>() / v.len() as f64
     };
-    let (fitted, unscaled) = (mean("source_switch_share"), mean("source_switch_share_unscaled"));
+    let (fitted, unscaled) = (
+        mean("source_switch_share"),
+        mean("source_switch_share_unscaled"),
+    );
     eprintln!("source switch share: fitted {fitted:.3}, unscaled {unscaled:.3}");
-    assert!(fitted < 0.15 && unscaled > 2.0 * fitted, "fitted {fitted}, unscaled {unscaled}");
+    assert!(
+        fitted < 0.15 && unscaled > 2.0 * fitted,
+        "fitted {fitted}, unscaled {unscaled}"
+    );
     // The imported object's mesh is the frame's own.
     for f in ["1", "3", "4"] {
         let mesh = report["follow"][f]["mesh"].as_str().unwrap();
