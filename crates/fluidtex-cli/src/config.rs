@@ -62,6 +62,9 @@ pub struct Config {
     /// [false]. Not part of the fingerprint: it changes no texture.
     #[serde(skip_serializing)]
     pub preview_video: Option<bool>,
+    /// USD input: the Mesh prim to read, when the stage holds several.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub prim: Option<String>,
 }
 
 impl Config {
@@ -242,6 +245,9 @@ pub struct RunFlags {
     /// After the run, encode the previews as preview.mp4 with ffmpeg (previews every frame unless --preview-every says otherwise)
     #[arg(long)]
     pub preview_video: bool,
+    /// USD input (--mesh shot.usd|usda|usdc): the Mesh prim to read, e.g. /liquid/surface
+    #[arg(long)]
+    pub prim: Option<String>,
 }
 
 impl RunFlags {
@@ -368,6 +374,9 @@ impl RunFlags {
         }
         if self.preview_video {
             config.preview_video = Some(true);
+        }
+        if let Some(p) = &self.prim {
+            config.prim = Some(p.clone());
         }
         // A video needs previews: every frame unless the user chose.
         if config.preview_video == Some(true) && config.outputs.preview_every == 0 {

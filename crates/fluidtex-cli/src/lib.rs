@@ -5,6 +5,7 @@
 pub mod config;
 pub mod progress;
 pub mod test_hooks;
+pub mod usd;
 
 mod commands;
 
@@ -43,6 +44,10 @@ pub enum Command {
     Compare(Box<commands::compare::CompareArgs>),
     /// Show an output folder in a web browser: play, scrub, texture / patch view, stats
     View(commands::view::ViewArgs),
+    /// Converts a USD stage to PLY frames (run by `--mesh FILE.usd`, in a
+    /// child process so a damaged file cannot bring the tool down)
+    #[command(hide = true)]
+    UsdConvert(usd::UsdConvertArgs),
 }
 
 /// Runs the tool with `args` (the first element is the program name).
@@ -60,6 +65,7 @@ where
         Command::Bench(a) => commands::bench::bench(&a),
         Command::Compare(a) => commands::compare::compare(&a),
         Command::View(a) => commands::view::view(&a),
+        Command::UsdConvert(a) => usd::usd_convert(&a),
     }
 }
 

@@ -60,6 +60,14 @@ pub fn run(a: &RunArgs) -> Result<()> {
         .clone()
         .context("no output folder: give --out DIR")?;
     let options = read_options(config.velocity.as_ref().map(|v| v.as_slice()))?;
+    if crate::usd::is_usd(&pattern) {
+        let mut source = crate::usd::UsdSource::open(
+            &pattern,
+            config.prim.as_deref(),
+            config.frames.as_deref(),
+        )?;
+        return execute(&config, out, &mut source, a.resume, a.quiet);
+    }
     let mut source = SequenceSource::open(&pattern, config.frames.as_deref(), options)?;
     execute(&config, out, &mut source, a.resume, a.quiet)
 }
