@@ -60,6 +60,13 @@ pub struct Config {
     pub dual_rest: DualRestParams,
     /// Which files to write.
     pub outputs: OutputOptions,
+    /// After the run, encode the previews as `preview.mp4` with ffmpeg
+    /// [false]. Not part of the fingerprint: it changes no texture.
+    #[serde(skip_serializing)]
+    pub preview_video: Option<bool>,
+    /// USD input: the Mesh prim to read, when the stage holds several.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub prim: Option<String>,
 }
 
 impl Config {
@@ -269,6 +276,12 @@ pub struct RunFlags {
     /// Write preview.F.png every N frames (0: never)
     #[arg(long)]
     pub preview_every: Option<u32>,
+    /// After the run, encode the previews as preview.mp4 with ffmpeg (previews every frame unless --preview-every says otherwise)
+    #[arg(long)]
+    pub preview_video: bool,
+    /// USD input (--mesh shot.usd|usda|usdc): the Mesh prim to read, e.g. /liquid/surface
+    #[arg(long)]
+    pub prim: Option<String>,
 }
 
 impl RunFlags {
@@ -376,6 +389,16 @@ impl RunFlags {
         }
         if let Some(n) = self.preview_every {
             o.preview_every = n;
+        }
+        if self.preview_video {
+            config.preview_video = Some(true);
+        }
+        if let Some(p) = &self.prim {
+            config.prim = Some(p.clone());
+        }
+        // A video needs previews: every frame unless the user chose.
+        if config.preview_video == Some(true) && config.outputs.preview_every == 0 {
+            config.outputs.preview_every = 1;
         }
         Ok(())
     }

@@ -5,6 +5,7 @@
 pub mod config;
 pub mod progress;
 pub mod test_hooks;
+pub mod usd;
 
 mod commands;
 
@@ -41,6 +42,12 @@ pub enum Command {
     Bench(BenchArgs),
     /// Run methods on scenes and measure them: report.json, report.md, report.html
     Compare(Box<commands::compare::CompareArgs>),
+    /// Show an output folder in a web browser: play, scrub, texture / patch view, stats
+    View(commands::view::ViewArgs),
+    /// Converts a USD stage to PLY frames (run by `--mesh FILE.usd`, in a
+    /// child process so a damaged file cannot bring the tool down)
+    #[command(hide = true)]
+    UsdConvert(usd::UsdConvertArgs),
 }
 
 /// Runs the tool with `args` (the first element is the program name).
@@ -57,6 +64,8 @@ where
         Command::Scene(a) => commands::scene::scene(&a),
         Command::Bench(a) => commands::bench::bench(&a),
         Command::Compare(a) => commands::compare::compare(&a),
+        Command::View(a) => commands::view::view(&a),
+        Command::UsdConvert(a) => usd::usd_convert(&a),
     }
 }
 

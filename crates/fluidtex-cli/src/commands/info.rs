@@ -15,11 +15,26 @@ pub struct InfoArgs {
     /// PLY velocity property names, e.g. --velocity vel_x,vel_y,vel_z
     #[arg(long, value_delimiter = ',', num_args = 3)]
     pub velocity: Option<Vec<String>>,
+    /// USD input: the Mesh prim to read, e.g. /liquid/surface
+    #[arg(long)]
+    pub prim: Option<String>,
 }
 
 pub fn info(a: &InfoArgs) -> Result<()> {
     let options = super::run::read_options(a.velocity.as_deref())?;
-    let mut source = SequenceSource::open(&a.pattern, a.frames.as_deref(), options)?;
+    let mut source: Box<dyn FrameSource> = if crate::usd::is_usd(&a.pattern) {
+        Box::new(crate::usd::UsdSource::open(
+            &a.pattern,
+            a.prim.as_deref(),
+            a.frames.as_deref(),
+        )?)
+    } else {
+        Box::new(SequenceSource::open(
+            &a.pattern,
+            a.frames.as_deref(),
+            options,
+        )?)
+    };
     let frames = source.frames();
     println!(
         "sequence {}: {} frames ({}-{})",

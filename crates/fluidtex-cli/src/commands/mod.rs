@@ -4,5 +4,7 @@ pub mod bench;
 pub mod compare;
 pub mod demo;
 pub mod info;
+pub mod preview_video;
 pub mod run;
 pub mod scene;
+pub mod view;

@@ -48,6 +48,14 @@ pub fn run(a: &RunArgs) -> Result<()> {
         .clone()
         .context("no output folder: give --out DIR")?;
     let options = read_options(config.velocity.as_ref().map(|v| v.as_slice()))?;
+    if crate::usd::is_usd(&pattern) {
+        let mut source = crate::usd::UsdSource::open(
+            &pattern,
+            config.prim.as_deref(),
+            config.frames.as_deref(),
+        )?;
+        return execute(&config, out, &mut source, a.resume, a.quiet);
+    }
     let mut source = SequenceSource::open(&pattern, config.frames.as_deref(), options)?;
     execute(&config, out, &mut source, a.resume, a.quiet)
 }
@@ -103,6 +111,12 @@ pub fn execute(
             summary.seconds,
             out.display()
         );
+    }
+    // --preview-video: a post-step; a missing ffmpeg is said, not an error.
+    if config.preview_video == Some(true) {
+        let every = config.outputs.preview_every;
+        let outcome = super::preview_video::write(&out, job.fps, every)?;
+        eprintln!("{}", outcome.describe());
     }
     Ok(())
 }
