@@ -16,9 +16,35 @@
 //!                    io (PNG/EXR atlas, OBJ+MTL, glb, stats JSON; atomic)
 //! ```
 //!
-//! Modules, one per concept: [`mesh`], [`surface`], [`param`], [`atlas`],
-//! [`exemplar`], [`methods`], [`metrics`], [`coherence`] (does the texture ride the flow: measured on outputs), [`eval`] (the evaluation harness), [`render`], [`scenes`], [`io`], and [`texture`] (the float image type and texel convention);
-//! [`fuzz`] is the seeded mutation fuzzer the reader tests use.
+//! # Entry points
+//!
+//! - [`pipeline::run`]: a method over a frame source ([`pipeline::SequenceSource`]
+//!   for files, [`pipeline::SceneSource`] for built-in scenes) into an
+//!   output folder, with resume, atomic writes and per-frame statistics.
+//! - [`eval::prepare`] + [`eval::evaluate`]: a method over a scene in
+//!   memory, measured by every metric ([`eval::report`] writes the report).
+//! - [`driver::Driver`]: the frame loop both of them run, for a new front
+//!   end (implement [`driver::FrameSink`]).
+//! - [`methods::registry`]: every method by name ([`methods::registry::MethodKind`])
+//!   and how it is built from its parameters ([`methods::registry::MethodParams`]).
+//!
+//! # Cargo features
+//!
+//! - `sph` (default): the SPH dam-break scene (salva3d + splashsurf_lib).
+//!   Without it every other scene, method and reader is available.
+//! - `test-fixtures`: small atlas fixtures for this crate's own tests and
+//!   examples; not part of the API.
+//!
+//! # Modules
+//!
+//! One per concept: [`mesh`], [`surface`], [`param`], [`atlas`],
+//! [`exemplar`], [`methods`], [`driver`] (the frame loop), [`metrics`],
+//! [`coherence`] (does the texture ride the flow: measured on outputs),
+//! [`eval`] (the evaluation harness), [`render`], [`scenes`], [`io`],
+//! [`texture`] (the float image type and texel convention), and the shared
+//! vocabulary: [`provenance`] (which patch a texel came from), [`seed`]
+//! (seeded random streams), [`named`] (settings with names on the command
+//! line). [`fuzz`] is the seeded mutation fuzzer the reader tests use.
 
 pub mod atlas;
 pub mod coherence;

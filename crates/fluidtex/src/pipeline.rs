@@ -260,30 +260,11 @@ pub fn run(
     // A run killed inside a write leaves its temporary behind.
     crate::io::remove_stale_temporaries(&job.out_dir, &guard)?;
     let mut frames = source.frames();
-    let mut previous: Option<Arc<FrameGeometry>> = None;
-    let mut resumed_after = None;
-    if job.resume
-        && let Some(saved) = read_state(&job.out_dir)?
-    {
-        if saved.fingerprint != job.fingerprint || saved.method != method.name() {
-            return Err(PipelineError::Resume(format!(
-                "{} was written by a run with another configuration or method ({}); \
-                     rerun without --resume or with the same settings",
-                job.out_dir.join(STATE_FILE).display(),
-                saved.method
-            )));
-        }
-        method.load_state(&saved.method_state)?;
-        let last = saved.last_frame;
-        if frames.contains(&last) {
-            let (mesh, report) = source.read(last)?;
-            let geometry =
-                FrameGeometry::build(last, mesh, report, &job.atlas, &mut StageClock::default())?;
-            previous = Some(Arc::new(geometry));
-        }
-        frames.retain(|&f| f > last);
-        resumed_after = Some(last);
-    }
+    let (previous, resumed_after) = if job.resume {
+        resume(job, source, method, &mut frames)?
+    } else {
+        (None, None)
+    };
     let total = frames.len();
     let mut sink = FileSink {
         job,
@@ -336,6 +317,40 @@ pub fn run(
         resumed_after,
         seconds: start.elapsed().as_secs_f64(),
     })
+}
+
+/// Loads the saved state of the run in `job.out_dir` (if any) into
+/// `method`, drops the finished frames from `frames` and re-reads the last
+/// finished one: it is the previous frame of the next. Returns it and its
+/// number.
+fn resume(
+    job: &Job,
+    source: &mut dyn FrameSource,
+    method: &mut dyn Method,
+    frames: &mut Vec<i32>,
+) -> Result<(Option<Arc<FrameGeometry>>, Option<i32>), PipelineError> {
+    let Some(saved) = read_state(&job.out_dir)? else {
+        return Ok((None, None));
+    };
+    if saved.fingerprint != job.fingerprint || saved.method != method.name() {
+        return Err(PipelineError::Resume(format!(
+            "{} was written by a run with another configuration or method ({}); \
+                 rerun without --resume or with the same settings",
+            job.out_dir.join(STATE_FILE).display(),
+            saved.method
+        )));
+    }
+    method.load_state(&saved.method_state)?;
+    let last = saved.last_frame;
+    let mut previous = None;
+    if frames.contains(&last) {
+        let (mesh, report) = source.read(last)?;
+        let geometry =
+            FrameGeometry::build(last, mesh, report, &job.atlas, &mut StageClock::default())?;
+        previous = Some(Arc::new(geometry));
+    }
+    frames.retain(|&f| f > last);
+    Ok((previous, Some(last)))
 }
 
 impl From<DriverError> for PipelineError {
@@ -735,8 +750,7 @@ impl FileSink<'_, '_> {
         method: &dyn Method,
         result: &crate::methods::FrameResult,
     ) -> Result<(), PipelineError> {
-        let (job, first_frame, number, mesh, atlas) =
-            (self.job, self.first_frame, g.number, &g.mesh, &g.atlas);
+        let (job, first_frame, number, atlas) = (self.job, self.first_frame, g.number, &g.atlas);
         let tag = frame_tag(number);
         let dir = &job.out_dir;
         let specs = method.channel_specs();
@@ -797,56 +811,27 @@ impl FileSink<'_, '_> {
             })?;
             write_file(files, &path, &glb)?;
         }
-        let patches = result.source.as_ref().map(|source| {
-            let mut colours = Texture::filled(atlas.width, atlas.height, 3, 0.0);
-            for (t, &s) in source.iter().enumerate() {
-                colours.data[t * 3..t * 3 + 3].copy_from_slice(&patch_colour(s));
+        let preview = job.outputs.preview_every > 0
+            && (number - first_frame).rem_euclid(job.outputs.preview_every as i32) == 0;
+        // The patch colours serve the debug files and the preview only.
+        let patches = match &result.source {
+            Some(source) if job.outputs.debug || preview => {
+                let mut colours = Texture::filled(atlas.width, atlas.height, 3, 0.0);
+                for (t, &s) in source.iter().enumerate() {
+                    colours.data[t * 3..t * 3 + 3].copy_from_slice(&patch_colour(s));
+                }
+                atlas
+                    .dilate(&mut colours, job.atlas.gutter.max(1) * 2)
+                    .map_err(|source| PipelineError::Atlas {
+                        frame: number,
+                        source,
+                    })?;
+                Some(colours)
             }
-            atlas
-                .dilate(&mut colours, job.atlas.gutter.max(1) * 2)
-                .map(|()| colours)
-                .map_err(|source| PipelineError::Atlas {
-                    frame: number,
-                    source,
-                })
-        });
-        let patches = patches.transpose()?;
-        if job.outputs.preview_every > 0
-            && (number - first_frame).rem_euclid(job.outputs.preview_every as i32) == 0
-            && let (Some(colour), Some((lo, hi))) = (result.channels.first(), mesh.bounding_box())
-        {
-            let size = job.outputs.preview_size.clamp(16, 8192);
-            let camera = Camera::framing(lo, hi, Vec3::new(-0.45, -0.8, -0.4), size, size);
-            let gb = render::rasterize(&uv.positions, &uv.triangles, &camera);
-            let background = [0.12, 0.12, 0.14];
-            let lit = render::shade_lit(
-                &gb,
-                &uv.triangles,
-                &normals,
-                &uv.uvs,
-                colour,
-                &camera,
-                background,
-            );
-            let mut views = vec![lit];
-            if let Some(p) = &patches {
-                views.push(render::shade_lit(
-                    &gb,
-                    &uv.triangles,
-                    &normals,
-                    &uv.uvs,
-                    p,
-                    &camera,
-                    background,
-                ));
-            }
-            let sheet = render::side_by_side(&views.iter().collect::<Vec<_>>(), 8, background);
-            write_channel(
-                files,
-                &dir.join(format!("preview.{tag}.png")),
-                &sheet,
-                ChannelFormat::Png8,
-            )?;
+            _ => None,
+        };
+        if preview && let Some(colour) = result.channels.first() {
+            self.write_preview(files, g, colour, patches.as_ref(), &normals)?;
         }
         if job.outputs.debug
             && let (Some(source), Some(colours)) = (&result.source, &patches)
@@ -874,6 +859,47 @@ impl FileSink<'_, '_> {
                 ChannelFormat::Exr,
             )?;
         }
+        Ok(())
+    }
+
+    /// `preview.F.png`: a lit render of the textured mesh beside the patch
+    /// view, from a camera framing this frame's surface.
+    fn write_preview(
+        &self,
+        files: &mut Staging<'_>,
+        g: &FrameGeometry,
+        colour: &Texture,
+        patches: Option<&Texture>,
+        normals: &[Vec3],
+    ) -> Result<(), PipelineError> {
+        let Some((lo, hi)) = g.mesh.bounding_box() else {
+            return Ok(());
+        };
+        let uv = &g.atlas.uv_mesh;
+        let size = self.job.outputs.preview_size.clamp(16, 8192);
+        let camera = Camera::framing(lo, hi, Vec3::new(-0.45, -0.8, -0.4), size, size);
+        let gb = render::rasterize(&uv.positions, &uv.triangles, &camera);
+        let background = [0.12, 0.12, 0.14];
+        let views: Vec<Texture> = std::iter::once(colour)
+            .chain(patches)
+            .map(|texture| {
+                render::shade_lit(
+                    &gb,
+                    &uv.triangles,
+                    normals,
+                    &uv.uvs,
+                    texture,
+                    &camera,
+                    background,
+                )
+            })
+            .collect();
+        let sheet = render::side_by_side(&views.iter().collect::<Vec<_>>(), 8, background);
+        let path = self
+            .job
+            .out_dir
+            .join(format!("preview.{}.png", frame_tag(g.number)));
+        write_channel(files, &path, &sheet, ChannelFormat::Png8)?;
         Ok(())
     }
 }

@@ -375,144 +375,158 @@ impl Method for Erosion {
 
     fn step(&mut self, ctx: &FrameContext<'_>) -> Result<FrameResult, MethodError> {
         let mut clock = StageClock::default();
-        let mesh = ctx.mesh;
         let atlas = ctx.atlas;
-        let channels = self.exemplar.total_channels();
-        let mut out = FillBuffers::new(atlas.width, atlas.height, channels);
+        let mut out = FillBuffers::new(atlas.width, atlas.height, self.exemplar.total_channels());
         // The footprint pass samples every covered texel (blends excepted).
         out.defer_values = self.variant != Variant::Blend
             && self.exemplar.filter == crate::exemplar::ExemplarFilter::Trilinear;
-        let deleted_before;
-        let mut created = 0usize;
-        let mut forced = 0usize;
-        let mut candidate_pairs = 0usize;
-        let mut layers: Option<Vec<u8>> = None;
-        let mut blend_used: Option<Vec<u32>> = None;
-        // `advect` carries what it has; it only places patches on a fresh start.
-        let mut carried = false;
-        let mut radius_rule: Option<String> = None;
-
-        if mesh.is_empty() {
+        let mut counts = StepCounts::default();
+        let mut blended = Blended::default();
+        if ctx.mesh.is_empty() {
             // The fluid vanished: nothing to project onto, every patch goes.
-            deleted_before = self.state.patches.len();
+            counts.deleted_before = self.state.patches.len();
             self.state.patches.clear();
             clock.lap("advection");
         } else {
-            if mesh.velocity().is_none() {
-                return Err(MethodError::MissingVelocity {
-                    frame: ctx.number,
-                    method: self.name(),
-                });
+            blended = self.step_surface(ctx, &mut out, &mut counts, &mut clock)?;
+        }
+        counts.unused = self.delete_unused(&out, blended.used.as_deref());
+        clock.lap("delete");
+        let exemplar_lod = (self.variant != Variant::Blend)
+            .then(|| super::footprint::apply_footprint_filtering(&mut out, &self.exemplar))
+            .flatten();
+        clock.lap("exemplar filter");
+        let mut result = FrameResult {
+            channels: split_channels(&out, &self.exemplar),
+            exemplar_lod,
+            ..Default::default()
+        };
+        self.record_stats(&mut result.stats, &out, counts);
+        result.source = Some(out.source);
+        result.uv = Some(out.uv);
+        result.layers = blended.layers;
+        result.timings = clock.stages;
+        Ok(result)
+    }
+
+    fn save_state(&self) -> Result<Vec<u8>, MethodError> {
+        postcard::to_allocvec(&self.state).map_err(|e| MethodError::State(e.to_string()))
+    }
+
+    fn load_state(&mut self, bytes: &[u8]) -> Result<(), MethodError> {
+        self.state = postcard::from_bytes(bytes).map_err(|e| MethodError::State(e.to_string()))?;
+        Ok(())
+    }
+}
+
+/// What one step did, for the statistics.
+#[derive(Default)]
+struct StepCounts {
+    /// Patches lost in advection (left the surface, or a fresh start).
+    deleted_before: usize,
+    created: usize,
+    forced: usize,
+    candidate_pairs: usize,
+    /// Patches no texel used.
+    unused: usize,
+    /// Set on the frame that chose the radius.
+    radius_rule: Option<String>,
+}
+
+/// What the blended fill adds to the lapped one.
+#[derive(Default)]
+struct Blended {
+    /// Per texel, layers of visible weight.
+    layers: Option<Vec<u8>>,
+    /// Patches that contributed a visible layer.
+    used: Option<Vec<u32>>,
+}
+
+impl Erosion {
+    /// r and S, resolved on the first non-empty frame and kept.
+    fn resolve_scale(
+        &mut self,
+        mesh: &crate::mesh::TriMesh,
+        counts: &mut StepCounts,
+    ) -> (f32, f32) {
+        let radius = match self.state.radius {
+            Some(r) => r,
+            None => {
+                let (r, rule) = match self.params.radius {
+                    Some(r) => (r, "given".to_string()),
+                    None => default_radius(mesh, &self.params),
+                };
+                counts.radius_rule = Some(rule);
+                self.state.radius = Some(r);
+                r
             }
-            let radius = match self.state.radius {
-                Some(r) => r,
-                None => {
-                    let (r, rule) = match self.params.radius {
-                        Some(r) => (r, "given".to_string()),
-                        None => default_radius(mesh, &self.params),
-                    };
-                    radius_rule = Some(rule);
-                    self.state.radius = Some(r);
-                    r
-                }
-            };
-            let exemplar_size = *self.state.exemplar_size.get_or_insert(
-                self.params
-                    .exemplar_size
-                    .unwrap_or(self.params.exemplar_scale * radius),
-            );
-            let shape = self.shape(radius, exemplar_size, atlas);
-            let align = (self.params.orientation == Orientation::Aligned)
-                .then(|| glam::Vec3::from(self.params.up_axis).normalize_or_zero());
-            if self.test.is_none() {
-                self.test = Some(self.erosion_test(radius / exemplar_size));
-            }
-            let test = self.test.unwrap_or_else(ErosionTest::never);
-            let max_drop = match (self.variant, self.params.weights) {
-                (Variant::Erode, WeightMode::Progressive) => {
-                    Some(self.params.erosion_rate * ctx.dt)
-                }
-                _ => None,
-            };
+        };
+        let exemplar_size = *self.state.exemplar_size.get_or_insert(
+            self.params
+                .exemplar_size
+                .unwrap_or(self.params.exemplar_scale * radius),
+        );
+        (radius, exemplar_size)
+    }
 
-            // 1. Advection and projection (Sec. 4).
-            let before = self.state.patches.len();
-            if let Some(prev) = ctx.previous
-                && !self.state.patches.is_empty()
-                && !prev.mesh.is_empty()
-            {
-                if prev.mesh.velocity().is_none() {
-                    return Err(MethodError::MissingVelocity {
-                        frame: ctx.number - 1,
-                        method: self.name(),
-                    });
-                }
-                let flow = ctx.flow(self.params.substeps, 0.25 * radius).ok_or(
-                    MethodError::MissingVelocity {
-                        frame: ctx.number,
-                        method: self.name(),
-                    },
-                )?;
-                self.state.patches.par_iter_mut().for_each(|p| {
-                    if !p.advect(&flow, ctx.index, &shape) {
-                        p.triangles.clear();
-                    }
-                });
-                self.state.patches.retain(|p| !p.triangles.is_empty());
-                carried = self.variant == Variant::Advect && !self.state.patches.is_empty();
-            } else if ctx.previous.is_none() || ctx.previous.is_some_and(|p| p.mesh.is_empty()) {
-                // A fresh start of the surface: patches of an older surface cannot be carried.
-                self.state.patches.clear();
-            }
-            deleted_before = before - self.state.patches.len();
-            clock.lap("advection");
+    /// The stages on a non-empty surface: advection, creation, weights,
+    /// fill, update.
+    fn step_surface(
+        &mut self,
+        ctx: &FrameContext<'_>,
+        out: &mut FillBuffers,
+        counts: &mut StepCounts,
+        clock: &mut StageClock,
+    ) -> Result<Blended, MethodError> {
+        let mesh = ctx.mesh;
+        if mesh.velocity().is_none() {
+            return Err(MethodError::MissingVelocity {
+                frame: ctx.number,
+                method: self.name(),
+            });
+        }
+        let (radius, exemplar_size) = self.resolve_scale(mesh, counts);
+        let shape = self.shape(radius, exemplar_size, ctx.atlas);
+        let align = (self.params.orientation == Orientation::Aligned)
+            .then(|| glam::Vec3::from(self.params.up_axis).normalize_or_zero());
+        if self.test.is_none() {
+            self.test = Some(self.erosion_test(radius / exemplar_size));
+        }
+        let test = self.test.unwrap_or_else(ErosionTest::never);
 
-            let surface = FrameSurface {
-                mesh,
-                topology: ctx.topology,
-                vertex_normals: ctx.normals,
-            };
+        // 1. Advection and projection (Sec. 4).
+        let carried = self.advect(ctx, &shape, radius, counts)?;
+        clock.lap("advection");
+        let surface = FrameSurface {
+            mesh,
+            topology: ctx.topology,
+            vertex_normals: ctx.normals,
+        };
+        // Initial distribution (frame 0, or a surface that reappears).
+        if self.state.patches.is_empty() {
+            counts.created += self.seed_distribution(ctx, &surface, &shape, radius, align);
+        }
+        clock.lap("creation");
 
-            // Initial distribution (frame 0, or a surface that reappears).
-            if self.state.patches.is_empty() {
-                let mut rng = rand_pcg::Pcg64::seed_from_u64(mix(self.seed, 2, ctx.number as u64));
-                let samples = sample_mesh(mesh, radius, self.params.normal_dot, 30.0, &mut rng);
-                let first = self.state.next_id;
-                let (seed, random) = (self.seed, self.params.random_rotation);
-                let new: Vec<Patch> = samples
-                    .par_iter()
-                    .enumerate()
-                    .filter_map(|(k, s)| {
-                        let id = first + k as u32;
-                        Patch::create(
-                            id,
-                            &surface,
-                            s.location,
-                            &shape,
-                            rotation_for(seed, random, id as u64),
-                            align,
-                        )
-                    })
-                    .collect();
-                self.state.next_id += samples.len() as u32;
-                created += new.len();
-                self.state.patches.extend(new);
-            }
-            clock.lap("creation");
+        // 2. Weights (Eqs. 1-3).
+        let max_drop = match (self.variant, self.params.weights) {
+            (Variant::Erode, WeightMode::Progressive) => Some(self.params.erosion_rate * ctx.dt),
+            _ => None,
+        };
+        self.state
+            .patches
+            .par_iter_mut()
+            .for_each(|p| p.update_weights(&shape, max_drop));
+        clock.lap("weights");
 
-            // 2. Weights (Eqs. 1-3).
-            self.state
-                .patches
-                .par_iter_mut()
-                .for_each(|p| p.update_weights(&shape, max_drop));
-            clock.lap("weights");
-
-            // 3. Lapped fill.
-            let tolerance = LocateTolerance {
-                min_bary: -0.05,
-                max_plane_distance: 0.125 * radius,
-            };
-            let feature = self.feature_levels.samplers();
+        // 3. Lapped (or blended) fill.
+        let tolerance = LocateTolerance {
+            min_bary: -0.05,
+            max_plane_distance: 0.125 * radius,
+        };
+        let feature = self.feature_levels.samplers();
+        let mut blended = Blended::default();
+        let uncovered = {
             let frames = fill::patch_frames(&self.state.patches);
             let candidates =
                 Candidates::build(mesh, ctx.index, &self.state.patches, &frames, tolerance);
@@ -525,67 +539,147 @@ impl Method for Erosion {
                 test,
                 tolerance,
             };
-            let uncovered = if self.variant == Variant::Blend {
-                let outcome = blend::fill(&fill_ctx, atlas, &candidates, &mut out);
-                layers = Some(outcome.layers);
-                blend_used = Some(outcome.used);
+            counts.candidate_pairs = candidates.len();
+            if self.variant == Variant::Blend {
+                let outcome = blend::fill(&fill_ctx, ctx.atlas, &candidates, out);
+                blended.layers = Some(outcome.layers);
+                blended.used = Some(outcome.used);
                 outcome.uncovered
             } else {
-                fill::fill(&fill_ctx, atlas, &candidates, &mut out)
-            };
-            candidate_pairs = candidates.len();
-            // The fill's buffers are large; free them before the update.
-            drop(candidates);
-            drop(frames);
-            clock.lap("fill");
-
-            // 4. Distribution update.
-            let exemplar = Arc::clone(&self.exemplar);
-            let template = FillContext {
-                mesh,
-                patches: &[],
-                frames: &[],
-                exemplar: &exemplar,
-                feature: &feature,
-                test,
-                tolerance,
-            };
-            let (seed, random) = (self.seed, self.params.random_rotation);
-            let rotation = move |at| rotation_for(seed, random, location_key(at));
-            let inputs = update::UpdateInputs {
-                surface: &surface,
-                index: ctx.index,
-                shape,
-                placement: self.params.placement,
-                normal_dot: self.params.normal_dot,
-                rotation: &rotation,
-                align,
-            };
-            if !carried {
-                let stats = update::cover(
-                    &template,
-                    &inputs,
-                    &mut self.state.patches,
-                    &mut self.state.next_id,
-                    &uncovered,
-                    &mut out,
-                );
-                created += stats.created;
-                forced = stats.forced;
+                fill::fill(&fill_ctx, ctx.atlas, &candidates, out)
             }
-            if let Some(layers) = layers.as_mut() {
-                // Texels the update covered hold one new patch each.
-                for (l, &s) in layers.iter_mut().zip(&out.source) {
-                    if *l == 0 && s != fill::OUTSIDE && s != fill::UNCOVERED {
-                        *l = 1;
-                    }
+            // The fill's buffers are large; they are freed before the update.
+        };
+        clock.lap("fill");
+
+        // 4. Distribution update.
+        let exemplar = Arc::clone(&self.exemplar);
+        let template = FillContext {
+            mesh,
+            patches: &[],
+            frames: &[],
+            exemplar: &exemplar,
+            feature: &feature,
+            test,
+            tolerance,
+        };
+        let (seed, random) = (self.seed, self.params.random_rotation);
+        let rotation = move |at| rotation_for(seed, random, location_key(at));
+        let inputs = update::UpdateInputs {
+            surface: &surface,
+            index: ctx.index,
+            shape,
+            placement: self.params.placement,
+            normal_dot: self.params.normal_dot,
+            rotation: &rotation,
+            align,
+        };
+        if !carried {
+            let stats = update::cover(
+                &template,
+                &inputs,
+                &mut self.state.patches,
+                &mut self.state.next_id,
+                &uncovered,
+                out,
+            );
+            counts.created += stats.created;
+            counts.forced = stats.forced;
+        }
+        if let Some(layers) = blended.layers.as_mut() {
+            // Texels the update covered hold one new patch each.
+            for (l, &s) in layers.iter_mut().zip(&out.source) {
+                if *l == 0 && s != fill::OUTSIDE && s != fill::UNCOVERED {
+                    *l = 1;
                 }
             }
-            clock.lap("update");
         }
+        clock.lap("update");
+        Ok(blended)
+    }
 
-        // Delete patches no texel used (Sec. 3); `advect` keeps everything
-        // (a hidden patch is still part of the carried parameterization).
+    /// Carries every patch to this frame (or drops them all on a fresh
+    /// start of the surface); returns whether `advect` carried patches,
+    /// which then are never renewed.
+    fn advect(
+        &mut self,
+        ctx: &FrameContext<'_>,
+        shape: &PatchShape,
+        radius: f32,
+        counts: &mut StepCounts,
+    ) -> Result<bool, MethodError> {
+        let before = self.state.patches.len();
+        let mut carried = false;
+        if let Some(prev) = ctx.previous
+            && !self.state.patches.is_empty()
+            && !prev.mesh.is_empty()
+        {
+            if prev.mesh.velocity().is_none() {
+                return Err(MethodError::MissingVelocity {
+                    frame: ctx.number - 1,
+                    method: self.name(),
+                });
+            }
+            let flow = ctx.flow(self.params.substeps, 0.25 * radius).ok_or(
+                MethodError::MissingVelocity {
+                    frame: ctx.number,
+                    method: self.name(),
+                },
+            )?;
+            self.state.patches.par_iter_mut().for_each(|p| {
+                if !p.advect(&flow, ctx.index, shape) {
+                    p.triangles.clear();
+                }
+            });
+            self.state.patches.retain(|p| !p.triangles.is_empty());
+            // `advect` carries what it has; it only places patches on a fresh start.
+            carried = self.variant == Variant::Advect && !self.state.patches.is_empty();
+        } else if ctx.previous.is_none() || ctx.previous.is_some_and(|p| p.mesh.is_empty()) {
+            // A fresh start of the surface: patches of an older surface cannot be carried.
+            self.state.patches.clear();
+        }
+        counts.deleted_before = before - self.state.patches.len();
+        Ok(carried)
+    }
+
+    /// Patches on a Poisson-disk set of the surface; returns how many.
+    fn seed_distribution(
+        &mut self,
+        ctx: &FrameContext<'_>,
+        surface: &FrameSurface<'_>,
+        shape: &PatchShape,
+        radius: f32,
+        align: Option<glam::Vec3>,
+    ) -> usize {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(mix(self.seed, 2, ctx.number as u64));
+        let samples = sample_mesh(ctx.mesh, radius, self.params.normal_dot, 30.0, &mut rng);
+        let first = self.state.next_id;
+        let (seed, random) = (self.seed, self.params.random_rotation);
+        let new: Vec<Patch> = samples
+            .par_iter()
+            .enumerate()
+            .filter_map(|(k, s)| {
+                let id = first + k as u32;
+                Patch::create(
+                    id,
+                    surface,
+                    s.location,
+                    shape,
+                    rotation_for(seed, random, id as u64),
+                    align,
+                )
+            })
+            .collect();
+        self.state.next_id += samples.len() as u32;
+        let created = new.len();
+        self.state.patches.extend(new);
+        created
+    }
+
+    /// Deletes patches no texel used (Sec. 3); `advect` keeps everything
+    /// (a hidden patch is still part of the carried parameterization).
+    /// Returns how many went.
+    fn delete_unused(&mut self, out: &FillBuffers, blend_used: Option<&[u32]>) -> usize {
         let alive_before = self.state.patches.len();
         if self.variant != Variant::Advect {
             let max_id = self.state.next_id as usize;
@@ -595,61 +689,47 @@ impl Method for Erosion {
                     used[s as usize - 1] = true;
                 }
             }
-            for &id in blend_used.iter().flatten() {
+            for &id in blend_used.into_iter().flatten() {
                 if let Some(u) = used.get_mut(id as usize) {
                     *u = true;
                 }
             }
             self.state.patches.retain(|p| used[p.id as usize]);
         }
-        let unused = alive_before - self.state.patches.len();
-        clock.lap("delete");
-        let exemplar_lod = (self.variant != Variant::Blend)
-            .then(|| super::footprint::apply_footprint_filtering(&mut out, &self.exemplar))
-            .flatten();
-        clock.lap("exemplar filter");
+        alive_before - self.state.patches.len()
+    }
 
+    /// The statistics of `stats.F.json`.
+    fn record_stats(
+        &mut self,
+        stats: &mut super::MethodStats,
+        out: &FillBuffers,
+        counts: StepCounts,
+    ) {
         let texels_in_charts = out.source.iter().filter(|&&s| s != fill::OUTSIDE).count();
         let uncovered_after = out.source.iter().filter(|&&s| s == fill::UNCOVERED).count();
-        let mut result = FrameResult {
-            channels: split_channels(&out, &self.exemplar),
-            exemplar_lod,
-            ..Default::default()
-        };
-        let stats = &mut result.stats;
-        stats.set(Stat::PatchesAlive, self.state.patches.len());
-        stats.set(Stat::PatchesCreated, created);
         let dropped = std::mem::take(&mut self.dropped_by_reset);
-        stats.set(Stat::PatchesDeleted, deleted_before + unused + dropped);
-        stats.set(Stat::PatchesDeletedUnused, unused);
-        stats.set(Stat::PatchesDeletedAdvection, deleted_before);
+        stats.set(Stat::PatchesAlive, self.state.patches.len());
+        stats.set(Stat::PatchesCreated, counts.created);
+        stats.set(
+            Stat::PatchesDeleted,
+            counts.deleted_before + counts.unused + dropped,
+        );
+        stats.set(Stat::PatchesDeletedUnused, counts.unused);
+        stats.set(Stat::PatchesDeletedAdvection, counts.deleted_before);
         stats.set(Stat::TexelsInCharts, texels_in_charts);
         stats.set(Stat::UncoveredTexels, uncovered_after);
-        stats.set(Stat::ForcedTexels, forced);
-        stats.set(Stat::CandidatePairs, candidate_pairs);
+        stats.set(Stat::ForcedTexels, counts.forced);
+        stats.set(Stat::CandidatePairs, counts.candidate_pairs);
         if let Some(r) = self.state.radius {
             stats.set(Stat::Radius, serde_json::json!(r));
         }
-        if let Some(rule) = radius_rule {
+        if let Some(rule) = counts.radius_rule {
             stats.set(Stat::RadiusRule, rule);
         }
         if let Some(s) = self.state.exemplar_size {
             stats.set(Stat::ExemplarSize, serde_json::json!(s));
         }
-        result.source = Some(out.source);
-        result.uv = Some(out.uv);
-        result.layers = layers;
-        result.timings = clock.stages;
-        Ok(result)
-    }
-
-    fn save_state(&self) -> Result<Vec<u8>, MethodError> {
-        postcard::to_allocvec(&self.state).map_err(|e| MethodError::State(e.to_string()))
-    }
-
-    fn load_state(&mut self, bytes: &[u8]) -> Result<(), MethodError> {
-        self.state = postcard::from_bytes(bytes).map_err(|e| MethodError::State(e.to_string()))?;
-        Ok(())
     }
 }
 
