@@ -277,6 +277,9 @@ pub struct RunFlags {
     /// optimization: orientation smoothing iterations per level [10]
     #[arg(long)]
     pub orientation_iterations: Option<u32>,
+    /// optimization: robust exponent of the texture energy (2: least squares) [0.8]
+    #[arg(long)]
+    pub robust: Option<f32>,
 }
 
 impl RunFlags {
@@ -440,6 +443,9 @@ impl RunFlags {
         }
         if let Some(v) = self.orientation_iterations {
             p.orientation_iterations = v;
+        }
+        if let Some(v) = self.robust {
+            p.robust = v;
         }
         Ok(())
     }

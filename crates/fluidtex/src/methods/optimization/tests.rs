@@ -358,9 +358,10 @@ fn flat_synthesis_keeps_the_exemplar_contrast() {
     let index = SurfaceIndex::new(&mesh);
     let atlas = Atlas::build(&mesh, &AtlasParams::square(256)).expect("atlas");
     let params = OptimizationParams {
-        points: 9409,
+        // h = √(2A/(√3 N)) = 2/96: the point spacing of the m = 4 lattice,
+        // so neighbourhood offsets land on exemplar texels.
+        points: 10641,
         exemplar_texels: 48,
-        iterations: 8,
         ..Default::default()
     };
     let mut m = Optimization::new(params, pebbles(128), 4).expect("params");
@@ -393,7 +394,7 @@ fn flat_synthesis_keeps_the_exemplar_contrast() {
     };
     let s = &m.state().values;
     let rho = sd(&lum(s)) / sd(&lum(&ex.data));
-    // Measured 0.93.
+    eprintln!("flat-square contrast ratio {rho:.3}");
     assert!(rho >= 0.85, "contrast ratio {rho}");
     // Control: neighbour averaging (a blur) of the same points loses it.
     let level = Lattice::new(&mesh, m.state().m).level(1);
