@@ -77,7 +77,13 @@ fn runs_a_scene_with_stats_and_the_same_bytes_on_one_and_two_threads() {
         serde_json::from_slice(&std::fs::read(dir.path().join("t1/stats.0001.json")).unwrap())
             .unwrap();
     let text = stats.to_string();
-    for key in ["\"points\"", "\"transported\":true", "energy_start", "energy_end", "synthesis"] {
+    for key in [
+        "\"points\"",
+        "\"transported\":true",
+        "energy_start",
+        "energy_end",
+        "synthesis",
+    ] {
         assert!(text.contains(key), "{key} missing from {text}");
     }
     // The colour atlas is not flat.
@@ -112,7 +118,10 @@ fn bad_parameters_are_one_line_errors() {
     let mut a = args(&pattern, &dir.path().join("out"));
     a.extend(["--sizes".into(), "8".into()]);
     let err = user_error(&a);
-    assert!(err.contains("sizes") && err.trim().lines().count() == 1, "{err}");
+    assert!(
+        err.contains("sizes") && err.trim().lines().count() == 1,
+        "{err}"
+    );
     let config = dir.path().join("bad.toml");
     std::fs::write(&config, "[optimization]\npoynts = 5\n").unwrap();
     let err = user_error(&[

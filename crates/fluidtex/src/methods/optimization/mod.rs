@@ -148,14 +148,19 @@ impl OptimizationParams {
             6.0,
             "1..=6",
         )?;
-        if self.sizes.is_empty() || self.sizes.iter().any(|&w| w < 3 || w > 129 || w % 2 == 0) {
+        if self.sizes.is_empty()
+            || self
+                .sizes
+                .iter()
+                .any(|&w| !(3..=129).contains(&w) || w.is_multiple_of(2))
+        {
             return Err(MethodError::InvalidParameter {
                 name: "sizes",
                 value: format!("{:?}", self.sizes),
                 allowed: "one or more odd widths in 3..=129",
             });
         }
-        if self.search_grid % 2 == 0 {
+        if self.search_grid.is_multiple_of(2) {
             return Err(MethodError::InvalidParameter {
                 name: "search_grid",
                 value: self.search_grid.to_string(),
