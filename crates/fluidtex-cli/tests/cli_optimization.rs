@@ -82,7 +82,7 @@ fn runs_a_scene_with_stats_and_the_same_bytes_on_one_and_two_threads() {
         "\"transported\":true",
         "energy_start",
         "energy_end",
-        "synthesis",
+        "search",
     ] {
         assert!(text.contains(key), "{key} missing from {text}");
     }

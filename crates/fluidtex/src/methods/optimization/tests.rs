@@ -526,7 +526,14 @@ fn frames_carry_texture_and_report_stats() {
     let names: Vec<&str> = r1.timings.iter().map(|t| t.0).collect();
     assert_eq!(
         names,
-        ["points", "transport", "orientation", "synthesis", "output"]
+        [
+            "points",
+            "transport",
+            "orientation",
+            "search",
+            "solve",
+            "output"
+        ]
     );
 }
 
