@@ -13,6 +13,7 @@ use clap::Args;
 use fluidtex::methods::atlas_check::AtlasCheckParams;
 use fluidtex::methods::dual_rest::DualRestParams;
 use fluidtex::methods::erosion::{ErosionParams, Falloff, Orientation, Placement, WeightMode};
+use fluidtex::methods::optimization::OptimizationParams;
 use fluidtex::methods::registry::{MethodKind, MethodParams};
 use fluidtex::named::Named;
 use fluidtex::pipeline::OutputOptions;
@@ -67,6 +68,14 @@ pub struct Config {
     /// USD input: the Mesh prim to read, when the stage holds several.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub prim: Option<String>,
+    /// optimization method parameters. Left out of the file when at their
+    /// defaults, so fingerprints of older runs hold.
+    #[serde(skip_serializing_if = "is_default_optimization")]
+    pub optimization: OptimizationParams,
+}
+
+fn is_default_optimization(p: &OptimizationParams) -> bool {
+    *p == OptimizationParams::default()
 }
 
 impl Config {
@@ -163,6 +172,7 @@ impl Config {
             erosion: self.erosion.clone(),
             atlas_check: self.atlas_check.clone(),
             dual_rest: self.dual_rest.clone(),
+            optimization: self.optimization.clone(),
         }
     }
 }
@@ -282,6 +292,42 @@ pub struct RunFlags {
     /// USD input (--mesh shot.usd|usda|usdc): the Mesh prim to read, e.g. /liquid/surface
     #[arg(long)]
     pub prim: Option<String>,
+    /// optimization: target points at the finest level on the first frame [200000]
+    #[arg(long)]
+    pub points: Option<u32>,
+    /// optimization: exemplar width in synthesis texels (point spacings) [128]
+    #[arg(long)]
+    pub exemplar_texels: Option<u32>,
+    /// optimization: hierarchy levels on the first frame [3]
+    #[arg(long)]
+    pub levels: Option<u32>,
+    /// optimization: hierarchy levels on later frames [1]
+    #[arg(long)]
+    pub levels_after_first: Option<u32>,
+    /// optimization: neighbourhood widths of the passes, odd [33,17,9]
+    #[arg(long, value_delimiter = ',')]
+    pub sizes: Option<Vec<u32>>,
+    /// optimization: the search compares a G x G subsample of each neighbourhood [9]
+    #[arg(long)]
+    pub search_grid: Option<u32>,
+    /// optimization: k-d tree candidates re-ranked by full distance [16]
+    #[arg(long)]
+    pub rerank: Option<u32>,
+    /// optimization: most search + averaging iterations per pass [3]
+    #[arg(long)]
+    pub iterations: Option<u32>,
+    /// optimization: spacing of neighbourhood centres, fraction of the width [0.25]
+    #[arg(long)]
+    pub centre_spacing: Option<f32>,
+    /// optimization: weight of the transported texture (lambda, Eq. 2) [1]
+    #[arg(long)]
+    pub coherence: Option<f32>,
+    /// optimization: orientation smoothing iterations per level [10]
+    #[arg(long)]
+    pub orientation_iterations: Option<u32>,
+    /// optimization: robust exponent of the texture energy (2: least squares) [0.8]
+    #[arg(long)]
+    pub robust: Option<f32>,
 }
 
 impl RunFlags {
@@ -399,6 +445,49 @@ impl RunFlags {
         // A video needs previews: every frame unless the user chose.
         if config.preview_video == Some(true) && config.outputs.preview_every == 0 {
             config.outputs.preview_every = 1;
+        }
+        let p = &mut config.optimization;
+        if let Some(v) = self.exemplar_size {
+            p.exemplar_size = Some(v);
+        }
+        if let Some(v) = self.substeps {
+            p.substeps = v;
+        }
+        if let Some(v) = self.points {
+            p.points = v;
+        }
+        if let Some(v) = self.exemplar_texels {
+            p.exemplar_texels = v;
+        }
+        if let Some(v) = self.levels {
+            p.levels = v;
+        }
+        if let Some(v) = self.levels_after_first {
+            p.levels_after_first = v;
+        }
+        if let Some(v) = &self.sizes {
+            p.sizes = v.clone();
+        }
+        if let Some(v) = self.search_grid {
+            p.search_grid = v;
+        }
+        if let Some(v) = self.rerank {
+            p.rerank = v;
+        }
+        if let Some(v) = self.iterations {
+            p.iterations = v;
+        }
+        if let Some(v) = self.centre_spacing {
+            p.centre_spacing = v;
+        }
+        if let Some(v) = self.coherence {
+            p.coherence = v;
+        }
+        if let Some(v) = self.orientation_iterations {
+            p.orientation_iterations = v;
+        }
+        if let Some(v) = self.robust {
+            p.robust = v;
         }
         Ok(())
     }

@@ -3,7 +3,8 @@
 //!
 //! Adding a method: its folder under `methods/`, a variant here with its
 //! name, and its arm in [`MethodParams::build`] (plus its parameter section
-//! in [`MethodParams`] if it has parameters).
+//! in [`MethodParams`] if it has parameters, which the CLI's config mirrors
+//! with a section and flags).
 
 use std::sync::Arc;
 
@@ -12,6 +13,7 @@ use serde::{Deserialize, Serialize};
 use super::atlas_check::{AtlasCheck, AtlasCheckParams};
 use super::dual_rest::{DualRest, DualRestParams};
 use super::erosion::{Erosion, ErosionParams, Variant};
+use super::optimization::{Optimization, OptimizationParams};
 use super::{Method, MethodError};
 use crate::exemplar::Exemplar;
 use crate::named::Named;
@@ -31,6 +33,8 @@ pub enum MethodKind {
     BlendDeformable,
     /// A world-space checker, to inspect the atlas chain.
     AtlasCheck,
+    /// Surface texture optimization with texture transport (Kwatra et al. 2007).
+    Optimization,
 }
 
 crate::named!(MethodKind {
@@ -39,6 +43,7 @@ crate::named!(MethodKind {
     DualRest => "dual-rest",
     BlendDeformable => "blend-deformable",
     AtlasCheck => "atlas-check",
+    Optimization => "optimization",
 });
 
 impl MethodKind {
@@ -71,6 +76,7 @@ pub struct MethodParams {
     pub erosion: ErosionParams,
     pub atlas_check: AtlasCheckParams,
     pub dual_rest: DualRestParams,
+    pub optimization: OptimizationParams,
 }
 
 impl MethodParams {
@@ -85,6 +91,7 @@ impl MethodParams {
                 self.dual_rest.validate()
             }
             MethodKind::AtlasCheck => self.atlas_check.validate(),
+            MethodKind::Optimization => self.optimization.validate(),
         }
     }
 
@@ -123,6 +130,11 @@ impl MethodParams {
                 seed,
             )?),
             MethodKind::AtlasCheck => Box::new(AtlasCheck::new(self.atlas_check.clone())?),
+            MethodKind::Optimization => Box::new(Optimization::new(
+                self.optimization.clone(),
+                exemplar,
+                seed,
+            )?),
         })
     }
 }

@@ -1,0 +1,619 @@
+//! Texturing fluids by surface texture optimisation with texture
+//! transport (Kwatra, Adalsteinsson, Kim, Kwatra, Carlson, Lin 2007;
+//! DESIGN §3): the optimisation-family baseline. Per frame:
+//!
+//! 1. [`lattice`]: points over the whole surface at a constant density per
+//!    unit area, connected into a triangle mesh, at `levels` nested
+//!    levels (Sec. IV-A).
+//! 2. [`transport`]: the previous frame's colours (all channels) and
+//!    orientations carried to the new points through the flow (Sec. VI,
+//!    Eqs. 3–4).
+//! 3. [`orientation`]: the orientation field smoothed coarse to fine
+//!    (Sec. IV-B), from the transported field or, on a fresh surface, from
+//!    a reference field.
+//! 4. [`solve`] with [`neighbourhood`] and [`search`]: E = E_t + E_c
+//!    (Eqs. 1–2) minimised by alternating nearest-neighbour search and
+//!    averaging, passes of 33², 17², 9² at each level, coarse to fine; the
+//!    first frame starts from random exemplar texels over `levels` levels,
+//!    later frames from the transported texture on the finest level only
+//!    (the paper's footnote 5: one level after the first frame).
+//! 5. [`output`]: the point values interpolated into the atlas.
+//!
+//! **Outputs.** Every exemplar channel is carried by the points and driven
+//! by the same matches (the averaging step averages all channels with the
+//! colour's weights), so displacement and other extras follow the colour.
+//! There is no per-texel provenance: the texture is an average of many
+//! exemplar neighbourhoods, not a copy of one, so [`FrameResult::source`]
+//! and [`FrameResult::uv`] are `None` (metrics that need them — patch
+//! switches, uv distortion — report nothing for this method; colour metrics
+//! work as for every method).
+
+pub mod lattice;
+pub mod neighbourhood;
+pub mod orientation;
+pub mod output;
+pub mod search;
+pub mod solve;
+pub mod transport;
+
+#[cfg(test)]
+mod tests;
+
+use std::sync::Arc;
+
+use glam::Vec3;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use self::lattice::{Lattice, Level};
+use self::neighbourhood::Window;
+use self::search::{SearchIndex, WorkingExemplar};
+use super::{ChannelSpec, FrameContext, FrameResult, Method, MethodError, StageClock, check_range};
+use crate::exemplar::Exemplar;
+use crate::surface::velocity::{FlowFrame, FlowInterval};
+use crate::texture::Texture;
+
+/// Parameters of the optimisation method. Every field is a config key
+/// (`[optimization]`) and a CLI flag.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct OptimizationParams {
+    /// Target number of points at the finest level on the first frame
+    /// [200000]; the spacing it gives is then kept, so the count follows the
+    /// area (Sec. IV-A). Never denser than the atlas texels (the atlas could
+    /// not show more). The paper used 100k–500k.
+    pub points: u32,
+    /// Width of the exemplar in synthesis texels = points [128]: one point
+    /// per exemplar texel at the finest level (Sec. IV-A: the points are the
+    /// texture's resolution), so the exemplar spans 128 point spacings on
+    /// the surface. Ignored when `exemplar_size` is given.
+    pub exemplar_texels: u32,
+    /// World size S covered by the exemplar's width; overrides
+    /// `exemplar_texels` (then exemplar_texels = S / spacing).
+    pub exemplar_size: Option<f32>,
+    /// Levels of the hierarchy on the first frame [3] (Sec. V-B).
+    pub levels: u32,
+    /// Levels on later frames [1] (the paper's footnote 5).
+    pub levels_after_first: u32,
+    /// Neighbourhood widths of the passes at each level, in order
+    /// [33, 17, 9] (Sec. V-B). Odd, ≥ 3.
+    pub sizes: Vec<u32>,
+    /// Search grid g: the pixel neighbourhood compared is a g × g
+    /// subsample of the w × w one [9] (odd, 3..=15).
+    pub search_grid: u32,
+    /// Candidates taken from the PCA k-d tree and re-ranked by full SSD [16].
+    pub rerank: u32,
+    /// Most search + averaging iterations per pass [5]; a pass also stops
+    /// when no match changes (on a flat square with 3 levels, 3 iterations
+    /// keep 0.70 of the exemplar's contrast, 5 keep 0.93).
+    pub iterations: u32,
+    /// Spacing of the centres S† as a fraction of the window width [0.25]
+    /// (Kwatra et al. 2005's quarter-width overlap).
+    pub centre_spacing: f32,
+    /// Weight of the transported texture, λ of Eq. 2 relative to the
+    /// neighbourhoods covering a point, scaled by its gradient [1].
+    pub coherence: f32,
+    /// Robust exponent r of the texture energy [0.8]: each neighbourhood's
+    /// term of Eq. 1 is weighted by its current mean squared error to the
+    /// power (r − 2)/2, as in the texture optimisation the paper builds on
+    /// (Kwatra et al. 2005, Sec. 3, r = 0.8). 2 gives Eq. 1 unweighted,
+    /// which averages mismatched neighbourhoods into blur.
+    pub robust: f32,
+    /// Orientation smoothing iterations per level [10] (Sec. IV-B).
+    pub orientation_iterations: u32,
+    /// RK4 steps per frame for transport [1].
+    pub substeps: u32,
+}
+
+impl Default for OptimizationParams {
+    fn default() -> Self {
+        OptimizationParams {
+            points: 200_000,
+            exemplar_texels: 128,
+            exemplar_size: None,
+            levels: 3,
+            levels_after_first: 1,
+            sizes: vec![33, 17, 9],
+            search_grid: 9,
+            rerank: 16,
+            iterations: 5,
+            centre_spacing: 0.25,
+            coherence: 1.0,
+            robust: 0.8,
+            orientation_iterations: 10,
+            substeps: 1,
+        }
+    }
+}
+
+impl OptimizationParams {
+    /// Checks every field's range.
+    pub fn validate(&self) -> Result<(), MethodError> {
+        check_range("points", self.points as f32, 100.0, 5e7, "100..=50000000")?;
+        check_range(
+            "exemplar_texels",
+            self.exemplar_texels as f32,
+            8.0,
+            4096.0,
+            "8..=4096",
+        )?;
+        if let Some(s) = self.exemplar_size {
+            check_range("exemplar_size", s, f32::MIN_POSITIVE, f32::MAX, "> 0")?;
+        }
+        check_range("levels", self.levels as f32, 1.0, 6.0, "1..=6")?;
+        check_range(
+            "levels_after_first",
+            self.levels_after_first as f32,
+            1.0,
+            6.0,
+            "1..=6",
+        )?;
+        if self.sizes.is_empty()
+            || self
+                .sizes
+                .iter()
+                .any(|&w| !(3..=129).contains(&w) || w.is_multiple_of(2))
+        {
+            return Err(MethodError::InvalidParameter {
+                name: "sizes",
+                value: format!("{:?}", self.sizes),
+                allowed: "one or more odd widths in 3..=129",
+            });
+        }
+        if self.search_grid.is_multiple_of(2) {
+            return Err(MethodError::InvalidParameter {
+                name: "search_grid",
+                value: self.search_grid.to_string(),
+                allowed: "odd, 3..=15",
+            });
+        }
+        check_range(
+            "search_grid",
+            self.search_grid as f32,
+            3.0,
+            15.0,
+            "odd, 3..=15",
+        )?;
+        check_range("rerank", self.rerank as f32, 1.0, 1024.0, "1..=1024")?;
+        check_range("iterations", self.iterations as f32, 1.0, 100.0, "1..=100")?;
+        check_range(
+            "centre_spacing",
+            self.centre_spacing,
+            0.05,
+            1.0,
+            "[0.05, 1]",
+        )?;
+        check_range("coherence", self.coherence, 0.0, 1e6, "[0, 1e6]")?;
+        check_range("robust", self.robust, 0.1, 2.0, "[0.1, 2]")?;
+        check_range(
+            "orientation_iterations",
+            self.orientation_iterations as f32,
+            0.0,
+            1000.0,
+            "0..=1000",
+        )?;
+        check_range("substeps", self.substeps as f32, 1.0, 64.0, "1..=64")?;
+        Ok(())
+    }
+}
+
+/// What is carried from frame to frame (saved for `--resume`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct OptimizationState {
+    /// Point spacing h (world units), fixed on the first non-empty frame.
+    pub spacing: Option<f32>,
+    /// Exemplar width in texels at the finest level, fixed with h.
+    pub exemplar_texels: Option<u32>,
+    /// Lattice steps per fluid edge of the last frame (0: no texture).
+    pub m: u32,
+    /// Values of the last frame's points, all channels.
+    pub values: Vec<f32>,
+    /// Orientation of the last frame's points.
+    pub orientation: Vec<[f32; 3]>,
+}
+
+/// Search structures of one level (the exemplar does not change, so they
+/// are built once).
+struct LevelSearch {
+    exemplar: WorkingExemplar,
+    passes: Vec<SearchIndex>,
+}
+
+/// The 2007 optimisation method.
+pub struct Optimization {
+    params: OptimizationParams,
+    exemplar: Arc<Exemplar>,
+    seed: u64,
+    state: OptimizationState,
+    /// Search structures per level (index = level), built lazily.
+    search: Vec<Option<LevelSearch>>,
+    /// The last frame's lattice (rebuilt from the previous mesh after a resume).
+    last_lattice: Option<Lattice>,
+}
+
+impl Optimization {
+    pub fn new(
+        params: OptimizationParams,
+        exemplar: Arc<Exemplar>,
+        seed: u64,
+    ) -> Result<Optimization, MethodError> {
+        params.validate()?;
+        Ok(Optimization {
+            params,
+            exemplar,
+            seed,
+            state: OptimizationState::default(),
+            search: Vec::new(),
+            last_lattice: None,
+        })
+    }
+
+    /// The carried state (for tests).
+    pub fn state(&self) -> &OptimizationState {
+        &self.state
+    }
+
+    /// The search structures of `level` (built on first use).
+    fn level_search(&mut self, level: usize, texel: f32) -> &LevelSearch {
+        if self.search.len() <= level {
+            self.search.resize_with(level + 1, || None);
+        }
+        let n0 = self
+            .state
+            .exemplar_texels
+            .unwrap_or(self.params.exemplar_texels);
+        let params = &self.params;
+        let exemplar = &self.exemplar;
+        self.search[level].get_or_insert_with(|| {
+            let width = (n0 >> level).max(8);
+            let ex = WorkingExemplar::new(exemplar, width);
+            let passes = params
+                .sizes
+                .iter()
+                .map(|&w| {
+                    // A window never wider than the working exemplar.
+                    let limit = (ex.width.min(ex.height) - 1) | 1;
+                    let width = w.min(limit).max(3);
+                    let window = Window {
+                        width,
+                        grid: params.search_grid.min(width),
+                        texel,
+                    };
+                    SearchIndex::new(&ex, window, params.rerank as usize)
+                })
+                .collect();
+            LevelSearch {
+                exemplar: ex,
+                passes,
+            }
+        })
+    }
+}
+
+/// A well-mixed 64-bit value from (seed, stream, index).
+fn mix(seed: u64, stream: u64, index: u64) -> u64 {
+    super::erosion::mix(seed, stream, index)
+}
+
+/// Lattice steps per fluid edge for point spacing `h`: the power of two
+/// bringing the mean edge length closest to h (in ratio), at most 128.
+pub fn steps_for(mesh: &crate::mesh::TriMesh, h: f32) -> u32 {
+    let e = mesh.mean_edge_length();
+    if !(e > 0.0 && h > 0.0) {
+        return 1;
+    }
+    let k = (e / h).log2().round().clamp(0.0, 7.0) as u32;
+    1 << k
+}
+
+/// Values restricted from level 0 down the hierarchy: smoothed on each
+/// level, then read at the next level's points.
+fn restrict(levels: &[Level], fine: &[f32], k: usize) -> Vec<Vec<f32>> {
+    let mut out = vec![fine.to_vec()];
+    for l in 1..levels.len() {
+        let prev = &levels[l - 1];
+        let smooth = prev.smooth(&out[l - 1], k);
+        let next = &levels[l];
+        let mut v = vec![0.0f32; next.len() * k];
+        for (i, &id) in next.ids.iter().enumerate() {
+            let j = prev.local[id as usize] as usize;
+            v[i * k..i * k + k].copy_from_slice(&smooth[j * k..j * k + k]);
+        }
+        out.push(v);
+    }
+    out
+}
+
+impl Method for Optimization {
+    fn name(&self) -> &'static str {
+        "optimization"
+    }
+
+    fn channel_specs(&self) -> Vec<ChannelSpec> {
+        crate::pipeline::exemplar_channels(&self.exemplar)
+    }
+
+    fn step(&mut self, ctx: &FrameContext<'_>) -> Result<FrameResult, MethodError> {
+        let mut clock = StageClock::default();
+        let mesh = ctx.mesh;
+        let atlas = ctx.atlas;
+        let k = self.exemplar.total_channels();
+        let mut result = FrameResult::default();
+        if mesh.is_empty() {
+            self.state.m = 0;
+            self.state.values.clear();
+            self.state.orientation.clear();
+            self.last_lattice = None;
+            let mut layout = vec![self.exemplar.colour.channels];
+            layout.extend(self.exemplar.channels.iter().map(|c| c.texture.channels));
+            result.channels = layout
+                .into_iter()
+                .map(|c| Texture::filled(atlas.width, atlas.height, c, 0.0))
+                .collect();
+            result.stats.insert("points".into(), 0.into());
+            clock.lap("points");
+            result.timings = clock.stages;
+            return Ok(result);
+        }
+        let velocity = mesh.velocity().ok_or(MethodError::MissingVelocity {
+            frame: ctx.number,
+            method: "optimization",
+        })?;
+
+        // 1. Points and hierarchy.
+        let (h, spacing_rule) = match self.state.spacing {
+            Some(h) => (h, None),
+            None => {
+                let area = mesh.area() as f32;
+                let by_points = (area * 2.0 / (3f32.sqrt() * self.params.points as f32)).sqrt();
+                let by_atlas = if atlas.scale > 0.0 {
+                    (1.0 / atlas.scale) as f32
+                } else {
+                    0.0
+                };
+                let (h, rule) = if by_atlas > by_points {
+                    (by_atlas, "atlas texel")
+                } else {
+                    (by_points, "points")
+                };
+                self.state.spacing = Some(h);
+                self.state.exemplar_texels = Some(match self.params.exemplar_size {
+                    Some(s) => ((s / h).round() as u32).clamp(8, 4096),
+                    None => self.params.exemplar_texels,
+                });
+                (h, Some(rule))
+            }
+        };
+        let m = steps_for(mesh, h);
+        let lattice = Lattice::new(mesh, m);
+
+        // The previous texture, when it can be carried.
+        let prev_lattice = match (ctx.previous, self.last_lattice.take()) {
+            (Some(p), cached) if !p.mesh.is_empty() && self.state.m > 0 => {
+                let l = match cached {
+                    Some(l)
+                        if l.triangles.len() == p.mesh.triangle_count() && l.m == self.state.m =>
+                    {
+                        l
+                    }
+                    _ => Lattice::new(p.mesh, self.state.m),
+                };
+                (l.len() * k == self.state.values.len() && l.len() == self.state.orientation.len())
+                    .then_some(l)
+            }
+            _ => None,
+        };
+        let carried = prev_lattice.is_some();
+        let synth_levels = if carried {
+            self.params.levels_after_first
+        } else {
+            self.params.levels
+        } as usize;
+        let all_levels = synth_levels.max(self.params.levels as usize);
+        let levels: Vec<Level> = (0..all_levels).map(|l| lattice.level(1 << l)).collect();
+        clock.lap("points");
+
+        // 2. Transport.
+        let mut transported: Option<Vec<f32>> = None;
+        let mut coarse_orientation: Option<Vec<Vec3>> = None;
+        let coarsest = &levels[all_levels - 1];
+        let texel_coarse = h * (1u32 << (all_levels - 1)) as f32;
+        let mut missing = 0usize;
+        if let (Some(prev_lattice), Some(prev)) = (&prev_lattice, ctx.previous) {
+            let pv = prev.mesh.velocity().ok_or(MethodError::MissingVelocity {
+                frame: ctx.number - 1,
+                method: "optimization",
+            })?;
+            let cur = FlowFrame {
+                mesh,
+                index: ctx.index,
+                velocity,
+            };
+            let old = FlowFrame {
+                mesh: prev.mesh,
+                index: prev.index,
+                velocity: pv,
+            };
+            let hint = 4.0 * h.max(mesh.mean_edge_length());
+            let back = FlowInterval {
+                from: cur,
+                to: Some(old),
+                dt: -ctx.dt,
+                substeps: self.params.substeps,
+                search_hint: hint,
+            };
+            let forward = FlowInterval {
+                from: old,
+                to: Some(cur),
+                dt: ctx.dt,
+                substeps: self.params.substeps,
+                search_hint: hint,
+            };
+            let orientation: Vec<Vec3> = self
+                .state
+                .orientation
+                .iter()
+                .map(|&a| Vec3::from(a))
+                .collect();
+            let previous = transport::Previous {
+                mesh: prev.mesh,
+                index: prev.index,
+                lattice: prev_lattice,
+                values: &self.state.values,
+                channels: k,
+                orientation: &orientation,
+            };
+            let (values, miss) = transport::colours(&lattice.positions, &back, &previous);
+            missing = miss;
+            transported = Some(values);
+            coarse_orientation = Some(transport::orientations(
+                &coarsest.positions,
+                &coarsest.normals,
+                &back,
+                &forward,
+                &previous,
+                0.25 * texel_coarse,
+            ));
+        }
+        clock.lap("transport");
+
+        // 3. Orientation field.
+        let coarse = coarse_orientation.unwrap_or_else(|| {
+            coarsest
+                .normals
+                .iter()
+                .map(|&n| orientation::reference(n))
+                .collect()
+        });
+        let fine_orientation = orientation::smooth_hierarchy(
+            &lattice,
+            &levels,
+            coarse,
+            self.params.orientation_iterations,
+        );
+        clock.lap("orientation");
+
+        // 4. Synthesis, coarse to fine.
+        let restricted = transported
+            .as_ref()
+            .map(|t| restrict(&levels[..synth_levels], t, k));
+        let mut times = solve::SolveTimes::default();
+        let mut level_stats = Vec::new();
+        let top = synth_levels - 1;
+        let mut s: Vec<f32> = match &restricted {
+            Some(r) => r[top].clone(),
+            None => {
+                let (seed, frame) = (self.seed, ctx.number as i64 as u64);
+                let search = self.level_search(top, h * (1u32 << top) as f32);
+                let ex = &search.exemplar;
+                let n = ex.candidates() as u64;
+                let lv = &levels[top];
+                let mut s = vec![0.0f32; lv.len() * k];
+                s.par_chunks_mut(k)
+                    .zip(lv.ids.par_iter())
+                    .for_each(|(o, &id)| {
+                        let pick = mix(seed, frame, id as u64) % n.max(1);
+                        let (x, y) = ex.position(pick as u32);
+                        o.copy_from_slice(ex.texel(x, y));
+                    });
+                s
+            }
+        };
+        for l in (0..synth_levels).rev() {
+            let texel = h * (1u32 << l) as f32;
+            self.level_search(l, texel);
+            let search = self.search[l]
+                .as_ref()
+                .ok_or(MethodError::State("search structures missing".into()))?;
+            let lv = &levels[l];
+            let orient: Vec<Vec3> = lv
+                .ids
+                .iter()
+                .map(|&id| fine_orientation[id as usize])
+                .collect();
+            let input = solve::LevelInput {
+                level: lv,
+                orientation: &orient,
+                exemplar: &search.exemplar,
+                passes: &search.passes,
+                transported: restricted.as_ref().map(|r| r[l].as_slice()),
+                coherence: self.params.coherence,
+                spacing: self.params.centre_spacing,
+                iterations: self.params.iterations,
+                robust: self.params.robust,
+            };
+            let reports = solve::optimise(&input, &mut s, &mut times);
+            level_stats.push(serde_json::json!({
+                "level": l,
+                "points": lv.len(),
+                "exemplar_texels": search.exemplar.width,
+                "passes": reports.iter().map(|r| serde_json::json!({
+                    "width": r.width,
+                    "centres": r.centres,
+                    "iterations": r.iterations,
+                    "energy_start": r.start(),
+                    "energy_end": r.end(),
+                    "unconverged_matches": r.changed,
+                })).collect::<Vec<_>>(),
+            }));
+            if l > 0 {
+                // Copy up: shared points keep their values, new points take
+                // the interpolation of the coarser cell.
+                let finer = &levels[l - 1];
+                let mut up = vec![0.0f32; finer.len() * k];
+                lattice.prolong(lv, &s, k, finer, &mut up);
+                s = up;
+            }
+        }
+        clock.lap("synthesis");
+        // Split synthesis into its search (neighbourhoods + nearest
+        // neighbours) and solve (averaging, energies, copying up) parts.
+        if let Some((_, total)) = clock.stages.pop() {
+            let search = times.search.min(total);
+            clock.stages.push(("search", search));
+            clock.stages.push(("solve", total - search));
+        }
+
+        // 5. Atlas.
+        result.channels = output::fill(atlas, &lattice, &s, k, &self.exemplar);
+        if let Some(search) = self.search.first().and_then(|s| s.as_ref()) {
+            let lod = (self.exemplar.size().0 as f32 / search.exemplar.width as f32)
+                .log2()
+                .max(0.0);
+            result.exemplar_lod = Some(output::lod_map(atlas, lod));
+        }
+        clock.lap("output");
+
+        let stats = &mut result.stats;
+        stats.insert("points".into(), lattice.len().into());
+        stats.insert("lattice_steps".into(), m.into());
+        stats.insert("spacing".into(), serde_json::json!(h));
+        if let Some(rule) = spacing_rule {
+            stats.insert("spacing_rule".into(), serde_json::json!(rule));
+        }
+        stats.insert(
+            "exemplar_texels".into(),
+            self.state.exemplar_texels.unwrap_or(0).into(),
+        );
+        stats.insert("transported".into(), carried.into());
+        stats.insert("transport_missing".into(), missing.into());
+        stats.insert("levels".into(), serde_json::Value::Array(level_stats));
+
+        self.state.m = m;
+        self.state.values = s;
+        self.state.orientation = fine_orientation.iter().map(|d| d.to_array()).collect();
+        self.last_lattice = Some(lattice);
+        result.timings = clock.stages;
+        Ok(result)
+    }
+
+    fn save_state(&self) -> Result<Vec<u8>, MethodError> {
+        postcard::to_allocvec(&self.state).map_err(|e| MethodError::State(e.to_string()))
+    }
+
+    fn load_state(&mut self, bytes: &[u8]) -> Result<(), MethodError> {
+        self.state = postcard::from_bytes(bytes).map_err(|e| MethodError::State(e.to_string()))?;
+        self.last_lattice = None;
+        Ok(())
+    }
+}

@@ -1,0 +1,262 @@
+//! Vertex and pixel neighbourhoods around a centre point (paper Sec. V-A).
+//!
+//! **Vertex neighbourhood.** The points connected to the centre c, laid
+//! out in c's frame (d, d × n) in texel units: the one-ring by projection
+//! of (v − c), then ring after ring, each point placed at the average of
+//! the positions its already-placed neighbours predict for it (their own
+//! position plus the edge vector expressed in c's frame, rescaled to keep
+//! the edge's 3-D length, which is what unfolding a curved surface does to
+//! first order). Points whose normal turns away from c's (the other side of
+//! a thin sheet) are left out. Points with |x|, |y| < w/2 are members.
+//!
+//! **Pixel neighbourhood.** The colours at integer texel offsets of c's
+//! frame: the flattened triangles are rasterised and each offset gets the
+//! barycentric interpolation of its triangle's corner colours — the same
+//! "which triangle holds this offset" answer as the paper's surface
+//! marching, read from the flattening instead of walking the surface again.
+//! The search compares a g × g subsample of the w × w neighbourhood (stride
+//! (w − 1)/(g − 1) texels); offsets no triangle covers take the mean of
+//! the covered ones.
+
+use glam::{Vec2, Vec3};
+
+use super::lattice::Level;
+
+/// Per-thread scratch (marks indexed by level vertex / triangle).
+pub struct Scratch {
+    stamp: Vec<u32>,
+    pstamp: Vec<u32>,
+    tri_stamp: Vec<u32>,
+    generation: u32,
+    coords: Vec<Vec2>,
+    placed: Vec<u32>,
+    layer: Vec<u32>,
+    next: Vec<u32>,
+    filled: Vec<bool>,
+}
+
+impl Scratch {
+    pub fn new(level: &Level) -> Scratch {
+        Scratch {
+            stamp: vec![0; level.len()],
+            pstamp: vec![0; level.len()],
+            tri_stamp: vec![0; level.triangles.len()],
+            generation: 0,
+            coords: vec![Vec2::ZERO; level.len()],
+            placed: Vec::new(),
+            layer: Vec::new(),
+            next: Vec::new(),
+            filled: Vec::new(),
+        }
+    }
+}
+
+/// The shape of one neighbourhood pass.
+#[derive(Clone, Copy, Debug)]
+pub struct Window {
+    /// Pixel neighbourhood width w (odd).
+    pub width: u32,
+    /// Search grid g × g (odd, ≤ w).
+    pub grid: u32,
+    /// World size of one texel at this level.
+    pub texel: f32,
+}
+
+impl Window {
+    /// Texel stride between search grid samples.
+    pub fn stride(&self) -> u32 {
+        ((self.width - 1) / (self.grid - 1).max(1)).max(1)
+    }
+
+    pub fn half_grid(&self) -> i32 {
+        (self.grid as i32 - 1) / 2
+    }
+}
+
+/// One centre's neighbourhoods.
+pub struct Neighbourhood {
+    /// Members (level vertices) and their texel coordinates.
+    pub members: Vec<(u32, Vec2)>,
+}
+
+/// Builds the vertex neighbourhood of `centre` (with frame `d`) and writes
+/// its pixel-neighbourhood search vector (g × g × `k` colour values of the
+/// `k`-float `colours`, of which the first `k_search` are compared) into `vector`.
+#[allow(clippy::too_many_arguments)]
+pub fn build(
+    level: &Level,
+    centre: u32,
+    d: Vec3,
+    window: Window,
+    colours: &[f32],
+    k: usize,
+    k_search: usize,
+    scratch: &mut Scratch,
+    vector: &mut [f32],
+) -> Neighbourhood {
+    scratch.generation = scratch.generation.wrapping_add(1);
+    if scratch.generation == 0 {
+        scratch.stamp.fill(0);
+        scratch.pstamp.fill(0);
+        scratch.tri_stamp.fill(0);
+        scratch.generation = 1;
+    }
+    let g = scratch.generation;
+    let c = centre as usize;
+    let n_c = level.normals[c];
+    let e1 = d;
+    let e2 = d.cross(n_c);
+    let inv = 1.0 / window.texel;
+    let half = window.width as f32 / 2.0;
+    let reach = half + 1.5;
+    let p_c = level.positions[c];
+
+    scratch.placed.clear();
+    scratch.layer.clear();
+    scratch.stamp[c] = g;
+    scratch.pstamp[c] = g;
+    scratch.coords[c] = Vec2::ZERO;
+    scratch.placed.push(centre);
+    scratch.layer.push(centre);
+    // Ring by ring.
+    while !scratch.layer.is_empty() {
+        scratch.next.clear();
+        for &u in &scratch.layer {
+            for &v in level.neighbours(u) {
+                if scratch.stamp[v as usize] != g {
+                    scratch.stamp[v as usize] = g;
+                    scratch.next.push(v);
+                }
+            }
+        }
+        // Predictions only from vertices placed in earlier rings.
+        let ring_start = scratch.placed.len();
+        for idx in 0..scratch.next.len() {
+            let v = scratch.next[idx];
+            let vi = v as usize;
+            let p_v = level.positions[vi];
+            if level.normals[vi].dot(n_c) < 0.2 {
+                continue;
+            }
+            let mut sum = Vec2::ZERO;
+            let mut count = 0.0f32;
+            for &u in level.neighbours(v) {
+                let ui = u as usize;
+                if scratch.pstamp[ui] == g {
+                    let e = p_v - level.positions[ui];
+                    let mut e2d = Vec2::new(e.dot(e1), e.dot(e2));
+                    let l2 = e2d.length();
+                    if l2 > 1e-12 {
+                        e2d *= e.length() / l2;
+                    }
+                    sum += scratch.coords[ui] + e2d * inv;
+                    count += 1.0;
+                }
+            }
+            if count == 0.0 {
+                let e = p_v - p_c;
+                sum = Vec2::new(e.dot(e1), e.dot(e2)) * inv;
+                count = 1.0;
+            }
+            scratch.coords[vi] = sum / count;
+            scratch.placed.push(v);
+        }
+        scratch.layer.clear();
+        for idx in ring_start..scratch.placed.len() {
+            let v = scratch.placed[idx];
+            scratch.pstamp[v as usize] = g;
+            let x = scratch.coords[v as usize];
+            if x.x.abs() <= reach && x.y.abs() <= reach {
+                scratch.layer.push(v);
+            }
+        }
+    }
+    let members: Vec<(u32, Vec2)> = scratch
+        .placed
+        .iter()
+        .map(|&v| (v, scratch.coords[v as usize]))
+        .filter(|(_, x)| x.x.abs() < half && x.y.abs() < half)
+        .collect();
+
+    // Pixel neighbourhood: rasterise flattened triangles onto the search grid.
+    let hg = window.half_grid();
+    let side = window.grid as usize;
+    let stride = window.stride() as f32;
+    scratch.filled.clear();
+    scratch.filled.resize(side * side, false);
+    let placed_gen = g;
+    for pi in 0..scratch.placed.len() {
+        let v = scratch.placed[pi];
+        for &t in level.vertex_triangles(v) {
+            if scratch.tri_stamp[t as usize] == placed_gen {
+                continue;
+            }
+            scratch.tri_stamp[t as usize] = placed_gen;
+            let tri = level.triangles[t as usize];
+            if !tri.iter().all(|&x| scratch.pstamp[x as usize] == g) {
+                continue;
+            }
+            let q = tri.map(|x| scratch.coords[x as usize] / stride);
+            let lo = q[0].min(q[1]).min(q[2]);
+            let hi = q[0].max(q[1]).max(q[2]);
+            let (x0, x1) = ((lo.x.ceil() as i32).max(-hg), (hi.x.floor() as i32).min(hg));
+            let (y0, y1) = ((lo.y.ceil() as i32).max(-hg), (hi.y.floor() as i32).min(hg));
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    let cell = (y + hg) as usize * side + (x + hg) as usize;
+                    if scratch.filled[cell] {
+                        continue;
+                    }
+                    let Some(b) = crate::surface::barycentric_2d(
+                        Vec2::new(x as f32, y as f32),
+                        q[0],
+                        q[1],
+                        q[2],
+                    ) else {
+                        continue;
+                    };
+                    if b.iter().any(|&w| w < -1e-4) {
+                        continue;
+                    }
+                    scratch.filled[cell] = true;
+                    let out = &mut vector[cell * k_search..cell * k_search + k_search];
+                    for (ch, o) in out.iter_mut().enumerate() {
+                        *o = b[0] * colours[tri[0] as usize * k + ch]
+                            + b[1] * colours[tri[1] as usize * k + ch]
+                            + b[2] * colours[tri[2] as usize * k + ch];
+                    }
+                }
+            }
+        }
+    }
+    // Uncovered samples: the mean of the covered ones (or of the members).
+    let mut mean = vec![0.0f32; k_search];
+    let mut count = 0usize;
+    for (cell, &f) in scratch.filled.iter().enumerate() {
+        if f {
+            for ch in 0..k_search {
+                mean[ch] += vector[cell * k_search + ch];
+            }
+            count += 1;
+        }
+    }
+    if count == 0 {
+        for &(v, _) in &members {
+            for ch in 0..k_search {
+                mean[ch] += colours[v as usize * k + ch];
+            }
+        }
+        count = members.len();
+    }
+    if count > 0 {
+        for m in &mut mean {
+            *m /= count as f32;
+        }
+    }
+    for (cell, &f) in scratch.filled.iter().enumerate() {
+        if !f {
+            vector[cell * k_search..cell * k_search + k_search].copy_from_slice(&mean);
+        }
+    }
+    Neighbourhood { members }
+}
