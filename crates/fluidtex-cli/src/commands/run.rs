@@ -40,6 +40,7 @@ pub const METHODS: &[&str] = &[
     "dual-rest",
     "blend-deformable",
     "atlas-check",
+    "lapped-rigid",
 ];
 
 /// Size of the built-in exemplar in texels.
@@ -193,6 +194,11 @@ pub fn build_method(config: &Config) -> Result<Box<dyn Method>> {
             seed,
         )?),
         "atlas-check" => Box::new(AtlasCheck::new(config.atlas_check.clone())?),
+        "lapped-rigid" => Box::new(fluidtex::methods::lapped_rigid::LappedRigid::new(
+            config.lapped_rigid.clone(),
+            Arc::new(build_exemplar(config)?),
+            seed,
+        )?),
         other => bail!("unknown method {other}; available: {}", METHODS.join(", ")),
     })
 }
