@@ -502,7 +502,9 @@ impl Method for LappedRigid {
                 .map(|t| distribution::apply_sink(t, &here, &rule) as usize)
                 .sum();
             let alive = self.state.trackers.len();
-            self.state.trackers.retain(|t| t.fade > 0.0);
+            // Below keep_weight a patch can no longer count as used: it is gone.
+            let keep = self.params.keep_weight.max(f32::MIN_POSITIVE);
+            self.state.trackers.retain(|t| t.fade >= keep);
             deleted_sink = alive - self.state.trackers.len();
             clock.lap("sinks");
 
@@ -562,8 +564,7 @@ impl Method for LappedRigid {
 
             // 4. Algorithm 1.
             let mask = self.mask(radius, exemplar_size);
-            let base_lod = (self.exemplar.filter == ExemplarFilter::Trilinear
-                && atlas.scale > 0.0)
+            let base_lod = (self.exemplar.filter == ExemplarFilter::Trilinear && atlas.scale > 0.0)
                 .then(|| {
                     let (ew, eh) = self.exemplar.size();
                     let texels_per_world = ew.max(eh) as f32 / exemplar_size;
@@ -647,10 +648,7 @@ impl Method for LappedRigid {
             ..Default::default()
         };
         let stats = &mut result.stats;
-        stats.insert(
-            "patches_alive".into(),
-            self.state.trackers.len().into(),
-        );
+        stats.insert("patches_alive".into(), self.state.trackers.len().into());
         stats.insert("patches_created".into(), created.into());
         stats.insert(
             "patches_deleted".into(),

@@ -203,8 +203,14 @@ mod tests {
         };
         assert_eq!(f.uv(f.origin), Vec2::splat(0.5));
         // The normal component is dropped (orthographic).
-        assert_eq!(f.uv(f.origin + Vec3::new(0.5, 0.0, 7.0)), Vec2::new(0.75, 0.5));
-        assert_eq!(f.uv(f.origin + Vec3::new(0.0, 0.5, 0.0)), Vec2::new(0.5, 0.25));
+        assert_eq!(
+            f.uv(f.origin + Vec3::new(0.5, 0.0, 7.0)),
+            Vec2::new(0.75, 0.5)
+        );
+        assert_eq!(
+            f.uv(f.origin + Vec3::new(0.0, 0.5, 0.0)),
+            Vec2::new(0.5, 0.25)
+        );
         // +x then +y, seen from +z, turns clockwise in (u, v down).
         let (a, b, c) = (
             f.uv(f.origin),
