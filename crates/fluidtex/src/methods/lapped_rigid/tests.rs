@@ -382,9 +382,8 @@ fn an_older_patch_covers_a_younger_one_where_both_are_opaque() {
                         let uv = frame0.uv(p);
                         let mut want = vec![0.0; 3];
                         m.exemplar.sample_all(uv.x, uv.y, &mut want);
-                        for ch in 0..3 {
-                            let got = colour.data[t * 3 + ch];
-                            assert!((got - want[ch]).abs() < 1e-5, "{got} vs {}", want[ch]);
+                        for (got, want) in colour.data[t * 3..t * 3 + 3].iter().zip(&want) {
+                            assert!((got - want).abs() < 1e-5, "{got} vs {want}");
                         }
                         checked += 1;
                     }
@@ -574,9 +573,9 @@ fn saved_state_continues_exactly() {
     let bytes = first.save_state().expect("save");
     let mut resumed = LappedRigid::new(LappedRigidParams::default(), exemplar(), 2).expect("p");
     resumed.load_state(&bytes).expect("load");
-    for k in 2..4 {
+    for (k, expected) in all.iter().enumerate().skip(2) {
         let r = resumed.step(&c.ctx(k)).expect("step");
-        assert!(bits(&r) == bits(&all[k]), "frame {k} differs after resume");
+        assert!(bits(&r) == bits(expected), "frame {k} differs after resume");
     }
     assert_eq!(resumed.state(), whole.state());
     assert!(resumed.load_state(&bytes[..bytes.len() / 2]).is_err());
