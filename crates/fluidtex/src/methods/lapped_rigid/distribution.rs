@@ -19,7 +19,8 @@
 //! opacity falls each frame in proportion to the inward speed (relative to
 //! the corner distance, so `sink_fade_rate` = 1 fades it out in the time
 //! the flow needs to carry the corners to the centre), and it is deleted
-//! at 0. Fading, once started, continues to the end.
+//! once it can no longer be seen. A sink stays marked; it fades while the
+//! flow still converges on it and holds where the flow stops.
 
 use std::collections::HashMap;
 
@@ -181,38 +182,38 @@ pub struct SinkRule {
     pub dt: f32,
 }
 
-/// The mean speed (world units per second) at which the flow carries the
-/// four frame corners of `tracker` toward its centre, or `None` when some
-/// corner does not move inward faster than `rule.min_speed` (or no
-/// velocity can be sampled). Velocities are taken in the frame's plane.
-pub fn inward_speed(tracker: &Tracker, flow: &FlowFrame<'_>, rule: &SinkRule) -> Option<f32> {
+/// The speeds (world units per second) at which the flow carries the four
+/// frame corners of `tracker` toward its centre, in the frame's plane;
+/// `None` where no velocity can be sampled.
+pub fn inward_speeds(tracker: &Tracker, flow: &FlowFrame<'_>, radius: f32) -> Option<[f32; 4]> {
     let n = tracker.normal;
-    let mut total = 0.0;
-    for corner in tracker.corners(rule.radius) {
+    let mut out = [0.0; 4];
+    for (o, corner) in out.iter_mut().zip(tracker.corners(radius)) {
         let dir = (corner - tracker.position).normalize_or_zero();
-        let v = flow.sample(corner, rule.radius)?;
+        let v = flow.sample(corner, radius)?;
         let v = v - n * v.dot(n);
-        let inward = -v.dot(dir);
-        if inward <= rule.min_speed {
-            return None;
-        }
-        total += inward;
+        *o = -v.dot(dir);
     }
-    Some(total / 4.0)
+    Some(out)
 }
 
-/// Applies one frame of the sink rule to `tracker`: a tracker found to be
-/// a sink starts fading, a fading one fades further (at least at the
-/// threshold speed). Returns true when the tracker is now a sink.
+/// Applies one frame of the sink rule to `tracker`: it becomes a sink when
+/// every corner moves inward faster than `rule.min_speed`; a sink fades
+/// by `fade_rate · dt · (mean inward speed) / (corner distance)`, so it
+/// fades while the flow converges on it and holds still when the flow
+/// stops (a fluid at rest must give identical frames). Returns true when
+/// the tracker is a sink.
 pub fn apply_sink(tracker: &mut Tracker, flow: &FlowFrame<'_>, rule: &SinkRule) -> bool {
-    let speed = inward_speed(tracker, flow, rule);
-    if speed.is_some() {
+    let Some(speeds) = inward_speeds(tracker, flow, rule.radius) else {
+        return tracker.sinking;
+    };
+    if speeds.iter().all(|&s| s > rule.min_speed) {
         tracker.sinking = true;
     }
-    if tracker.sinking {
-        let v = speed.unwrap_or(0.0).max(rule.min_speed);
+    let mean = speeds.iter().sum::<f32>() / 4.0;
+    if tracker.sinking && mean > 0.0 {
         let corner_distance = rule.radius * std::f32::consts::FRAC_1_SQRT_2;
-        let drop = rule.fade_rate * rule.dt * v / corner_distance.max(f32::MIN_POSITIVE);
+        let drop = rule.fade_rate * rule.dt * mean / corner_distance.max(f32::MIN_POSITIVE);
         tracker.fade = (tracker.fade - drop).max(0.0);
     }
     tracker.sinking
