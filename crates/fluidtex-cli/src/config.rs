@@ -420,7 +420,7 @@ pub struct RigidFlags {
     /// lapped-rigid: composite alpha below which a texel seeds a tracker [0.99]
     #[arg(long)]
     pub rigid_coverage: Option<f32>,
-    /// lapped-rigid: a patch contributing less than this everywhere is deleted [1/255]
+    /// lapped-rigid: contributions below this are dropped, a patch with none is deleted [1/255]
     #[arg(long)]
     pub rigid_keep_weight: Option<f32>,
     /// lapped-rigid: patch mask image (grey, covers the exemplar square); default: from the feature map

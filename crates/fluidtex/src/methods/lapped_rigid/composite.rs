@@ -26,7 +26,7 @@
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
-use super::falloff::PatchMask;
+use super::falloff::{PatchMask, angle_between, falloff};
 use super::receivers::Receivers;
 use super::trackers::Frame;
 use crate::atlas::Atlas;
@@ -40,10 +40,10 @@ use crate::methods::{SOURCE_OUTSIDE, SOURCE_UNCOVERED};
 pub const VISIBLE_LAYER_WEIGHT: f32 = 0.05;
 
 /// Per fluid triangle, the patches (index in the tracker list = age order)
-/// whose receivers hold it, with the falloff alpha at its corners.
+/// whose receivers hold it.
 pub struct LayerLists {
     offsets: Vec<u32>,
-    entries: Vec<(u32, [f32; 3])>,
+    entries: Vec<u32>,
 }
 
 impl LayerLists {
@@ -62,11 +62,11 @@ impl LayerLists {
             offsets[k + 1] += offsets[k];
         }
         let mut cursor = offsets.clone();
-        let mut entries = vec![(0u32, [0.0f32; 3]); offsets[triangle_count] as usize];
+        let mut entries = vec![0u32; offsets[triangle_count] as usize];
         for (i, r) in receivers.iter().enumerate() {
-            for (&f, &alphas) in r.triangles.iter().zip(&r.alphas) {
+            for &f in &r.triangles {
                 if let Some(c) = cursor.get_mut(f as usize) {
-                    entries[*c as usize] = (i as u32, alphas);
+                    entries[*c as usize] = i as u32;
                     *c += 1;
                 }
             }
@@ -76,7 +76,7 @@ impl LayerLists {
 
     /// The layers of fluid triangle `f`, oldest first.
     #[inline]
-    pub fn of(&self, f: u32) -> &[(u32, [f32; 3])] {
+    pub fn of(&self, f: u32) -> &[u32] {
         let f = f as usize;
         if f + 1 >= self.offsets.len() {
             return &[];
@@ -105,6 +105,11 @@ pub struct Layer {
 /// Everything compositing reads.
 pub struct CompositeContext<'a> {
     pub mesh: &'a TriMesh,
+    /// Unit vertex normals of the fluid mesh.
+    pub vertex_normals: &'a [Vec3],
+    /// ψ_{α=1} and ψ_{α=0} (radians).
+    pub opaque: f32,
+    pub transparent: f32,
     pub layers: &'a [Layer],
     pub exemplar: &'a Exemplar,
     pub mask: &'a PatchMask,
@@ -114,7 +119,7 @@ pub struct CompositeContext<'a> {
     pub base_lod: Option<f32>,
     /// α below which a texel is uncovered.
     pub coverage: f32,
-    /// Contribution from which a patch counts as used.
+    /// Smallest contribution composited; a patch with none is unused.
     pub keep_weight: f32,
 }
 
@@ -186,24 +191,60 @@ pub struct TexelOut<'b> {
 }
 
 impl CompositeContext<'_> {
-    /// Composites layer `i` (alphas at the fluid triangle's corners
-    /// `alphas`) under what `sum` holds, at surface point `x` (barycentrics
-    /// `bary` on a fluid triangle of unit normal `n`). Returns the layer's
-    /// contribution (0 when it shows nothing here).
+    /// The smooth surface normal at a texel: its fluid triangle's vertex
+    /// normals interpolated at `bary`, normalised (the triangle's own
+    /// normal `n` where they cancel).
+    #[inline]
+    pub fn texel_normal(&self, f: u32, bary: [f32; 3], n: Vec3) -> Vec3 {
+        let t = self.mesh.triangles[f as usize];
+        let s: Vec3 = (0..3)
+            .map(|k| {
+                self.vertex_normals
+                    .get(t[k] as usize)
+                    .copied()
+                    .unwrap_or(Vec3::ZERO)
+                    * bary[k]
+            })
+            .sum();
+        let s = s.normalize_or_zero();
+        if s == Vec3::ZERO { n } else { s }
+    }
+
+    /// The alpha falloff of layer `i` at a texel of smooth normal `shading`.
+    #[inline]
+    pub fn falloff_alpha(&self, i: u32, shading: Vec3) -> f32 {
+        let frame = &self.layers[i as usize].frame;
+        falloff(
+            angle_between(shading, frame.normal),
+            self.opaque,
+            self.transparent,
+        )
+    }
+
+    /// Composites layer `i` under what `sum` holds, at surface point `x`
+    /// (smooth normal `shading`, on a fluid triangle of unit normal `n`).
+    /// Returns the layer's contribution (0 when it shows nothing here).
+    ///
+    /// The falloff angle is taken between the frame's normal and the
+    /// *interpolated* vertex normal, not by interpolating per-vertex alphas:
+    /// the same at vertices, but a patch is then exactly opaque at its own
+    /// tracker (θ = 0 there), so a new patch always covers the texel that
+    /// created it, also on meshes too coarse for ψ (where a corner's normal
+    /// is already past ψ_{α=1}); per-vertex alphas made such patches miss
+    /// their seed, vanish and come back every frame.
     #[inline]
     #[allow(clippy::too_many_arguments)]
     pub fn add_layer(
         &self,
         i: u32,
-        alphas: [f32; 3],
-        bary: [f32; 3],
+        shading: Vec3,
         x: Vec3,
         n: Vec3,
         sum: &mut TexelSum,
         values: &mut [f32],
         sample: &mut [f32],
     ) -> f32 {
-        let a_fall = alphas[0] * bary[0] + alphas[1] * bary[1] + alphas[2] * bary[2];
+        let a_fall = self.falloff_alpha(i, shading);
         if a_fall <= 0.0 {
             return 0.0;
         }
@@ -214,7 +255,10 @@ impl CompositeContext<'_> {
             return 0.0;
         }
         let w = a.min(1.0) * (1.0 - sum.alpha);
-        if w <= 0.0 {
+        // A contribution below keep_weight is dropped, not added: a patch
+        // is used exactly when it changed a texel, so deleting the unused
+        // ones changes nothing and a fluid at rest stays identical.
+        if w <= 0.0 || w < self.keep_weight {
             return 0.0;
         }
         let lod = match self.base_lod {
@@ -321,21 +365,14 @@ pub fn fill(
                     sum.contributions.clear();
                     let texel_values = &mut values[t * c..(t + 1) * c];
                     texel_values.fill(0.0);
-                    for &(i, alphas) in list {
+                    let shading = ctx.texel_normal(f, bary, n);
+                    for &i in list {
                         if sum.alpha >= 1.0 - 1e-6 {
                             break;
                         }
-                        let wgt = ctx.add_layer(
-                            i,
-                            alphas,
-                            bary,
-                            p,
-                            n,
-                            &mut sum,
-                            texel_values,
-                            &mut sample,
-                        );
-                        if wgt >= ctx.keep_weight {
+                        let wgt =
+                            ctx.add_layer(i, shading, p, n, &mut sum, texel_values, &mut sample);
+                        if wgt > 0.0 {
                             used.push(i);
                         }
                     }

@@ -99,6 +99,9 @@ pub fn cover(
         }];
         let ctx = CompositeContext {
             mesh,
+            vertex_normals: template.vertex_normals,
+            opaque: template.opaque,
+            transparent: template.transparent,
             layers: &layer,
             exemplar: template.exemplar,
             mask: template.mask,
@@ -107,7 +110,7 @@ pub fn cover(
             coverage: template.coverage,
             keep_weight: template.keep_weight,
         };
-        for (&f, &alphas) in receivers.triangles.iter().zip(&receivers.alphas) {
+        for &f in &receivers.triangles {
             let Some(texels) = by_triangle.get(&f) else {
                 continue;
             };
@@ -122,7 +125,8 @@ pub fn cover(
                 let t = u.texel as usize;
                 let x = a * u.bary[0] + b * u.bary[1] + cc * u.bary[2];
                 let values = &mut out.values[t * c..(t + 1) * c];
-                ctx.add_layer(0, alphas, u.bary, x, n, &mut u.sum, values, &mut sample);
+                let shading = ctx.texel_normal(f, u.bary, n);
+                ctx.add_layer(0, shading, x, n, &mut u.sum, values, &mut sample);
                 if u.sum.alpha >= ctx.coverage {
                     close(&ctx, u, out);
                     closed[k] = true;

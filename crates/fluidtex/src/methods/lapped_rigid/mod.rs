@@ -9,10 +9,10 @@
 //! 2. [`distribution::apply_sink`]: patches whose frame corners all move
 //!    inward fade out and are deleted at 0 (Sec. 3.1.3).
 //! 3. [`receivers`]: each patch's receiver triangles, connected to the
-//!    triangle closest to P and within φ_max of its normal, with the alpha
-//!    falloff of [`falloff`] at their corners (Sec. 3.2).
+//!    triangle closest to P and within φ_max of its normal (Sec. 3.2.1).
 //! 4. [`composite`]: Algorithm 1, the over operator in layer order, older
-//!    patches on top, α = falloff × mask × fade (Sec. 3.3).
+//!    patches on top, α = falloff × mask × fade (Sec. 3.3); the falloff of
+//!    [`falloff`] is read at each texel's interpolated normal.
 //! 5. [`distribution::cover`]: uncovered texels seed new trackers below the
 //!    others until every texel is covered; patches nothing showed are
 //!    deleted (Sec. 3.1.3).
@@ -78,7 +78,8 @@ pub struct LappedRigidParams {
     /// whose normal turns farther from the frame normal are rejected.
     pub phi_max: f32,
     /// ψ_{α=1} in degrees [30] (Sec. 3.2.1; the paper gives no value):
-    /// receiver vertices closer to the frame normal are opaque. At 30° the
+    /// receiver points whose (interpolated vertex) normal is closer to the
+    /// frame normal are opaque. At 30° the
     /// orthographic stretch 1/cos θ is at most 1.15.
     pub alpha_opaque: f32,
     /// ψ_{α=0} in degrees [60] (Sec. 3.2.1; the paper gives no value):
@@ -100,8 +101,10 @@ pub struct LappedRigidParams {
     /// tracker [0.99] (Sec. 3.3: "no opaque patch"; 1 would demand exact
     /// opacity from soft masks).
     pub coverage: f32,
-    /// A patch whose largest contribution to any texel is below this is
-    /// unused and deleted [1/255 ≈ 0.0039, invisible in 8 bits] (Sec. 3.1.3).
+    /// Contributions below this are dropped [1/255 ≈ 0.0039, invisible in
+    /// 8 bits]; a patch left with none is unused and deleted (Sec. 3.1.3).
+    /// Dropping rather than merely not counting them keeps deletion exact:
+    /// removing an unused patch changes no texel.
     pub keep_weight: f32,
     /// Patch mask image (Algorithm 1's Mask; luminance over the exemplar's
     /// [0,1]², 0 outside). `None`: derived from the feature map.
@@ -542,8 +545,6 @@ impl Method for LappedRigid {
                 vertex_normals: &normals,
                 radius,
                 phi_max: self.params.phi_max.to_radians(),
-                opaque: self.params.alpha_opaque.to_radians(),
-                transparent: self.params.alpha_transparent.to_radians(),
             };
             let layers: Vec<Layer> = self
                 .state
@@ -572,6 +573,9 @@ impl Method for LappedRigid {
                 });
             let composite = CompositeContext {
                 mesh,
+                vertex_normals: &normals,
+                opaque: self.params.alpha_opaque.to_radians(),
+                transparent: self.params.alpha_transparent.to_radians(),
                 layers: &layers,
                 exemplar: &self.exemplar,
                 mask: &mask,

@@ -15,18 +15,16 @@ use std::collections::HashSet;
 
 use glam::Vec3;
 
-use super::falloff::{angle_between, falloff};
+use super::falloff::angle_between;
 use super::trackers::Frame;
 use crate::mesh::{Topology, TriMesh};
 use crate::surface::{SurfaceIndex, closest_point_on_triangle};
 
-/// The receivers of one patch with the alpha falloff at their corners.
+/// The receivers of one patch.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Receivers {
     /// Fluid triangles, sorted.
     pub triangles: Vec<u32>,
-    /// Per triangle, the falloff alpha of its three corners (vertex order).
-    pub alphas: Vec<[f32; 3]>,
 }
 
 /// What receiver selection reads besides the frame.
@@ -39,9 +37,6 @@ pub struct ReceiverContext<'a> {
     pub radius: f32,
     /// φ_max (radians).
     pub phi_max: f32,
-    /// ψ_{α=1} and ψ_{α=0} (radians).
-    pub opaque: f32,
-    pub transparent: f32,
 }
 
 impl ReceiverContext<'_> {
@@ -76,29 +71,6 @@ impl ReceiverContext<'_> {
             n != Vec3::ZERO && angle_between(n, frame.normal) <= self.phi_max
         });
         taken.sort_unstable();
-        let alphas = taken
-            .iter()
-            .map(|&t| {
-                mesh.triangles[t as usize].map(|v| {
-                    let n = self
-                        .vertex_normals
-                        .get(v as usize)
-                        .copied()
-                        .unwrap_or(Vec3::ZERO);
-                    if n == Vec3::ZERO {
-                        return 0.0;
-                    }
-                    falloff(
-                        angle_between(n, frame.normal),
-                        self.opaque,
-                        self.transparent,
-                    )
-                })
-            })
-            .collect();
-        Receivers {
-            triangles: taken,
-            alphas,
-        }
+        Receivers { triangles: taken }
     }
 }
