@@ -5,7 +5,7 @@
 //!
 //! Compositing runs front to back (oldest first): a layer's contribution
 //! is α times the transparency left above it, and the loop stops once
-//! nothing shows through. Back-to-front over (the paper's loop) gives the
+//! the texel reaches `coverage` (what lies below is renormalised away). Back-to-front over (the paper's loop) gives the
 //! same colour; front to back lets a new patch below only change what its
 //! elders leave visible, which is the point of the layering: a patch
 //! appears *under* the others, nothing pops.
@@ -367,7 +367,11 @@ pub fn fill(
                     texel_values.fill(0.0);
                     let shading = ctx.texel_normal(f, bary, n);
                     for &i in list {
-                        if sum.alpha >= 1.0 - 1e-6 {
+                        // A texel is complete once it reaches coverage: a
+                        // patch the update adds below it later in this
+                        // frame never reaches it next frame either, so a
+                        // fluid at rest gives identical frames.
+                        if sum.alpha >= ctx.coverage {
                             break;
                         }
                         let wgt =
