@@ -5,8 +5,9 @@
 //!
 //! Compositing runs front to back (oldest first): a layer's contribution
 //! is α times the transparency left above it, and the loop stops once
-//! the texel reaches `coverage` (what lies below is renormalised away). Back-to-front over (the paper's loop) gives the
-//! same colour; front to back lets a new patch below only change what its
+//! the texel reaches `coverage` (what lies below is renormalised away).
+//! Back-to-front over (the paper's loop) gives the same colour up to that
+//! cut; front to back lets a new patch below only change what its
 //! elders leave visible, which is the point of the layering: a patch
 //! appears *under* the others, nothing pops.
 //!
