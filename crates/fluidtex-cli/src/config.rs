@@ -13,6 +13,7 @@ use clap::Args;
 use fluidtex::methods::atlas_check::AtlasCheckParams;
 use fluidtex::methods::dual_rest::DualRestParams;
 use fluidtex::methods::erosion::{ErosionParams, Falloff, Orientation, Placement, WeightMode};
+use fluidtex::methods::lapped_rigid::LappedRigidParams;
 use fluidtex::methods::optimization::OptimizationParams;
 use fluidtex::methods::registry::{MethodKind, MethodParams};
 use fluidtex::named::Named;
@@ -72,10 +73,18 @@ pub struct Config {
     /// defaults, so fingerprints of older runs hold.
     #[serde(skip_serializing_if = "is_default_optimization")]
     pub optimization: OptimizationParams,
+    /// lapped-rigid (2016 method) parameters. Left out of the file when at
+    /// their defaults, so fingerprints of older runs hold.
+    #[serde(skip_serializing_if = "is_default_rigid")]
+    pub lapped_rigid: LappedRigidParams,
 }
 
 fn is_default_optimization(p: &OptimizationParams) -> bool {
     *p == OptimizationParams::default()
+}
+
+fn is_default_rigid(p: &LappedRigidParams) -> bool {
+    *p == LappedRigidParams::default()
 }
 
 impl Config {
@@ -123,6 +132,9 @@ impl Config {
             rebase(p);
         }
         for p in config.channels.values_mut() {
+            rebase(p);
+        }
+        if let Some(p) = &mut config.lapped_rigid.mask {
             rebase(p);
         }
         Ok(config)
@@ -173,6 +185,7 @@ impl Config {
             atlas_check: self.atlas_check.clone(),
             dual_rest: self.dual_rest.clone(),
             optimization: self.optimization.clone(),
+            lapped_rigid: self.lapped_rigid.clone(),
         }
     }
 }
@@ -328,6 +341,8 @@ pub struct RunFlags {
     /// optimization: robust exponent of the texture energy (2: least squares) [0.8]
     #[arg(long)]
     pub robust: Option<f32>,
+    #[command(flatten)]
+    pub rigid: RigidFlags,
 }
 
 impl RunFlags {
@@ -489,7 +504,108 @@ impl RunFlags {
         if let Some(v) = self.robust {
             p.robust = v;
         }
+        self.rigid.apply(&mut config.lapped_rigid);
         Ok(())
+    }
+}
+
+/// Flags of the lapped-rigid method (`[lapped_rigid]` keys), one per key.
+#[derive(Args, Clone, Debug, Default)]
+pub struct RigidFlags {
+    /// lapped-rigid: patch size r in world units [bbox diagonal / 25]
+    #[arg(long)]
+    pub rigid_radius: Option<f32>,
+    /// lapped-rigid: default r as a fraction of the bbox diagonal [0.04]
+    #[arg(long)]
+    pub rigid_radius_fraction: Option<f32>,
+    /// lapped-rigid: default r is never below this many median edge lengths [4]
+    #[arg(long)]
+    pub rigid_radius_edges: Option<f32>,
+    /// lapped-rigid: world size covered by the exemplar [exemplar_scale × r]
+    #[arg(long)]
+    pub rigid_exemplar_size: Option<f32>,
+    /// lapped-rigid: default exemplar size as a multiple of r [2.6]
+    #[arg(long)]
+    pub rigid_exemplar_scale: Option<f32>,
+    /// lapped-rigid: φ_max, receivers turning farther from the frame normal are rejected, degrees [130]
+    #[arg(long)]
+    pub rigid_phi_max: Option<f32>,
+    /// lapped-rigid: ψ_{α=1}, receiver vertices within this angle are opaque, degrees [30]
+    #[arg(long)]
+    pub rigid_alpha_opaque: Option<f32>,
+    /// lapped-rigid: ψ_{α=0}, receiver vertices beyond this angle are transparent, degrees [60]
+    #[arg(long)]
+    pub rigid_alpha_transparent: Option<f32>,
+    /// lapped-rigid: trackers farther than this × r from the next surface are deleted [0.25]
+    #[arg(long)]
+    pub rigid_far_fraction: Option<f32>,
+    /// lapped-rigid: RK4 substeps per frame [1]
+    #[arg(long)]
+    pub rigid_substeps: Option<u32>,
+    /// lapped-rigid: first-frame Poisson disks with normals less aligned do not block [0.9]
+    #[arg(long)]
+    pub rigid_normal_dot: Option<f32>,
+    /// lapped-rigid: no random tangent direction for new trackers
+    #[arg(long)]
+    pub rigid_no_rotation: bool,
+    /// lapped-rigid: composite alpha below which a texel seeds a tracker [0.99]
+    #[arg(long)]
+    pub rigid_coverage: Option<f32>,
+    /// lapped-rigid: contributions below this are dropped, a patch with none is deleted [1/255]
+    #[arg(long)]
+    pub rigid_keep_weight: Option<f32>,
+    /// lapped-rigid: patch mask image (grey, covers the exemplar square); default: from the feature map
+    #[arg(long, value_name = "IMG")]
+    pub mask: Option<PathBuf>,
+    /// lapped-rigid: derived mask, how far features move the patch border [0.2]
+    #[arg(long)]
+    pub rigid_mask_feature_weight: Option<f32>,
+    /// lapped-rigid: derived mask, width of the soft border [0.2]
+    #[arg(long)]
+    pub rigid_mask_softness: Option<f32>,
+    /// lapped-rigid: sink test, corners must move inward faster than this × r per second [0.25]
+    #[arg(long)]
+    pub rigid_sink_speed: Option<f32>,
+    /// lapped-rigid: sink fade speed (1: gone when the corners would reach the centre) [1]
+    #[arg(long)]
+    pub rigid_sink_fade_rate: Option<f32>,
+}
+
+impl RigidFlags {
+    /// Applies the flags that are set on top of `p`.
+    pub fn apply(&self, p: &mut LappedRigidParams) {
+        if let Some(v) = self.rigid_radius {
+            p.radius = Some(v);
+        }
+        if let Some(v) = self.rigid_exemplar_size {
+            p.exemplar_size = Some(v);
+        }
+        if let Some(v) = &self.mask {
+            p.mask = Some(v.clone());
+        }
+        if self.rigid_no_rotation {
+            p.random_rotation = false;
+        }
+        macro_rules! set {
+            ($($flag:ident => $field:ident),*) => { $( if let Some(v) = self.$flag { p.$field = v; } )* };
+        }
+        set!(
+            rigid_radius_fraction => radius_fraction,
+            rigid_radius_edges => radius_edges,
+            rigid_exemplar_scale => exemplar_scale,
+            rigid_phi_max => phi_max,
+            rigid_alpha_opaque => alpha_opaque,
+            rigid_alpha_transparent => alpha_transparent,
+            rigid_far_fraction => far_fraction,
+            rigid_substeps => substeps,
+            rigid_normal_dot => normal_dot,
+            rigid_coverage => coverage,
+            rigid_keep_weight => keep_weight,
+            rigid_mask_feature_weight => mask_feature_weight,
+            rigid_mask_softness => mask_softness,
+            rigid_sink_speed => sink_speed,
+            rigid_sink_fade_rate => sink_fade_rate
+        );
     }
 }
 

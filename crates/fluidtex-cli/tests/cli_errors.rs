@@ -223,8 +223,8 @@ fn bad_flags_are_refused_before_any_work() {
     let out = dir.path().join("out");
     let cases: &[(&[&str], &str)] = &[
         (
-            &["--method", "lapped"],
-            "error: invalid value 'lapped' for '--method <METHOD>' [possible values: erosion, advect, dual-rest, blend-deformable, atlas-check]",
+            &["--method", "magic"],
+            "error: invalid value 'magic' for '--method <METHOD>' [possible values: erosion, advect, dual-rest, blend-deformable, atlas-check, optimization, lapped-rigid]",
         ),
         (
             &["--atlas", "0"],

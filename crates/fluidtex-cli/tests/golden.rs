@@ -116,6 +116,23 @@ fn blend_deformable_on_the_shear() {
 }
 
 #[test]
+fn lapped_rigid_on_the_vortex() {
+    scene_case("lapped-rigid", "lapped-rigid", "vortex", &[], &[]);
+}
+
+/// Few points, so the dev-profile run stays short.
+#[test]
+fn optimization_on_the_differential_rotation() {
+    scene_case(
+        "optimization",
+        "optimization",
+        "differential-rotation",
+        &[],
+        &["--points", "4000"],
+    );
+}
+
+#[test]
 fn atlas_check_on_enright() {
     scene_case("atlas-check", "atlas-check", "enright", &[], &[]);
 }

@@ -16,6 +16,7 @@ pub mod atlas_check;
 pub mod dual_rest;
 pub mod erosion;
 pub mod footprint;
+pub mod lapped_rigid;
 pub mod optimization;
 pub mod registry;
 

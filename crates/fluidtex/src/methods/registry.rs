@@ -13,6 +13,7 @@ use serde::{Deserialize, Serialize};
 use super::atlas_check::{AtlasCheck, AtlasCheckParams};
 use super::dual_rest::{DualRest, DualRestParams};
 use super::erosion::{Erosion, ErosionParams, Variant};
+use super::lapped_rigid::{LappedRigid, LappedRigidParams};
 use super::optimization::{Optimization, OptimizationParams};
 use super::{Method, MethodError};
 use crate::exemplar::Exemplar;
@@ -35,6 +36,9 @@ pub enum MethodKind {
     AtlasCheck,
     /// Surface texture optimization with texture transport (Kwatra et al. 2007).
     Optimization,
+    /// Dynamic lapped textures with trackers: rigid patches, over-composited
+    /// (Gagnon, Dagenais, Paquette 2016).
+    LappedRigid,
 }
 
 crate::named!(MethodKind {
@@ -44,6 +48,7 @@ crate::named!(MethodKind {
     BlendDeformable => "blend-deformable",
     AtlasCheck => "atlas-check",
     Optimization => "optimization",
+    LappedRigid => "lapped-rigid",
 });
 
 impl MethodKind {
@@ -77,6 +82,7 @@ pub struct MethodParams {
     pub atlas_check: AtlasCheckParams,
     pub dual_rest: DualRestParams,
     pub optimization: OptimizationParams,
+    pub lapped_rigid: LappedRigidParams,
 }
 
 impl MethodParams {
@@ -92,6 +98,7 @@ impl MethodParams {
             }
             MethodKind::AtlasCheck => self.atlas_check.validate(),
             MethodKind::Optimization => self.optimization.validate(),
+            MethodKind::LappedRigid => self.lapped_rigid.validate(),
         }
     }
 
@@ -135,6 +142,9 @@ impl MethodParams {
                 exemplar,
                 seed,
             )?),
+            MethodKind::LappedRigid => {
+                Box::new(LappedRigid::new(self.lapped_rigid.clone(), exemplar, seed)?)
+            }
         })
     }
 }

@@ -1,0 +1,421 @@
+//! The atlas of the 2016 method (Gagnon, Dagenais, Paquette 2016,
+//! Sec. 3.3, Algorithm 1): every chart texel composites the patches whose
+//! receivers hold its fluid triangle, in layer order, with the over
+//! operator: α = falloff × mask × fade, older patches on top.
+//!
+//! Compositing runs front to back (oldest first): a layer's contribution
+//! is α times the transparency left above it, and the loop stops once
+//! the texel reaches `coverage` (what lies below is renormalised away).
+//! Back-to-front over (the paper's loop) gives the same colour up to that
+//! cut; front to back lets a new patch below only change what its
+//! elders leave visible, which is the point of the layering: a patch
+//! appears *under* the others, nothing pops.
+//!
+//! A texel whose accumulated α stays below `coverage` is uncovered and
+//! goes to the distribution update, with its partial sums, so new patches
+//! below continue its composite. A covered texel's colour is the sum
+//! divided by its α (α ≥ coverage, so at most a 1 − coverage rescale).
+//!
+//! Per texel the method also records the *heaviest* layer (its patch is
+//! the texel's source, its uv the texel's uv, as for every blending method
+//! of [`crate::methods`]) and how many layers carry at least
+//! [`VISIBLE_LAYER_WEIGHT`] of the result (the ghost metric's input).
+//!
+//! Bands of rows are filled in parallel, each writing only its own rows:
+//! bit-identical whatever the thread count.
+
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+
+use super::falloff::{PatchMask, angle_between, falloff};
+use super::receivers::Receivers;
+use super::trackers::Frame;
+use crate::atlas::Atlas;
+use crate::exemplar::Exemplar;
+use crate::exemplar::feature::FeatureSampler;
+use crate::mesh::TriMesh;
+use crate::methods::{SOURCE_OUTSIDE, SOURCE_UNCOVERED};
+
+/// Layers below this share of a texel's result are not counted as visible
+/// (docs/evaluation.md's ghost rule, the same as the blended baseline's).
+pub const VISIBLE_LAYER_WEIGHT: f32 = 0.05;
+
+/// Per fluid triangle, the patches (index in the tracker list = age order)
+/// whose receivers hold it.
+pub struct LayerLists {
+    offsets: Vec<u32>,
+    entries: Vec<u32>,
+}
+
+impl LayerLists {
+    /// Gathers the receivers of every patch, in patch order, so every
+    /// triangle's list is sorted by age.
+    pub fn build(receivers: &[Receivers], triangle_count: usize) -> LayerLists {
+        let mut offsets = vec![0u32; triangle_count + 1];
+        for r in receivers {
+            for &f in &r.triangles {
+                if let Some(o) = offsets.get_mut(f as usize + 1) {
+                    *o += 1;
+                }
+            }
+        }
+        for k in 0..triangle_count {
+            offsets[k + 1] += offsets[k];
+        }
+        let mut cursor = offsets.clone();
+        let mut entries = vec![0u32; offsets[triangle_count] as usize];
+        for (i, r) in receivers.iter().enumerate() {
+            for &f in &r.triangles {
+                if let Some(c) = cursor.get_mut(f as usize) {
+                    entries[*c as usize] = i as u32;
+                    *c += 1;
+                }
+            }
+        }
+        LayerLists { offsets, entries }
+    }
+
+    /// The layers of fluid triangle `f`, oldest first.
+    #[inline]
+    pub fn of(&self, f: u32) -> &[u32] {
+        let f = f as usize;
+        if f + 1 >= self.offsets.len() {
+            return &[];
+        }
+        &self.entries[self.offsets[f] as usize..self.offsets[f + 1] as usize]
+    }
+
+    /// Total (triangle, patch) pairs.
+    pub fn len(&self) -> usize {
+        self.entries.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.entries.is_empty()
+    }
+}
+
+/// One patch as the compositing sees it.
+#[derive(Clone, Copy, Debug)]
+pub struct Layer {
+    pub id: u32,
+    pub frame: Frame,
+    pub fade: f32,
+}
+
+/// Everything compositing reads.
+pub struct CompositeContext<'a> {
+    pub mesh: &'a TriMesh,
+    /// Unit vertex normals of the fluid mesh.
+    pub vertex_normals: &'a [Vec3],
+    /// ψ_{α=1} and ψ_{α=0} (radians).
+    pub opaque: f32,
+    pub transparent: f32,
+    pub layers: &'a [Layer],
+    pub exemplar: &'a Exemplar,
+    pub mask: &'a PatchMask,
+    pub feature: FeatureSampler<'a>,
+    /// Mip level of an atlas texel seen head-on (log2 of exemplar texels
+    /// per atlas texel); `None`: the exemplar is read at level 0.
+    pub base_lod: Option<f32>,
+    /// α below which a texel is uncovered.
+    pub coverage: f32,
+    /// Smallest contribution composited; a patch with none is unused.
+    pub keep_weight: f32,
+}
+
+/// The heaviest layer of a texel so far.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Heaviest {
+    pub id: u32,
+    pub uv: Vec2,
+    pub weight: f32,
+    pub lod: f32,
+}
+
+/// A texel's composite in progress.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TexelSum {
+    /// Accumulated α.
+    pub alpha: f32,
+    pub heaviest: Option<Heaviest>,
+    /// Contribution of every layer composited so far.
+    pub contributions: Vec<f32>,
+}
+
+/// A chart texel the fill left below `coverage`, with its partial composite.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Uncovered {
+    /// Row-major texel index.
+    pub texel: u32,
+    pub triangle: u32,
+    pub bary: [f32; 3],
+    pub sum: TexelSum,
+}
+
+/// Per-texel results.
+pub struct CompositeBuffers {
+    pub width: u32,
+    pub height: u32,
+    /// Exemplar channels, interleaved; unnormalised while a texel is open.
+    pub channels: usize,
+    pub values: Vec<f32>,
+    pub source: Vec<u32>,
+    pub uv: Vec<Vec2>,
+    pub layers: Vec<u8>,
+    pub lod: Vec<f32>,
+}
+
+impl CompositeBuffers {
+    pub fn new(width: u32, height: u32, channels: usize) -> CompositeBuffers {
+        let n = width as usize * height as usize;
+        CompositeBuffers {
+            width,
+            height,
+            channels,
+            values: vec![0.0; n * channels],
+            source: vec![SOURCE_OUTSIDE; n],
+            uv: vec![Vec2::NAN; n],
+            layers: vec![0; n],
+            lod: vec![f32::NAN; n],
+        }
+    }
+}
+
+/// Where one texel writes.
+pub struct TexelOut<'b> {
+    pub values: &'b mut [f32],
+    pub source: &'b mut u32,
+    pub uv: &'b mut Vec2,
+    pub layers: &'b mut u8,
+    pub lod: &'b mut f32,
+}
+
+impl CompositeContext<'_> {
+    /// The smooth surface normal at a texel: its fluid triangle's vertex
+    /// normals interpolated at `bary`, normalised (the triangle's own
+    /// normal `n` where they cancel).
+    #[inline]
+    pub fn texel_normal(&self, f: u32, bary: [f32; 3], n: Vec3) -> Vec3 {
+        let t = self.mesh.triangles[f as usize];
+        let s: Vec3 = (0..3)
+            .map(|k| {
+                self.vertex_normals
+                    .get(t[k] as usize)
+                    .copied()
+                    .unwrap_or(Vec3::ZERO)
+                    * bary[k]
+            })
+            .sum();
+        let s = s.normalize_or_zero();
+        if s == Vec3::ZERO { n } else { s }
+    }
+
+    /// The alpha falloff of layer `i` at a texel of smooth normal `shading`.
+    #[inline]
+    pub fn falloff_alpha(&self, i: u32, shading: Vec3) -> f32 {
+        let frame = &self.layers[i as usize].frame;
+        falloff(
+            angle_between(shading, frame.normal),
+            self.opaque,
+            self.transparent,
+        )
+    }
+
+    /// Composites layer `i` under what `sum` holds, at surface point `x`
+    /// (smooth normal `shading`, on a fluid triangle of unit normal `n`).
+    /// Returns the layer's contribution (0 when it shows nothing here).
+    ///
+    /// The falloff angle is taken between the frame's normal and the
+    /// *interpolated* vertex normal, not by interpolating per-vertex alphas:
+    /// the same at vertices, but a patch is then exactly opaque at its own
+    /// tracker (θ = 0 there), so a new patch always covers the texel that
+    /// created it, also on meshes too coarse for ψ (where a corner's normal
+    /// is already past ψ_{α=1}); per-vertex alphas made such patches miss
+    /// their seed, vanish and come back every frame.
+    #[inline]
+    #[allow(clippy::too_many_arguments)]
+    pub fn add_layer(
+        &self,
+        i: u32,
+        shading: Vec3,
+        x: Vec3,
+        n: Vec3,
+        sum: &mut TexelSum,
+        values: &mut [f32],
+        sample: &mut [f32],
+    ) -> f32 {
+        let a_fall = self.falloff_alpha(i, shading);
+        if a_fall <= 0.0 {
+            return 0.0;
+        }
+        let layer = &self.layers[i as usize];
+        let uv = layer.frame.uv(x);
+        let a = a_fall * self.mask.sample(uv, &self.feature) * layer.fade;
+        if a <= 0.0 {
+            return 0.0;
+        }
+        let w = a.min(1.0) * (1.0 - sum.alpha);
+        // A contribution below keep_weight is dropped, not added: a patch
+        // is used exactly when it changed a texel, so deleting the unused
+        // ones changes nothing and a fluid at rest stays identical.
+        if w <= 0.0 || w < self.keep_weight {
+            return 0.0;
+        }
+        let lod = match self.base_lod {
+            // The orthographic projection stretches the exemplar by
+            // 1/cos θ across the tilt of the fluid triangle.
+            Some(base) => {
+                let cos = n.dot(layer.frame.normal).abs().max(0.05);
+                (base - cos.log2()).max(0.0)
+            }
+            None => 0.0,
+        };
+        self.exemplar.sample_all_lod(uv.x, uv.y, lod, sample);
+        for (o, s) in values.iter_mut().zip(sample.iter()) {
+            *o += w * s;
+        }
+        sum.alpha += w;
+        sum.contributions.push(w);
+        if sum.heaviest.is_none_or(|h| w > h.weight) {
+            sum.heaviest = Some(Heaviest {
+                id: layer.id,
+                uv,
+                weight: w,
+                lod,
+            });
+        }
+        w
+    }
+
+    /// Normalises a texel whose composite is complete and records its
+    /// provenance. A texel with nothing composited stays uncovered.
+    pub fn finish(&self, sum: &TexelSum, out: TexelOut<'_>) {
+        let Some(h) = sum.heaviest.filter(|_| sum.alpha > 0.0) else {
+            *out.source = SOURCE_UNCOVERED;
+            return;
+        };
+        let inv = 1.0 / sum.alpha;
+        for v in out.values.iter_mut() {
+            *v *= inv;
+        }
+        *out.source = h.id + 1;
+        *out.uv = h.uv;
+        *out.lod = h.lod;
+        let visible = sum
+            .contributions
+            .iter()
+            .filter(|&&w| w >= VISIBLE_LAYER_WEIGHT * sum.alpha)
+            .count();
+        *out.layers = visible.min(u8::MAX as usize) as u8;
+    }
+}
+
+/// What the fill produced besides the buffers.
+pub struct FillOutcome {
+    /// Texels below `coverage`, in texel order, with their partial sums.
+    pub uncovered: Vec<Uncovered>,
+    /// Indices (in the layer list) of patches that contributed at least
+    /// `keep_weight` somewhere, sorted, without repeats.
+    pub used: Vec<u32>,
+}
+
+/// Composites every chart texel of `atlas` (module doc).
+pub fn fill(
+    ctx: &CompositeContext<'_>,
+    atlas: &Atlas,
+    lists: &LayerLists,
+    out: &mut CompositeBuffers,
+) -> FillOutcome {
+    let bands = atlas.bands();
+    let Some(first) = bands.first() else {
+        return FillOutcome {
+            uncovered: Vec::new(),
+            used: Vec::new(),
+        };
+    };
+    let band_rows = (first.y1 - first.y0) as usize;
+    let w = atlas.width as usize;
+    let c = out.channels;
+    let chunk = band_rows * w;
+    let results: Vec<(Vec<Uncovered>, Vec<u32>)> = out
+        .values
+        .par_chunks_mut(chunk * c)
+        .zip(out.source.par_chunks_mut(chunk))
+        .zip(out.uv.par_chunks_mut(chunk))
+        .zip(out.layers.par_chunks_mut(chunk))
+        .zip(out.lod.par_chunks_mut(chunk))
+        .zip(bands.par_iter())
+        .map(|(((((values, source), uvs), layers), lods), band)| {
+            let mut missing = Vec::new();
+            let mut used = Vec::new();
+            let mut sample = vec![0.0f32; c];
+            let mut sum = TexelSum::default();
+            let base = band.y0 as usize * w;
+            for span in &band.spans {
+                let f = span.triangle;
+                let [a, b, cc] = ctx.mesh.corners(f as usize);
+                let n = (b - a).cross(cc - a).normalize_or_zero();
+                let list = lists.of(f);
+                let row = span.y as usize * w - base;
+                for (x, bary) in atlas.span_barycentrics(span) {
+                    let t = row + x as usize;
+                    let p = a * bary[0] + b * bary[1] + cc * bary[2];
+                    sum.alpha = 0.0;
+                    sum.heaviest = None;
+                    sum.contributions.clear();
+                    let texel_values = &mut values[t * c..(t + 1) * c];
+                    texel_values.fill(0.0);
+                    let shading = ctx.texel_normal(f, bary, n);
+                    for &i in list {
+                        // A texel is complete once it reaches coverage: a
+                        // patch the update adds below it later in this
+                        // frame never reaches it next frame either, so a
+                        // fluid at rest gives identical frames.
+                        if sum.alpha >= ctx.coverage {
+                            break;
+                        }
+                        let wgt =
+                            ctx.add_layer(i, shading, p, n, &mut sum, texel_values, &mut sample);
+                        if wgt > 0.0 {
+                            used.push(i);
+                        }
+                    }
+                    if sum.alpha >= ctx.coverage {
+                        ctx.finish(
+                            &sum,
+                            TexelOut {
+                                values: texel_values,
+                                source: &mut source[t],
+                                uv: &mut uvs[t],
+                                layers: &mut layers[t],
+                                lod: &mut lods[t],
+                            },
+                        );
+                    } else {
+                        source[t] = SOURCE_UNCOVERED;
+                        missing.push(Uncovered {
+                            texel: (base + t) as u32,
+                            triangle: f,
+                            bary,
+                            sum: sum.clone(),
+                        });
+                    }
+                }
+                used.sort_unstable();
+                used.dedup();
+            }
+            (missing, used)
+        })
+        .collect();
+    let mut uncovered = Vec::new();
+    let mut used = Vec::new();
+    for (m, u) in results {
+        uncovered.extend(m);
+        used.extend(u);
+    }
+    uncovered.sort_unstable_by_key(|u| u.texel);
+    used.sort_unstable();
+    used.dedup();
+    FillOutcome { uncovered, used }
+}

@@ -1,0 +1,224 @@
+//! Tracker distribution update (Gagnon, Dagenais, Paquette 2016,
+//! Sec. 3.1.3): new trackers where the atlas is uncovered, fading sinks.
+//!
+//! **Coverage.** A texel whose composite α stays below the coverage
+//! threshold seeds a new tracker at its surface point, *below* every
+//! existing patch; the new patch continues the composite of the uncovered
+//! texels on its receivers, and the next uncovered texel (in texel order)
+//! seeds the next tracker, until none is left. Covered texels are never
+//! touched again this frame: a new patch only shows where its elders leave
+//! the surface bare. The seed texel sits at the new patch's centre, where
+//! mask and falloff are 1, so it is covered by its own patch; should a
+//! strange surface still leave it short, it is closed with what it has and
+//! counted as `forced`, so the loop ends after at most as many trackers as
+//! there were uncovered texels.
+//!
+//! **Sinks.** Where the flow converges, the patch on top never leaves and
+//! the layering would keep it forever. A tracker whose four frame corners
+//! all move toward its centre faster than a threshold starts to fade: its
+//! opacity falls each frame in proportion to the inward speed (relative to
+//! the corner distance, so `sink_fade_rate` = 1 fades it out in the time
+//! the flow needs to carry the corners to the centre), and it is deleted
+//! once it can no longer be seen. A sink stays marked; it fades while the
+//! flow still converges on it and holds where the flow stops.
+
+use std::collections::HashMap;
+
+use super::composite::{CompositeBuffers, CompositeContext, Layer, TexelOut, Uncovered};
+use super::receivers::ReceiverContext;
+use super::trackers::Tracker;
+use crate::surface::SurfacePoint;
+use crate::surface::velocity::FlowFrame;
+
+/// What the coverage update did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CoverStats {
+    pub created: usize,
+    /// Seed texels closed below the coverage threshold.
+    pub forced: usize,
+}
+
+/// Inputs of [`cover`] besides the buffers.
+pub struct CoverInputs<'a> {
+    pub receivers: &'a ReceiverContext<'a>,
+    pub exemplar_size: f32,
+    /// Rotation of the tracker created at a surface point.
+    pub rotation: &'a (dyn Fn(SurfacePoint) -> f32 + Sync),
+}
+
+/// Covers every texel of `uncovered` with new trackers appended to
+/// `trackers` (module doc). `template` is the fill's context; its layer
+/// list is replaced by the new patches one at a time.
+pub fn cover(
+    template: &CompositeContext<'_>,
+    inputs: &CoverInputs<'_>,
+    trackers: &mut Vec<Tracker>,
+    next_id: &mut u32,
+    mut uncovered: Vec<Uncovered>,
+    out: &mut CompositeBuffers,
+) -> CoverStats {
+    let mut stats = CoverStats::default();
+    if uncovered.is_empty() {
+        return stats;
+    }
+    let rc = inputs.receivers;
+    let mesh = rc.mesh;
+    let c = out.channels;
+    let mut sample = vec![0.0f32; c];
+    let mut closed = vec![false; uncovered.len()];
+    let mut by_triangle: HashMap<u32, Vec<u32>> = HashMap::new();
+    for (k, u) in uncovered.iter().enumerate() {
+        by_triangle.entry(u.triangle).or_default().push(k as u32);
+    }
+    let mut cursor = 0usize;
+    loop {
+        while cursor < uncovered.len() && closed[cursor] {
+            cursor += 1;
+        }
+        if cursor == uncovered.len() {
+            break;
+        }
+        let seed = cursor;
+        let at = SurfacePoint::new(uncovered[seed].triangle, uncovered[seed].bary);
+        let id = *next_id;
+        *next_id += 1;
+        let tracker = Tracker::create(
+            id,
+            mesh,
+            rc.vertex_normals,
+            at,
+            rc.radius,
+            (inputs.rotation)(at),
+        );
+        let frame = tracker.frame(inputs.exemplar_size);
+        let receivers = rc.receivers(&frame);
+        let layer = [Layer {
+            id,
+            frame,
+            fade: tracker.fade,
+        }];
+        let ctx = CompositeContext {
+            mesh,
+            vertex_normals: template.vertex_normals,
+            opaque: template.opaque,
+            transparent: template.transparent,
+            layers: &layer,
+            exemplar: template.exemplar,
+            mask: template.mask,
+            feature: template.feature,
+            base_lod: template.base_lod,
+            coverage: template.coverage,
+            keep_weight: template.keep_weight,
+        };
+        for &f in &receivers.triangles {
+            let Some(texels) = by_triangle.get(&f) else {
+                continue;
+            };
+            let [a, b, cc] = mesh.corners(f as usize);
+            let n = (b - a).cross(cc - a).normalize_or_zero();
+            for &k in texels {
+                let k = k as usize;
+                if closed[k] {
+                    continue;
+                }
+                let u = &mut uncovered[k];
+                let t = u.texel as usize;
+                let x = a * u.bary[0] + b * u.bary[1] + cc * u.bary[2];
+                let values = &mut out.values[t * c..(t + 1) * c];
+                let shading = ctx.texel_normal(f, u.bary, n);
+                ctx.add_layer(0, shading, x, n, &mut u.sum, values, &mut sample);
+                if u.sum.alpha >= ctx.coverage {
+                    close(&ctx, u, out);
+                    closed[k] = true;
+                }
+            }
+        }
+        if !closed[seed] {
+            let u = &mut uncovered[seed];
+            if u.sum.alpha <= 0.0 {
+                // Nothing at all here: the new patch's centre, opaque.
+                let t = u.texel as usize;
+                let values = &mut out.values[t * c..(t + 1) * c];
+                ctx.exemplar.sample_all(0.5, 0.5, values);
+                u.sum.alpha = 1.0;
+                u.sum.contributions.push(1.0);
+                u.sum.heaviest = Some(super::composite::Heaviest {
+                    id,
+                    uv: glam::Vec2::splat(0.5),
+                    weight: 1.0,
+                    lod: 0.0,
+                });
+            }
+            close(&ctx, u, out);
+            closed[seed] = true;
+            stats.forced += 1;
+        }
+        stats.created += 1;
+        trackers.push(tracker);
+    }
+    stats
+}
+
+fn close(ctx: &CompositeContext<'_>, u: &Uncovered, out: &mut CompositeBuffers) {
+    let t = u.texel as usize;
+    let c = out.channels;
+    ctx.finish(
+        &u.sum,
+        TexelOut {
+            values: &mut out.values[t * c..(t + 1) * c],
+            source: &mut out.source[t],
+            uv: &mut out.uv[t],
+            layers: &mut out.layers[t],
+            lod: &mut out.lod[t],
+        },
+    );
+}
+
+/// The sink test's settings.
+#[derive(Clone, Copy, Debug)]
+pub struct SinkRule {
+    pub radius: f32,
+    /// Every corner must move toward the centre faster than this (world
+    /// units per second).
+    pub min_speed: f32,
+    /// Fade per second per unit of (mean inward speed / corner distance).
+    pub fade_rate: f32,
+    pub dt: f32,
+}
+
+/// The speeds (world units per second) at which the flow carries the four
+/// frame corners of `tracker` toward its centre, in the frame's plane;
+/// `None` where no velocity can be sampled.
+pub fn inward_speeds(tracker: &Tracker, flow: &FlowFrame<'_>, radius: f32) -> Option<[f32; 4]> {
+    let n = tracker.normal;
+    let mut out = [0.0; 4];
+    for (o, corner) in out.iter_mut().zip(tracker.corners(radius)) {
+        let dir = (corner - tracker.position).normalize_or_zero();
+        let v = flow.sample(corner, radius)?;
+        let v = v - n * v.dot(n);
+        *o = -v.dot(dir);
+    }
+    Some(out)
+}
+
+/// Applies one frame of the sink rule to `tracker`: it becomes a sink when
+/// every corner moves inward faster than `rule.min_speed`; a sink fades
+/// by `fade_rate · dt · (mean inward speed) / (corner distance)`, so it
+/// fades while the flow converges on it and holds still when the flow
+/// stops (a fluid at rest must give identical frames). Returns true when
+/// the tracker is a sink.
+pub fn apply_sink(tracker: &mut Tracker, flow: &FlowFrame<'_>, rule: &SinkRule) -> bool {
+    let Some(speeds) = inward_speeds(tracker, flow, rule.radius) else {
+        return tracker.sinking;
+    };
+    if speeds.iter().all(|&s| s > rule.min_speed) {
+        tracker.sinking = true;
+    }
+    let mean = speeds.iter().sum::<f32>() / 4.0;
+    if tracker.sinking && mean > 0.0 {
+        let corner_distance = rule.radius * std::f32::consts::FRAC_1_SQRT_2;
+        let drop = rule.fade_rate * rule.dt * mean / corner_distance.max(f32::MIN_POSITIVE);
+        tracker.fade = (tracker.fade - drop).max(0.0);
+    }
+    tracker.sinking
+}

@@ -1,0 +1,718 @@
+//! Dynamic lapped textures with trackers (Gagnon, Dagenais, Paquette 2016),
+//! `--method lapped-rigid`: the erosion method's direct ancestor and the
+//! baseline the 2021 paper compares against. Per frame:
+//!
+//! 1. [`trackers`]: advect every tracker P and its tangent tracker T (RK4),
+//!    project P onto the new surface, rebuild the rigid local frame; a
+//!    tracker that left the surface is deleted (Sec. 3.1.1–3.1.2). On the
+//!    first frame, Poisson-disk trackers instead.
+//! 2. [`distribution::apply_sink`]: patches whose frame corners all move
+//!    inward fade out and are deleted at 0 (Sec. 3.1.3).
+//! 3. [`receivers`]: each patch's receiver triangles, connected to the
+//!    triangle closest to P and within φ_max of its normal (Sec. 3.2.1).
+//! 4. [`composite`]: Algorithm 1, the over operator in layer order, older
+//!    patches on top, α = falloff × mask × fade (Sec. 3.3); the falloff of
+//!    [`falloff`] is read at each texel's interpolated normal.
+//! 5. [`distribution::cover`]: uncovered texels seed new trackers below the
+//!    others until every texel is covered; patches nothing showed are
+//!    deleted (Sec. 3.1.3).
+//!
+//! Unlike erosion, a patch never deforms: its uv are an orthographic
+//! projection onto its frame, recomputed on each frame's mesh. Where
+//! patches overlap with partial α the texture blends (the ghosting the 2021
+//! paper removes); the per-texel layer count reports it.
+//!
+//! Several exemplars per surface (the paper's Sec. 4 extension) are not
+//! implemented here: one exemplar drives every patch.
+
+pub mod composite;
+pub mod distribution;
+pub mod falloff;
+pub mod receivers;
+pub mod trackers;
+
+#[cfg(test)]
+mod tests;
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use rand::SeedableRng;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use self::composite::{CompositeBuffers, CompositeContext, Layer, LayerLists};
+use self::distribution::{CoverInputs, SinkRule};
+use self::falloff::PatchMask;
+use self::receivers::{ReceiverContext, Receivers};
+use self::trackers::Tracker;
+use super::{ChannelSpec, FrameContext, FrameResult, Method, MethodError, StageClock, check_range};
+use crate::exemplar::{Exemplar, ExemplarFilter};
+use crate::mesh::Topology;
+use crate::surface::SurfacePoint;
+use crate::surface::poisson::sample_mesh;
+use crate::surface::velocity::{FlowFrame, FlowInterval};
+use crate::texture::Texture;
+
+/// Parameters of the 2016 method. Every field is also a config key
+/// (`[lapped_rigid]`) and a `--rigid-...` flag.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct LappedRigidParams {
+    /// Patch size r in world units (Sec. 3.1.3: the Poisson-disk radius and
+    /// the receiver distance of Sec. 3.2.1). `None`: as erosion's default,
+    /// `radius_fraction` × the first frame's bounding-box diagonal, at least
+    /// `radius_edges` median edge lengths.
+    pub radius: Option<f32>,
+    /// Default r as a fraction of the first frame's bounding-box diagonal [1/25].
+    pub radius_fraction: f32,
+    /// The default r is never below this many median edge lengths [4].
+    pub radius_edges: f32,
+    /// World size S covered by the exemplar's [0,1]² (Sec. 3.2.2, "based on
+    /// the patch size"). `None`: `exemplar_scale` × r.
+    pub exemplar_size: Option<f32>,
+    /// Default S as a multiple of r [2.6], erosion's convention, so both
+    /// methods show the exemplar at the same scale.
+    pub exemplar_scale: f32,
+    /// φ_max in degrees [130] (Sec. 3.2.1, the paper's value): receivers
+    /// whose normal turns farther from the frame normal are rejected.
+    pub phi_max: f32,
+    /// ψ_{α=1} in degrees [30] (Sec. 3.2.1; the paper gives no value):
+    /// receiver points whose (interpolated vertex) normal is closer to the
+    /// frame normal are opaque. At 30° the
+    /// orthographic stretch 1/cos θ is at most 1.15.
+    pub alpha_opaque: f32,
+    /// ψ_{α=0} in degrees [60] (Sec. 3.2.1; the paper gives no value):
+    /// vertices farther are transparent (stretch 2 at 60°). Requires
+    /// ψ_{α=1} < ψ_{α=0} < φ_max.
+    pub alpha_transparent: f32,
+    /// A tracker farther than this fraction of r from the next surface after
+    /// advection has left it and is deleted [1/4] (erosion's removal distance).
+    pub far_fraction: f32,
+    /// RK4 steps per frame [1] (Sec. 3.1.1).
+    pub substeps: u32,
+    /// Poisson disks of the first frame whose normals have a smaller dot
+    /// product do not block each other [0.9], so both sides of a thin sheet
+    /// get trackers.
+    pub normal_dot: f32,
+    /// Random tangent direction for each new tracker [true] (seeded).
+    pub random_rotation: bool,
+    /// A texel whose composite α is below this is uncovered and seeds a new
+    /// tracker [0.99] (Sec. 3.3: "no opaque patch"; 1 would demand exact
+    /// opacity from soft masks).
+    pub coverage: f32,
+    /// Contributions below this are dropped [1/255 ≈ 0.0039, invisible in
+    /// 8 bits]; a patch left with none is unused and deleted (Sec. 3.1.3).
+    /// Dropping rather than merely not counting them keeps deletion exact:
+    /// removing an unused patch changes no texel.
+    pub keep_weight: f32,
+    /// Patch mask image (Algorithm 1's Mask; luminance over the exemplar's
+    /// [0,1]², 0 outside). `None`: derived from the feature map.
+    pub mask: Option<PathBuf>,
+    /// Derived mask: how far the feature map moves the border [0.2] (see
+    /// [`falloff::PatchMask::derived_value`]).
+    pub mask_feature_weight: f32,
+    /// Derived mask: width of the soft border [0.2] in units of the radial
+    /// profile (0 at the footprint r/S, 1 at the centre).
+    pub mask_softness: f32,
+    /// Sink test: every frame corner must move toward the centre faster than
+    /// this many r per second [0.25] (Sec. 3.1.3).
+    pub sink_speed: f32,
+    /// Sink fade speed [1]: 1 fades a sink out in the time the flow takes
+    /// to carry its corners to its centre (Sec. 3.1.3: a rate proportional
+    /// to the inward speed).
+    pub sink_fade_rate: f32,
+}
+
+impl Default for LappedRigidParams {
+    fn default() -> Self {
+        LappedRigidParams {
+            radius: None,
+            radius_fraction: 1.0 / 25.0,
+            radius_edges: 4.0,
+            exemplar_size: None,
+            exemplar_scale: 2.6,
+            phi_max: 130.0,
+            alpha_opaque: 30.0,
+            alpha_transparent: 60.0,
+            far_fraction: 0.25,
+            substeps: 1,
+            normal_dot: 0.9,
+            random_rotation: true,
+            coverage: 0.99,
+            keep_weight: 1.0 / 255.0,
+            mask: None,
+            mask_feature_weight: 0.2,
+            mask_softness: 0.2,
+            sink_speed: 0.25,
+            sink_fade_rate: 1.0,
+        }
+    }
+}
+
+impl LappedRigidParams {
+    /// Checks every field's range and ψ_{α=1} < ψ_{α=0} < φ_max.
+    pub fn validate(&self) -> Result<(), MethodError> {
+        if let Some(r) = self.radius {
+            check_range("lapped_rigid.radius", r, f32::MIN_POSITIVE, f32::MAX, "> 0")?;
+        }
+        check_range(
+            "lapped_rigid.radius_fraction",
+            self.radius_fraction,
+            1e-4,
+            1.0,
+            "[0.0001, 1]",
+        )?;
+        check_range(
+            "lapped_rigid.radius_edges",
+            self.radius_edges,
+            0.0,
+            1000.0,
+            "[0, 1000]",
+        )?;
+        if let Some(s) = self.exemplar_size {
+            check_range(
+                "lapped_rigid.exemplar_size",
+                s,
+                f32::MIN_POSITIVE,
+                f32::MAX,
+                "> 0",
+            )?;
+        }
+        check_range(
+            "lapped_rigid.exemplar_scale",
+            self.exemplar_scale,
+            0.1,
+            100.0,
+            "[0.1, 100]",
+        )?;
+        check_range(
+            "lapped_rigid.phi_max",
+            self.phi_max,
+            1.0,
+            180.0,
+            "[1, 180] degrees",
+        )?;
+        check_range(
+            "lapped_rigid.alpha_opaque",
+            self.alpha_opaque,
+            0.0,
+            180.0,
+            "[0, 180] degrees",
+        )?;
+        check_range(
+            "lapped_rigid.alpha_transparent",
+            self.alpha_transparent,
+            0.0,
+            180.0,
+            "[0, 180] degrees",
+        )?;
+        if !(self.alpha_opaque < self.alpha_transparent && self.alpha_transparent < self.phi_max) {
+            return Err(MethodError::InvalidParameter {
+                name: "lapped_rigid.alpha_opaque/alpha_transparent/phi_max",
+                value: format!(
+                    "{} / {} / {}",
+                    self.alpha_opaque, self.alpha_transparent, self.phi_max
+                ),
+                allowed: "alpha_opaque < alpha_transparent < phi_max",
+            });
+        }
+        check_range(
+            "lapped_rigid.far_fraction",
+            self.far_fraction,
+            1e-3,
+            10.0,
+            "[0.001, 10]",
+        )?;
+        check_range(
+            "lapped_rigid.substeps",
+            self.substeps as f32,
+            1.0,
+            64.0,
+            "1..=64",
+        )?;
+        check_range(
+            "lapped_rigid.normal_dot",
+            self.normal_dot,
+            -1.0,
+            1.0,
+            "[-1, 1]",
+        )?;
+        check_range(
+            "lapped_rigid.coverage",
+            self.coverage,
+            0.01,
+            1.0,
+            "[0.01, 1]",
+        )?;
+        check_range(
+            "lapped_rigid.keep_weight",
+            self.keep_weight,
+            0.0,
+            1.0,
+            "[0, 1]",
+        )?;
+        check_range(
+            "lapped_rigid.mask_feature_weight",
+            self.mask_feature_weight,
+            0.0,
+            1.0,
+            "[0, 1]",
+        )?;
+        check_range(
+            "lapped_rigid.mask_softness",
+            self.mask_softness,
+            0.0,
+            1.0,
+            "[0, 1]",
+        )?;
+        if self.mask.is_none() && self.mask_feature_weight + self.mask_softness >= 1.0 {
+            return Err(MethodError::InvalidParameter {
+                name: "lapped_rigid.mask_feature_weight + mask_softness",
+                value: (self.mask_feature_weight + self.mask_softness).to_string(),
+                allowed: "< 1, so the derived mask is opaque at the patch centre",
+            });
+        }
+        check_range(
+            "lapped_rigid.sink_speed",
+            self.sink_speed,
+            0.0,
+            1e6,
+            "[0, 1e6] r per second",
+        )?;
+        check_range(
+            "lapped_rigid.sink_fade_rate",
+            self.sink_fade_rate,
+            1e-3,
+            1e6,
+            "[0.001, 1e6]",
+        )?;
+        Ok(())
+    }
+}
+
+/// Tracker state carried from frame to frame (saved for `--resume`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct LappedRigidState {
+    /// Trackers ordered by id: oldest first (top layer).
+    pub trackers: Vec<Tracker>,
+    pub next_id: u32,
+    /// r and S once resolved from the first non-empty frame.
+    pub radius: Option<f32>,
+    pub exemplar_size: Option<f32>,
+}
+
+/// The 2016 method.
+pub struct LappedRigid {
+    params: LappedRigidParams,
+    exemplar: Arc<Exemplar>,
+    /// The user's mask; `None`: derived once r/S is known.
+    mask_image: Option<Texture>,
+    seed: u64,
+    state: LappedRigidState,
+}
+
+impl LappedRigid {
+    /// Validates `params` and reads the mask image if one is named (the
+    /// error names the file).
+    pub fn new(
+        params: LappedRigidParams,
+        exemplar: Arc<Exemplar>,
+        seed: u64,
+    ) -> Result<LappedRigid, MethodError> {
+        params.validate()?;
+        let mask_image = match &params.mask {
+            Some(path) => match PatchMask::from_file(path) {
+                Ok(PatchMask::Image(t)) => Some(t),
+                Ok(_) => None,
+                Err(reason) => {
+                    return Err(MethodError::InvalidParameter {
+                        name: "lapped_rigid.mask",
+                        value: reason,
+                        allowed: "a readable PNG, JPEG or EXR image",
+                    });
+                }
+            },
+            None => None,
+        };
+        Ok(LappedRigid {
+            params,
+            exemplar,
+            mask_image,
+            seed,
+            state: LappedRigidState::default(),
+        })
+    }
+
+    /// The tracker state (for tests and statistics).
+    pub fn state(&self) -> &LappedRigidState {
+        &self.state
+    }
+
+    /// Replaces the tracker state (tests build hand-made layer stacks).
+    pub fn set_state(&mut self, state: LappedRigidState) {
+        self.state = state;
+    }
+
+    fn mask(&self, radius: f32, exemplar_size: f32) -> PatchMask {
+        match &self.mask_image {
+            Some(t) => PatchMask::Image(t.clone()),
+            None => PatchMask::Derived {
+                reach: (radius / exemplar_size).max(1e-6),
+                feature_weight: self.params.mask_feature_weight,
+                softness: self.params.mask_softness,
+            },
+        }
+    }
+
+    /// The seeded tangent angle of a tracker keyed by `key`.
+    fn rotation(seed: u64, random: bool, key: u64) -> f32 {
+        if random {
+            let bits = super::erosion::mix(seed, 1, key);
+            (bits >> 40) as f32 / (1u64 << 24) as f32 * std::f32::consts::TAU
+        } else {
+            0.0
+        }
+    }
+}
+
+/// A key of a surface location: its triangle and barycentric bits, so a
+/// fluid at rest that keeps asking for a tracker at one texel gets the same.
+fn location_key(at: SurfacePoint) -> u64 {
+    let [a, b, _] = at.bary.map(f32::to_bits);
+    super::erosion::mix(at.triangle as u64, a as u64, b as u64)
+}
+
+impl Method for LappedRigid {
+    fn name(&self) -> &'static str {
+        "lapped-rigid"
+    }
+
+    fn channel_specs(&self) -> Vec<ChannelSpec> {
+        crate::pipeline::exemplar_channels(&self.exemplar)
+    }
+
+    fn step(&mut self, ctx: &FrameContext<'_>) -> Result<FrameResult, MethodError> {
+        let mut clock = StageClock::default();
+        let mesh = ctx.mesh;
+        let atlas = ctx.atlas;
+        let channels = self.exemplar.total_channels();
+        let mut out = CompositeBuffers::new(atlas.width, atlas.height, channels);
+        let deleted_left;
+        let mut deleted_sink = 0usize;
+        let mut sinking = 0usize;
+        let mut created = 0usize;
+        let mut forced = 0usize;
+        let mut pairs = 0usize;
+        let mut used_ids: Vec<u32> = Vec::new();
+        let mut radius_rule: Option<String> = None;
+
+        if mesh.is_empty() {
+            deleted_left = self.state.trackers.len();
+            self.state.trackers.clear();
+            clock.lap("advection");
+        } else {
+            let cv = mesh.velocity().ok_or(MethodError::MissingVelocity {
+                frame: ctx.number,
+                method: self.name(),
+            })?;
+            let radius = match self.state.radius {
+                Some(r) => r,
+                None => {
+                    let (r, rule) = match self.params.radius {
+                        Some(r) => (r, "given".to_string()),
+                        None => {
+                            let like = super::erosion::ErosionParams {
+                                radius_fraction: self.params.radius_fraction,
+                                radius_edges: self.params.radius_edges,
+                                ..Default::default()
+                            };
+                            super::erosion::default_radius(mesh, &like)
+                        }
+                    };
+                    radius_rule = Some(rule);
+                    self.state.radius = Some(r);
+                    r
+                }
+            };
+            let exemplar_size = *self.state.exemplar_size.get_or_insert(
+                self.params
+                    .exemplar_size
+                    .unwrap_or(self.params.exemplar_scale * radius),
+            );
+            let normals = mesh.vertex_normals();
+
+            // 1. Tracker advection and frames (Sec. 3.1.1-3.1.2).
+            let before = self.state.trackers.len();
+            if let Some(prev) = ctx.previous
+                && !self.state.trackers.is_empty()
+                && !prev.mesh.is_empty()
+            {
+                let pv = prev.mesh.velocity().ok_or(MethodError::MissingVelocity {
+                    frame: ctx.number - 1,
+                    method: self.name(),
+                })?;
+                let flow = FlowInterval {
+                    from: FlowFrame {
+                        mesh: prev.mesh,
+                        index: prev.index,
+                        velocity: pv,
+                    },
+                    to: Some(FlowFrame {
+                        mesh,
+                        index: ctx.index,
+                        velocity: cv,
+                    }),
+                    dt: ctx.dt,
+                    substeps: self.params.substeps,
+                    search_hint: 0.25 * radius,
+                };
+                let far = self.params.far_fraction * radius;
+                let keep: Vec<bool> = self
+                    .state
+                    .trackers
+                    .par_iter_mut()
+                    .map(|t| t.advect(&flow, mesh, ctx.index, &normals, radius, far))
+                    .collect();
+                let mut k = 0;
+                self.state.trackers.retain(|_| {
+                    k += 1;
+                    keep[k - 1]
+                });
+            } else if ctx.previous.is_none() || ctx.previous.is_some_and(|p| p.mesh.is_empty()) {
+                // A fresh start of the surface: trackers of an older surface cannot be carried.
+                self.state.trackers.clear();
+            }
+            deleted_left = before - self.state.trackers.len();
+            clock.lap("advection");
+
+            // 2. Sinks (Sec. 3.1.3).
+            let here = FlowFrame {
+                mesh,
+                index: ctx.index,
+                velocity: cv,
+            };
+            let rule = SinkRule {
+                radius,
+                min_speed: self.params.sink_speed * radius,
+                fade_rate: self.params.sink_fade_rate,
+                dt: ctx.dt,
+            };
+            sinking = self
+                .state
+                .trackers
+                .par_iter_mut()
+                .map(|t| distribution::apply_sink(t, &here, &rule) as usize)
+                .sum();
+            let alive = self.state.trackers.len();
+            // Below keep_weight a patch can no longer count as used: it is gone.
+            let keep = self.params.keep_weight.max(f32::MIN_POSITIVE);
+            self.state.trackers.retain(|t| t.fade >= keep);
+            deleted_sink = alive - self.state.trackers.len();
+            clock.lap("sinks");
+
+            // Initial distribution (frame 0, or a surface that reappears).
+            if self.state.trackers.is_empty() {
+                let mut rng = rand_pcg::Pcg64::seed_from_u64(super::erosion::mix(
+                    self.seed,
+                    2,
+                    ctx.number as u64,
+                ));
+                let samples = sample_mesh(mesh, radius, self.params.normal_dot, 30.0, &mut rng);
+                let first = self.state.next_id;
+                let (seed, random) = (self.seed, self.params.random_rotation);
+                let new: Vec<Tracker> = samples
+                    .par_iter()
+                    .enumerate()
+                    .map(|(k, s)| {
+                        let id = first + k as u32;
+                        let angle = LappedRigid::rotation(seed, random, id as u64);
+                        Tracker::create(id, mesh, &normals, s.location, radius, angle)
+                    })
+                    .collect();
+                self.state.next_id += new.len() as u32;
+                created += new.len();
+                self.state.trackers.extend(new);
+            }
+            clock.lap("creation");
+
+            // 3. Receivers (Sec. 3.2).
+            let topology = Topology::new(mesh.vertex_count(), &mesh.triangles);
+            let rc = ReceiverContext {
+                mesh,
+                topology: &topology,
+                index: ctx.index,
+                vertex_normals: &normals,
+                radius,
+                phi_max: self.params.phi_max.to_radians(),
+            };
+            let layers: Vec<Layer> = self
+                .state
+                .trackers
+                .iter()
+                .map(|t| Layer {
+                    id: t.id,
+                    frame: t.frame(exemplar_size),
+                    fade: t.fade,
+                })
+                .collect();
+            let receivers: Vec<Receivers> =
+                layers.par_iter().map(|l| rc.receivers(&l.frame)).collect();
+            let lists = LayerLists::build(&receivers, mesh.triangle_count());
+            pairs = lists.len();
+            drop(receivers);
+            clock.lap("receivers");
+
+            // 4. Algorithm 1.
+            let mask = self.mask(radius, exemplar_size);
+            let base_lod = (self.exemplar.filter == ExemplarFilter::Trilinear && atlas.scale > 0.0)
+                .then(|| {
+                    let (ew, eh) = self.exemplar.size();
+                    let texels_per_world = ew.max(eh) as f32 / exemplar_size;
+                    (texels_per_world / atlas.scale as f32).log2()
+                });
+            let composite = CompositeContext {
+                mesh,
+                vertex_normals: &normals,
+                opaque: self.params.alpha_opaque.to_radians(),
+                transparent: self.params.alpha_transparent.to_radians(),
+                layers: &layers,
+                exemplar: &self.exemplar,
+                mask: &mask,
+                feature: self.exemplar.feature.sampler(),
+                base_lod,
+                coverage: self.params.coverage,
+                keep_weight: self.params.keep_weight,
+            };
+            let outcome = composite::fill(&composite, atlas, &lists, &mut out);
+            used_ids.extend(outcome.used.iter().map(|&i| layers[i as usize].id));
+            drop(lists);
+            clock.lap("fill");
+
+            // 5. Distribution update (Sec. 3.1.3).
+            let (seed, random) = (self.seed, self.params.random_rotation);
+            let rotation =
+                move |at: SurfacePoint| LappedRigid::rotation(seed, random, location_key(at));
+            let inputs = CoverInputs {
+                receivers: &rc,
+                exemplar_size,
+                rotation: &rotation,
+            };
+            let first_new = self.state.next_id;
+            let stats = distribution::cover(
+                &composite,
+                &inputs,
+                &mut self.state.trackers,
+                &mut self.state.next_id,
+                outcome.uncovered,
+                &mut out,
+            );
+            created += stats.created;
+            forced = stats.forced;
+            // Trackers of the update were created for a texel they now cover.
+            used_ids.extend(first_new..self.state.next_id);
+            clock.lap("update");
+        }
+
+        // Delete the patches no texel showed (Sec. 3.1.3).
+        used_ids.sort_unstable();
+        used_ids.dedup();
+        let alive_before = self.state.trackers.len();
+        self.state
+            .trackers
+            .retain(|t| used_ids.binary_search(&t.id).is_ok());
+        let unused = alive_before - self.state.trackers.len();
+        clock.lap("delete");
+
+        let texels_in_charts = out
+            .source
+            .iter()
+            .filter(|&&s| s != super::SOURCE_OUTSIDE)
+            .count();
+        let uncovered_after = out
+            .source
+            .iter()
+            .filter(|&&s| s == super::SOURCE_UNCOVERED)
+            .count();
+        let blended = out.layers.iter().filter(|&&l| l >= 2).count();
+        let filtered = self.exemplar.filter == ExemplarFilter::Trilinear;
+        let CompositeBuffers {
+            width,
+            height,
+            values,
+            source,
+            uv,
+            layers,
+            lod,
+            ..
+        } = out;
+        let mut result = FrameResult {
+            channels: split_channels(width, height, &values, &self.exemplar),
+            exemplar_lod: filtered.then_some(lod),
+            ..Default::default()
+        };
+        let stats = &mut result.stats;
+        stats.insert("patches_alive".into(), self.state.trackers.len().into());
+        stats.insert("patches_created".into(), created.into());
+        stats.insert(
+            "patches_deleted".into(),
+            (deleted_left + deleted_sink + unused).into(),
+        );
+        stats.insert("patches_deleted_unused".into(), unused.into());
+        stats.insert("patches_deleted_advection".into(), deleted_left.into());
+        stats.insert("patches_deleted_sink".into(), deleted_sink.into());
+        stats.insert("patches_sinking".into(), sinking.into());
+        stats.insert("texels_in_charts".into(), texels_in_charts.into());
+        stats.insert("uncovered_texels".into(), uncovered_after.into());
+        stats.insert("forced_texels".into(), forced.into());
+        stats.insert("blended_texels".into(), blended.into());
+        stats.insert("receiver_pairs".into(), pairs.into());
+        if let Some(r) = self.state.radius {
+            stats.insert("radius".into(), serde_json::json!(r));
+        }
+        if let Some(rule) = radius_rule {
+            stats.insert("radius_rule".into(), serde_json::json!(rule));
+        }
+        if let Some(s) = self.state.exemplar_size {
+            stats.insert("exemplar_size".into(), serde_json::json!(s));
+        }
+        result.source = Some(source);
+        result.uv = Some(uv);
+        result.layers = Some(layers);
+        result.timings = clock.stages;
+        Ok(result)
+    }
+
+    fn save_state(&self) -> Result<Vec<u8>, MethodError> {
+        postcard::to_allocvec(&self.state).map_err(|e| MethodError::State(e.to_string()))
+    }
+
+    fn load_state(&mut self, bytes: &[u8]) -> Result<(), MethodError> {
+        self.state = postcard::from_bytes(bytes).map_err(|e| MethodError::State(e.to_string()))?;
+        Ok(())
+    }
+}
+
+/// De-interleaves the composite into one texture per exemplar channel.
+fn split_channels(width: u32, height: u32, values: &[f32], exemplar: &Exemplar) -> Vec<Texture> {
+    let mut layout = vec![exemplar.colour.channels];
+    layout.extend(exemplar.channels.iter().map(|c| c.texture.channels));
+    let total = exemplar.total_channels().max(1);
+    let mut offset = 0;
+    layout
+        .into_iter()
+        .map(|k| {
+            let data: Vec<f32> = values
+                .par_chunks(total)
+                .flat_map_iter(|texel| texel[offset..offset + k].iter().copied())
+                .collect();
+            offset += k;
+            Texture {
+                width,
+                height,
+                channels: k,
+                data,
+            }
+        })
+        .collect()
+}
