@@ -48,6 +48,8 @@ struct Clip {
     meshes: Vec<TriMesh>,
     indices: Vec<SurfaceIndex>,
     atlases: Vec<Atlas>,
+    topologies: Vec<crate::mesh::Topology>,
+    normals: Vec<Vec<Vec3>>,
 }
 
 impl Clip {
@@ -57,10 +59,17 @@ impl Clip {
             .iter()
             .map(|m| Atlas::build(m, &AtlasParams::square(atlas)).expect("atlas"))
             .collect();
+        let topologies = meshes
+            .iter()
+            .map(|m| crate::mesh::Topology::new(m.vertex_count(), &m.triangles))
+            .collect();
+        let normals = meshes.iter().map(TriMesh::vertex_normals).collect();
         Clip {
             meshes,
             indices,
             atlases,
+            topologies,
+            normals,
         }
     }
 
@@ -70,6 +79,8 @@ impl Clip {
             dt: 1.0 / 24.0,
             mesh: &self.meshes[k],
             index: &self.indices[k],
+            topology: &self.topologies[k],
+            normals: &self.normals[k],
             previous: (k > 0).then(|| PreviousFrame {
                 mesh: &self.meshes[k - 1],
                 index: &self.indices[k - 1],

@@ -371,6 +371,8 @@ fn flat_synthesis_keeps_the_exemplar_contrast() {
         dt: 1.0 / 24.0,
         mesh: &mesh,
         index: &index,
+        topology: &crate::mesh::Topology::new(mesh.vertex_count(), &mesh.triangles),
+        normals: &mesh.vertex_normals(),
         previous: None,
         atlas: &atlas,
     };
@@ -453,6 +455,8 @@ fn run(
                 dt: 1.0 / 24.0,
                 mesh,
                 index,
+                topology: &crate::mesh::Topology::new(mesh.vertex_count(), &mesh.triangles),
+                normals: &mesh.vertex_normals(),
                 previous,
                 atlas,
             };
@@ -504,11 +508,18 @@ fn deterministic_across_thread_counts_and_resume_is_identical() {
 fn frames_carry_texture_and_report_stats() {
     let data = frames(2);
     let mut m = Optimization::new(small_params(), pebbles(64), 1).expect("params");
+    let topologies: Vec<_> = data
+        .iter()
+        .map(|d| crate::mesh::Topology::new(d.0.vertex_count(), &d.0.triangles))
+        .collect();
+    let normals: Vec<_> = data.iter().map(|d| d.0.vertex_normals()).collect();
     let ctx = |f: usize| FrameContext {
         number: f as i32,
         dt: 1.0 / 24.0,
         mesh: &data[f].0,
         index: &data[f].1,
+        topology: &topologies[f],
+        normals: &normals[f],
         previous: (f > 0).then(|| PreviousFrame {
             mesh: &data[f - 1].0,
             index: &data[f - 1].1,
