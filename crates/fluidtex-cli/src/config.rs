@@ -510,6 +510,8 @@ impl RunFlags {
 }
 
 /// Flags of the lapped-rigid method (`[lapped_rigid]` keys), one per key.
+// Field docs are `--help` text: `[4]` is a default, not a link.
+#[allow(rustdoc::broken_intra_doc_links)]
 #[derive(Args, Clone, Debug, Default)]
 pub struct RigidFlags {
     /// lapped-rigid: patch size r in world units [bbox diagonal / 25]

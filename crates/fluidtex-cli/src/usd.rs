@@ -106,7 +106,7 @@ impl FrameSource for UsdSource {
     }
 }
 
-/// `fluidtex usd-convert FILE --out DIR [--prim PATH]` (hidden): writes
+/// `fluidtex usd-convert FILE --out DIR \[--prim PATH]` (hidden): writes
 /// `DIR/fluid.FFFF.ply` per time sample. Run by [`UsdSource`].
 #[derive(Args, Debug)]
 pub struct UsdConvertArgs {

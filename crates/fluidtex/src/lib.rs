@@ -21,7 +21,7 @@
 //! - [`pipeline::run`]: a method over a frame source ([`pipeline::SequenceSource`]
 //!   for files, [`pipeline::SceneSource`] for built-in scenes) into an
 //!   output folder, with resume, atomic writes and per-frame statistics.
-//! - [`eval::prepare`] + [`eval::evaluate`]: a method over a scene in
+//! - [`eval::prepare()`] + [`eval::evaluate()`]: a method over a scene in
 //!   memory, measured by every metric ([`eval::report`] writes the report).
 //! - [`driver::Driver`]: the frame loop both of them run, for a new front
 //!   end (implement [`driver::FrameSink`]).
@@ -43,7 +43,7 @@
 //! [`eval`] (the evaluation harness), [`render`], [`scenes`], [`io`],
 //! [`texture`] (the float image type and texel convention), and the shared
 //! vocabulary: [`provenance`] (which patch a texel came from), [`seed`]
-//! (seeded random streams), [`named`] (settings with names on the command
+//! (seeded random streams), [`named`](mod@named) (settings with names on the command
 //! line). [`fuzz`] is the seeded mutation fuzzer the reader tests use.
 
 pub mod atlas;

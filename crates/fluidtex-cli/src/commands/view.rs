@@ -32,7 +32,7 @@ use tiny_http::{Header, Method, Request, Response, Server};
 pub struct ViewArgs {
     /// Output folder of `fluidtex run` or `fluidtex demo`
     pub dir: PathBuf,
-    /// Port on 127.0.0.1 [0: any free port]
+    /// Port on 127.0.0.1 \[0: any free port]
     #[arg(long, default_value_t = 0)]
     pub port: u16,
 }

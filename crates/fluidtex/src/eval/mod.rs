@@ -8,7 +8,7 @@
 //! frame ([`Camera::framing`](crate::render::Camera::framing) on the
 //! window's bounding box), the G-buffers, the interior masks and the true
 //! motion per pixel ([`truth`]). [`evaluate`] then drives one method frame
-//! by frame exactly as `pipeline::run` does (same [`FrameContext`], previous
+//! by frame exactly as `pipeline::run` does (same [`FrameContext`](crate::methods::FrameContext), previous
 //! frame, dt = 1/fps, gutter dilation) and measures, per frame:
 //!
 //! - on the atlas (per-texel provenance): coverage, ghost fraction (from

@@ -73,7 +73,7 @@ impl std::str::FromStr for MethodKind {
 }
 
 /// The parameters of every method, one section each (config keys
-/// `[erosion]`, `[dual_rest]`, `[atlas_check]`); a method reads its own
+/// `\[erosion]`, `\[dual_rest]`, `\[atlas_check]`); a method reads its own
 /// section and, for the baselines built from erosion's patches, erosion's.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]

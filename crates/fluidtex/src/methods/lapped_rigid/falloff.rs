@@ -36,7 +36,7 @@ pub fn falloff(theta: f32, opaque: f32, transparent: f32) -> f32 {
     }
 }
 
-/// The angle (radians, in [0, π]) between two unit vectors, robust near 0
+/// The angle (radians, in \[0, π]) between two unit vectors, robust near 0
 /// and π (atan2 of the cross and dot products, not acos of the dot).
 #[inline]
 pub fn angle_between(a: glam::Vec3, b: glam::Vec3) -> f32 {
@@ -47,7 +47,7 @@ pub fn angle_between(a: glam::Vec3, b: glam::Vec3) -> f32 {
 /// centre P is at (0.5, 0.5)).
 #[derive(Clone, Debug)]
 pub enum PatchMask {
-    /// A user image covering the exemplar's [0, 1]²: its luminance, 0
+    /// A user image covering the exemplar's \[0, 1]²: its luminance, 0
     /// outside the square.
     Image(Texture),
     /// Derived from the feature map F (see [`PatchMask::derived_value`]).
@@ -55,9 +55,9 @@ pub enum PatchMask {
         /// uv distance from the centre where the radial profile reaches 0:
         /// r / S, the patch's own footprint.
         reach: f32,
-        /// How much the features move the border [0.5].
+        /// How much the features move the border \[0.5].
         feature_weight: f32,
-        /// Width of the soft border in profile units [0.25].
+        /// Width of the soft border in profile units \[0.25].
         softness: f32,
     },
 }

@@ -55,7 +55,7 @@ use crate::surface::velocity::{FlowFrame, FlowInterval};
 use crate::texture::Texture;
 
 /// Parameters of the 2016 method. Every field is also a config key
-/// (`[lapped_rigid]`) and a `--rigid-...` flag.
+/// (`\[lapped_rigid]`) and a `--rigid-...` flag.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct LappedRigidParams {
@@ -64,41 +64,41 @@ pub struct LappedRigidParams {
     /// `radius_fraction` × the first frame's bounding-box diagonal, at least
     /// `radius_edges` median edge lengths.
     pub radius: Option<f32>,
-    /// Default r as a fraction of the first frame's bounding-box diagonal [1/25].
+    /// Default r as a fraction of the first frame's bounding-box diagonal \[1/25].
     pub radius_fraction: f32,
-    /// The default r is never below this many median edge lengths [4].
+    /// The default r is never below this many median edge lengths \[4].
     pub radius_edges: f32,
-    /// World size S covered by the exemplar's [0,1]² (Sec. 3.2.2, "based on
+    /// World size S covered by the exemplar's \[0,1]² (Sec. 3.2.2, "based on
     /// the patch size"). `None`: `exemplar_scale` × r.
     pub exemplar_size: Option<f32>,
-    /// Default S as a multiple of r [2.6], erosion's convention, so both
+    /// Default S as a multiple of r \[2.6], erosion's convention, so both
     /// methods show the exemplar at the same scale.
     pub exemplar_scale: f32,
-    /// φ_max in degrees [130] (Sec. 3.2.1, the paper's value): receivers
+    /// φ_max in degrees \[130] (Sec. 3.2.1, the paper's value): receivers
     /// whose normal turns farther from the frame normal are rejected.
     pub phi_max: f32,
-    /// ψ_{α=1} in degrees [30] (Sec. 3.2.1; the paper gives no value):
+    /// ψ_{α=1} in degrees \[30] (Sec. 3.2.1; the paper gives no value):
     /// receiver points whose (interpolated vertex) normal is closer to the
     /// frame normal are opaque. At 30° the
     /// orthographic stretch 1/cos θ is at most 1.15.
     pub alpha_opaque: f32,
-    /// ψ_{α=0} in degrees [60] (Sec. 3.2.1; the paper gives no value):
+    /// ψ_{α=0} in degrees \[60] (Sec. 3.2.1; the paper gives no value):
     /// vertices farther are transparent (stretch 2 at 60°). Requires
     /// ψ_{α=1} < ψ_{α=0} < φ_max.
     pub alpha_transparent: f32,
     /// A tracker farther than this fraction of r from the next surface after
-    /// advection has left it and is deleted [1/4] (erosion's removal distance).
+    /// advection has left it and is deleted \[1/4] (erosion's removal distance).
     pub far_fraction: f32,
-    /// RK4 steps per frame [1] (Sec. 3.1.1).
+    /// RK4 steps per frame \[1] (Sec. 3.1.1).
     pub substeps: u32,
     /// Poisson disks of the first frame whose normals have a smaller dot
-    /// product do not block each other [0.9], so both sides of a thin sheet
+    /// product do not block each other \[0.9], so both sides of a thin sheet
     /// get trackers.
     pub normal_dot: f32,
-    /// Random tangent direction for each new tracker [true] (seeded).
+    /// Random tangent direction for each new tracker \[true] (seeded).
     pub random_rotation: bool,
     /// A texel whose composite α is below this is uncovered and seeds a new
-    /// tracker [0.99] (Sec. 3.3: "no opaque patch"; 1 would demand exact
+    /// tracker \[0.99] (Sec. 3.3: "no opaque patch"; 1 would demand exact
     /// opacity from soft masks).
     pub coverage: f32,
     /// Contributions below this are dropped [1/255 ≈ 0.0039, invisible in
@@ -107,18 +107,18 @@ pub struct LappedRigidParams {
     /// removing an unused patch changes no texel.
     pub keep_weight: f32,
     /// Patch mask image (Algorithm 1's Mask; luminance over the exemplar's
-    /// [0,1]², 0 outside). `None`: derived from the feature map.
+    /// \[0,1]², 0 outside). `None`: derived from the feature map.
     pub mask: Option<PathBuf>,
-    /// Derived mask: how far the feature map moves the border [0.2] (see
+    /// Derived mask: how far the feature map moves the border \[0.2] (see
     /// [`falloff::PatchMask::derived_value`]).
     pub mask_feature_weight: f32,
-    /// Derived mask: width of the soft border [0.2] in units of the radial
+    /// Derived mask: width of the soft border \[0.2] in units of the radial
     /// profile (0 at the footprint r/S, 1 at the centre).
     pub mask_softness: f32,
     /// Sink test: every frame corner must move toward the centre faster than
-    /// this many r per second [0.25] (Sec. 3.1.3).
+    /// this many r per second \[0.25] (Sec. 3.1.3).
     pub sink_speed: f32,
-    /// Sink fade speed [1]: 1 fades a sink out in the time the flow takes
+    /// Sink fade speed \[1]: 1 fades a sink out in the time the flow takes
     /// to carry its corners to its centre (Sec. 3.1.3: a rate proportional
     /// to the inward speed).
     pub sink_fade_rate: f32,

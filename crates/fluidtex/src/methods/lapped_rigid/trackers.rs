@@ -46,7 +46,7 @@ pub struct Frame {
     pub tangent: Vec3,
     pub binormal: Vec3,
     pub normal: Vec3,
-    /// World size S covered by the exemplar's [0, 1]².
+    /// World size S covered by the exemplar's \[0, 1]².
     pub exemplar_size: f32,
 }
 

@@ -54,16 +54,16 @@ use crate::surface::velocity::{FlowFrame, FlowInterval};
 use crate::texture::Texture;
 
 /// Parameters of the optimisation method. Every field is a config key
-/// (`[optimization]`) and a CLI flag.
+/// (`\[optimization]`) and a CLI flag.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct OptimizationParams {
     /// Target number of points at the finest level on the first frame
-    /// [200000]; the spacing it gives is then kept, so the count follows the
+    /// \[200000]; the spacing it gives is then kept, so the count follows the
     /// area (Sec. IV-A). Never denser than the atlas texels (the atlas could
     /// not show more). The paper used 100k–500k.
     pub points: u32,
-    /// Width of the exemplar in synthesis texels = points [128]: one point
+    /// Width of the exemplar in synthesis texels = points \[128]: one point
     /// per exemplar texel at the finest level (Sec. IV-A: the points are the
     /// texture's resolution), so the exemplar spans 128 point spacings on
     /// the surface. Ignored when `exemplar_size` is given.
@@ -71,37 +71,37 @@ pub struct OptimizationParams {
     /// World size S covered by the exemplar's width; overrides
     /// `exemplar_texels` (then exemplar_texels = S / spacing).
     pub exemplar_size: Option<f32>,
-    /// Levels of the hierarchy on the first frame [3] (Sec. V-B).
+    /// Levels of the hierarchy on the first frame \[3] (Sec. V-B).
     pub levels: u32,
-    /// Levels on later frames [1] (the paper's footnote 5).
+    /// Levels on later frames \[1] (the paper's footnote 5).
     pub levels_after_first: u32,
     /// Neighbourhood widths of the passes at each level, in order
-    /// [33, 17, 9] (Sec. V-B). Odd, ≥ 3.
+    /// \[33, 17, 9] (Sec. V-B). Odd, ≥ 3.
     pub sizes: Vec<u32>,
     /// Search grid g: the pixel neighbourhood compared is a g × g
-    /// subsample of the w × w one [9] (odd, 3..=15).
+    /// subsample of the w × w one \[9] (odd, 3..=15).
     pub search_grid: u32,
-    /// Candidates taken from the PCA k-d tree and re-ranked by full SSD [16].
+    /// Candidates taken from the PCA k-d tree and re-ranked by full SSD \[16].
     pub rerank: u32,
-    /// Most search + averaging iterations per pass [5]; a pass also stops
+    /// Most search + averaging iterations per pass \[5]; a pass also stops
     /// when no match changes (on a flat square with 3 levels, 3 iterations
     /// keep 0.70 of the exemplar's contrast, 5 keep 0.93).
     pub iterations: u32,
-    /// Spacing of the centres S† as a fraction of the window width [0.25]
+    /// Spacing of the centres S† as a fraction of the window width \[0.25]
     /// (Kwatra et al. 2005's quarter-width overlap).
     pub centre_spacing: f32,
     /// Weight of the transported texture, λ of Eq. 2 relative to the
-    /// neighbourhoods covering a point, scaled by its gradient [1].
+    /// neighbourhoods covering a point, scaled by its gradient \[1].
     pub coherence: f32,
-    /// Robust exponent r of the texture energy [0.8]: each neighbourhood's
+    /// Robust exponent r of the texture energy \[0.8]: each neighbourhood's
     /// term of Eq. 1 is weighted by its current mean squared error to the
     /// power (r − 2)/2, as in the texture optimisation the paper builds on
     /// (Kwatra et al. 2005, Sec. 3, r = 0.8). 2 gives Eq. 1 unweighted,
     /// which averages mismatched neighbourhoods into blur.
     pub robust: f32,
-    /// Orientation smoothing iterations per level [10] (Sec. IV-B).
+    /// Orientation smoothing iterations per level \[10] (Sec. IV-B).
     pub orientation_iterations: u32,
-    /// RK4 steps per frame for transport [1].
+    /// RK4 steps per frame for transport \[1].
     pub substeps: u32,
 }
 

@@ -62,7 +62,7 @@ pub fn diffuse(level: &Level, d: &mut Vec<Vec3>, iterations: u32) {
 
 /// Smooths an orientation field given on the coarsest of `levels` (the
 /// last), then copies it up level by level (interpolation on the lattice)
-/// and smooths again at each level. Returns the field on `levels[0]`.
+/// and smooths again at each level. Returns the field on `levels\[0]`.
 pub fn smooth_hierarchy(
     lattice: &Lattice,
     levels: &[Level],

@@ -18,7 +18,7 @@ use crate::mesh::TriMesh;
 use crate::methods::{FrameContext, PreviousFrame};
 use crate::surface::SurfaceIndex;
 
-/// A flat square [-half, half]² in z = 0, n × n quads, velocity `f`.
+/// A flat square \[-half, half]² in z = 0, n × n quads, velocity `f`.
 fn plane(n: usize, half: f32, f: impl Fn(Vec3) -> Vec3) -> TriMesh {
     let mut positions = Vec::new();
     for j in 0..=n {
