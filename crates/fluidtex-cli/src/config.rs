@@ -284,6 +284,9 @@ pub struct RunFlags {
     /// Default r is never below this many median edge lengths [4]
     #[arg(long)]
     pub radius_edges: Option<f32>,
+    /// Split patch edges longer than this many median edge lengths of the frame (0: never, the paper) [2]
+    #[arg(long)]
+    pub split_edges: Option<f32>,
     /// dual-rest: frames between two resets of a layer [24]
     #[arg(long)]
     pub period: Option<u32>,
@@ -434,6 +437,9 @@ impl RunFlags {
         }
         if let Some(v) = self.radius_edges {
             e.radius_edges = v;
+        }
+        if let Some(v) = self.split_edges {
+            e.split_edges = v;
         }
         if let Some(p) = self.period {
             config.dual_rest.period = p;

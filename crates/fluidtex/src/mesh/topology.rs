@@ -118,6 +118,27 @@ impl Topology {
         (0..3).flat_map(move |k| self.edge_neighbours(t, k).iter().copied())
     }
 
+    /// The edge-connected region grown from triangle `seed` through the
+    /// triangles `accept` admits (the seed itself always belongs), in the
+    /// order they were reached. A patch's footprint and a tracker's
+    /// receivers both grow this way, so neither jumps to a disjoint sheet
+    /// of the surface that happens to lie within reach.
+    pub fn grow_region(&self, seed: u32, mut accept: impl FnMut(u32) -> bool) -> Vec<u32> {
+        let mut taken = vec![seed];
+        let mut seen = std::collections::HashSet::from([seed]);
+        let mut head = 0;
+        while head < taken.len() {
+            let t = taken[head];
+            head += 1;
+            for nb in self.triangle_neighbours(t) {
+                if seen.insert(nb) && accept(nb) {
+                    taken.push(nb);
+                }
+            }
+        }
+        taken
+    }
+
     /// True when edge `k` of triangle `t` belongs to no other triangle.
     #[inline]
     pub fn is_boundary_edge(&self, t: u32, k: usize) -> bool {

@@ -91,6 +91,12 @@ pub struct ErosionParams {
     /// first frame \[4]: a patch must hold enough fluid triangles that
     /// re-meshing noise does not dominate its shape.
     pub radius_edges: f32,
+    /// Patch edges longer than this many median edge lengths of the current
+    /// frame are split at their midpoint after advection \[2] (0: never, as
+    /// in the paper). A stretched patch triangle is a long chord of the
+    /// curved surface whose middle leaves the surface, so its coverage
+    /// flickers as the fluid is re-meshed (see [`Patch::refine`]).
+    pub split_edges: f32,
 }
 
 /// How the vertex weights w_V of Eq. 3 evolve from frame to frame.
@@ -157,6 +163,7 @@ impl Default for ErosionParams {
             orientation: Orientation::Random,
             up_axis: [0.0, 1.0, 0.0],
             radius_edges: 4.0,
+            split_edges: 2.0,
         }
     }
 }
@@ -198,6 +205,15 @@ impl ErosionParams {
             "[0.001, 1e6] per second",
         )?;
         check_range("radius_edges", self.radius_edges, 0.0, 1000.0, "[0, 1000]")?;
+        if self.split_edges != 0.0 {
+            check_range(
+                "split_edges",
+                self.split_edges,
+                0.5,
+                1000.0,
+                "0 or [0.5, 1000]",
+            )?;
+        }
         let axis = glam::Vec3::from(self.up_axis);
         if !axis.is_finite() || axis.length() < 1e-6 {
             return Err(MethodError::InvalidParameter {
@@ -343,8 +359,19 @@ impl Erosion {
         ErosionTest::with_reach(&self.exemplar.feature, self.params.epsilon, reach)
     }
 
-    fn shape(&self, radius: f32, exemplar_size: f32, atlas: &crate::atlas::Atlas) -> PatchShape {
+    fn shape(
+        &self,
+        radius: f32,
+        exemplar_size: f32,
+        mesh: &crate::mesh::TriMesh,
+        atlas: &crate::atlas::Atlas,
+    ) -> PatchShape {
         PatchShape {
+            split_length: if self.params.split_edges > 0.0 {
+                self.params.split_edges * median_edge_length(mesh)
+            } else {
+                0.0
+            },
             texel_size: if atlas.scale > 0.0 {
                 (1.0 / atlas.scale) as f32
             } else {
@@ -486,7 +513,7 @@ impl Erosion {
             });
         }
         let (radius, exemplar_size) = self.resolve_scale(mesh, counts);
-        let shape = self.shape(radius, exemplar_size, ctx.atlas);
+        let shape = self.shape(radius, exemplar_size, mesh, ctx.atlas);
         let align = (self.params.orientation == Orientation::Aligned)
             .then(|| glam::Vec3::from(self.params.up_axis).normalize_or_zero());
         if self.test.is_none() {

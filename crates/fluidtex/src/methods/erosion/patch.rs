@@ -9,8 +9,6 @@
 //! world units (so rest coordinates × S are the triangle rest shapes in
 //! world units that δ_t compares against).
 
-use std::collections::HashSet;
-
 use glam::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 
@@ -37,7 +35,17 @@ pub struct PatchShape {
     pub texel_size: f32,
     /// Width of the feature map in texels.
     pub feature_width: f32,
+    /// Patch edges longer than this are split at their midpoint after
+    /// advection (and at creation), so the patch mesh stays about as fine
+    /// as the fluid mesh it rides on; 0 disables it (the paper). See
+    /// [`Patch::refine`].
+    pub split_length: f32,
 }
+
+/// Rounds of [`Patch::refine`] per call: each round halves the longest
+/// edges, so 6 rounds shorten an edge by up to 64×, far more than one
+/// frame of any flow stretches it.
+pub const MAX_SPLIT_ROUNDS: usize = 6;
 
 /// One deformable patch.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -110,23 +118,11 @@ impl Patch {
         // Flood fill over edge neighbours: this is the connected component of
         // the seed among the triangles within r that face n_p.
         let r2 = shape.radius * shape.radius;
-        let mut taken = vec![seed];
-        let mut seen: HashSet<u32> = HashSet::from([seed]);
-        let mut head = 0;
-        while head < taken.len() {
-            let t = taken[head];
-            head += 1;
-            for nb in surface.topology.triangle_neighbours(t) {
-                if !seen.insert(nb) {
-                    continue;
-                }
-                let [a, b, c] = mesh.corners(nb as usize);
-                let near = closest_point_on_triangle(p, a, b, c).distance_squared(p) <= r2;
-                if near && mesh.triangle_cross(nb as usize).dot(n_p) > 0.0 {
-                    taken.push(nb);
-                }
-            }
-        }
+        let mut taken = surface.topology.grow_region(seed, |nb| {
+            let [a, b, c] = mesh.corners(nb as usize);
+            closest_point_on_triangle(p, a, b, c).distance_squared(p) <= r2
+                && mesh.triangle_cross(nb as usize).dot(n_p) > 0.0
+        });
         taken.sort_unstable();
         let (sub, _) = mesh.submesh(&taken);
         let seed_local = taken.binary_search(&seed).unwrap_or(0);
@@ -194,6 +190,8 @@ impl Patch {
             lod: Vec::new(),
             still: false,
         };
+        // The copied fluid triangles lie on the surface, so do their edge midpoints.
+        patch.refine(shape.split_length, Some);
         patch.update_weights(shape, None);
         Some(patch)
     }
@@ -229,14 +227,110 @@ impl Patch {
                 }
             }
         }
-        self.still = still;
-        if keep.iter().all(|&k| k) {
-            return !self.triangles.is_empty();
+        if !keep.iter().all(|&k| k) {
+            self.triangles
+                .retain(|t| t.iter().all(|&v| keep[v as usize]));
+            self.compact();
         }
-        self.triangles
-            .retain(|t| t.iter().all(|&v| keep[v as usize]));
-        self.compact();
+        let far = shape.far_distance;
+        if self.refine(shape.split_length, |q| {
+            next.closest(q, far).map(|h| h.point)
+        }) {
+            still = false;
+        }
+        self.still = still;
         !self.triangles.is_empty()
+    }
+
+    /// Splits every edge longer than `max_length` at its midpoint, until
+    /// none is left or [`MAX_SPLIT_ROUNDS`] rounds have run; returns whether
+    /// anything was split. Not in the paper: a stretched patch triangle is a
+    /// long chord of the curved fluid surface, its middle far from the
+    /// surface, so texels there fail to locate in it and its coverage
+    /// flickers from frame to frame as the surface is re-meshed. The new
+    /// vertex goes to `project(midpoint)` (`None`: the edge is left whole,
+    /// as when it spans a gap of the surface); its rest coordinates are the
+    /// midpoint of the edge's, so the texture carried by the patch is
+    /// unchanged up to that projection. Edges are split longest first, and
+    /// each round splits only edges whose triangles no other split of the
+    /// round touched, so the result does not depend on any hash order.
+    pub fn refine(&mut self, max_length: f32, project: impl Fn(Vec3) -> Option<Vec3>) -> bool {
+        if max_length <= 0.0 || !max_length.is_finite() {
+            return false;
+        }
+        let limit = max_length * max_length;
+        let mut changed = false;
+        for _ in 0..MAX_SPLIT_ROUNDS {
+            // (squared length, edge, triangle) for every long edge side.
+            let mut long: Vec<(f32, [u32; 2], u32)> = Vec::new();
+            for (k, t) in self.triangles.iter().enumerate() {
+                for e in 0..3 {
+                    let (a, b) = (t[e], t[(e + 1) % 3]);
+                    let l = self.positions[a as usize].distance_squared(self.positions[b as usize]);
+                    if l > limit {
+                        long.push((l, [a.min(b), a.max(b)], k as u32));
+                    }
+                }
+            }
+            if long.is_empty() {
+                break;
+            }
+            long.sort_unstable_by(|x, y| {
+                y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)).then(x.2.cmp(&y.2))
+            });
+            let mut touched = vec![false; self.triangles.len()];
+            let mut split_any = false;
+            let mut i = 0;
+            while i < long.len() {
+                let edge = long[i].1;
+                let mut j = i;
+                while j < long.len() && long[j].1 == edge {
+                    j += 1;
+                }
+                // Every triangle holding this edge, not only the long sides found.
+                let holders: Vec<u32> = long[i..j].iter().map(|x| x.2).collect();
+                i = j;
+                if holders.iter().any(|&k| touched[k as usize]) {
+                    continue;
+                }
+                let [a, b] = edge;
+                let (pa, pb) = (self.positions[a as usize], self.positions[b as usize]);
+                let Some(m) = project((pa + pb) * 0.5) else {
+                    continue;
+                };
+                let mid = self.positions.len() as u32;
+                self.positions.push(m);
+                self.rest
+                    .push((self.rest[a as usize] + self.rest[b as usize]) * 0.5);
+                self.pinned
+                    .push(self.pinned[a as usize] && self.pinned[b as usize]);
+                if self.weight.len() + 1 == self.positions.len() {
+                    let w = 0.5 * (self.weight[a as usize] + self.weight[b as usize]);
+                    self.weight.push(w);
+                }
+                for k in holders {
+                    touched[k as usize] = true;
+                    let t = self.triangles[k as usize];
+                    // Rotate so the split edge is (t0, t1) in the triangle's own order.
+                    let r = (0..3)
+                        .find(|&e| {
+                            let (u, v) = (t[e], t[(e + 1) % 3]);
+                            [u.min(v), u.max(v)] == edge
+                        })
+                        .unwrap_or(0);
+                    let (u, v, w) = (t[r], t[(r + 1) % 3], t[(r + 2) % 3]);
+                    self.triangles[k as usize] = [u, mid, w];
+                    self.triangles.push([mid, v, w]);
+                    touched.push(true);
+                }
+                split_any = true;
+            }
+            if !split_any {
+                break;
+            }
+            changed = true;
+        }
+        changed
     }
 
     /// Drops vertices no triangle uses, renumbering the rest in order.

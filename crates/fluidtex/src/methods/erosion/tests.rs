@@ -5,6 +5,7 @@
 use std::sync::Arc;
 
 use glam::{Vec2, Vec3};
+use rand::{Rng, SeedableRng};
 
 use super::distortion::distortion;
 use super::erode::ErosionTest;
@@ -54,6 +55,7 @@ fn shape(radius: f32) -> PatchShape {
         centre_radius: radius / 4.0,
         texel_size: 0.0,
         feature_width: 1.0,
+        split_length: 0.0,
     }
 }
 
@@ -160,6 +162,7 @@ fn weights_follow_eqs_1_to_3_on_a_hand_built_patch() {
         centre_radius: 0.0,
         texel_size: 0.0,
         feature_width: 1.0,
+        split_length: 0.0,
     };
     let rest: Vec<Vec2> = mesh.positions.iter().map(|p| p.truncate()).collect();
     // Stretch vertex 8 (corner) along x by 1: only triangles using it deform.
@@ -1011,4 +1014,116 @@ fn a_patch_carried_rigidly_keeps_its_source_away_from_its_border() {
         glued > 3 * switched && glued * 200 > interior,
         "{glued} vs {switched}"
     );
+}
+
+/// The rest uv of surface point `x` in a flat patch (z = 0), by brute force
+/// over its triangles; `None` outside.
+fn flat_uv_at(patch: &Patch, x: Vec3) -> Option<Vec2> {
+    patch.triangles.iter().find_map(|t| {
+        let q = t.map(|v| patch.positions[v as usize]);
+        let (b, _) = TriFrame::new(q[0], q[1], q[2])?.locate(x);
+        (b.iter().all(|&c| c >= -1e-5))
+            .then(|| (0..3).map(|k| patch.rest[t[k] as usize] * b[k]).sum())
+    })
+}
+
+#[test]
+fn refining_a_stretched_patch_splits_every_long_edge_and_keeps_its_texture() {
+    let mesh = grid(20, 0.1);
+    let s = shape(0.5);
+    let mut patch = create_on(&mesh, SurfacePoint::new(421, [0.2, 0.3, 0.5]), &s, 0.7);
+    // Stretch the patch 4× along x: an affine map of a flat patch, so the
+    // texture at every point is known exactly before and after refinement.
+    for q in &mut patch.positions {
+        q.x *= 4.0;
+    }
+    let before = patch.clone();
+    let weights: Vec<f32> = (0..patch.positions.len())
+        .map(|v| v as f32 / 100.0)
+        .collect();
+    patch.weight = weights.clone();
+    let limit = 0.15;
+    assert!(patch.refine(limit, Some));
+    // No edge is left longer than the limit.
+    for t in &patch.triangles {
+        for e in 0..3 {
+            let (a, b) = (t[e] as usize, t[(e + 1) % 3] as usize);
+            let l = patch.positions[a].distance(patch.positions[b]);
+            assert!(l <= limit + 1e-6, "edge of length {l}");
+        }
+    }
+    assert!(patch.triangles.len() > 2 * before.triangles.len());
+    assert_eq!(patch.rest.len(), patch.positions.len());
+    assert_eq!(patch.pinned.len(), patch.positions.len());
+    assert_eq!(patch.weight.len(), patch.positions.len());
+    // Old vertices keep their weights; a new one has the mean of its edge's ends.
+    assert_eq!(patch.weight[..weights.len()], weights[..]);
+    // Conforming and consistently oriented: every directed edge appears at
+    // most once, so no T-junction or flipped triangle was made.
+    let mut directed = std::collections::HashSet::new();
+    for t in &patch.triangles {
+        for e in 0..3 {
+            assert!(
+                directed.insert((t[e], t[(e + 1) % 3])),
+                "edge used twice the same way"
+            );
+        }
+        let q = t.map(|v| patch.positions[v as usize]);
+        assert!(
+            (q[1] - q[0]).cross(q[2] - q[0]).z > 0.0,
+            "a triangle flipped"
+        );
+    }
+    let area = |p: &Patch| -> f32 {
+        p.triangles
+            .iter()
+            .map(|t| {
+                let q = t.map(|v| p.positions[v as usize]);
+                0.5 * (q[1] - q[0]).cross(q[2] - q[0]).length()
+            })
+            .sum()
+    };
+    assert!((area(&patch) - area(&before)).abs() < 1e-4 * area(&before));
+    // The texture is unchanged at seeded random points of the patch.
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(11);
+    let (lo, hi) = before
+        .positions
+        .iter()
+        .fold((Vec3::MAX, Vec3::MIN), |(lo, hi), &q| {
+            (lo.min(q), hi.max(q))
+        });
+    let mut checked = 0;
+    for _ in 0..400 {
+        let x = Vec3::new(
+            rng.random_range(lo.x..hi.x),
+            rng.random_range(lo.y..hi.y),
+            0.0,
+        );
+        if let Some(uv) = flat_uv_at(&before, x) {
+            let after = flat_uv_at(&patch, x).expect("refinement keeps the footprint");
+            assert!(uv.distance(after) < 1e-5, "{uv} became {after}");
+            checked += 1;
+        }
+    }
+    assert!(checked > 100, "only {checked} points inside the patch");
+    // A second pass has nothing left to do; a zero limit never splits.
+    assert!(!patch.clone().refine(limit, Some));
+    assert!(!before.clone().refine(0.0, Some));
+}
+
+#[test]
+fn refinement_leaves_an_edge_whole_where_its_midpoint_has_no_surface() {
+    let mesh = grid(20, 0.1);
+    let mut patch = create_on(
+        &mesh,
+        SurfacePoint::new(421, [0.2, 0.3, 0.5]),
+        &shape(0.5),
+        0.0,
+    );
+    for q in &mut patch.positions {
+        q.x *= 4.0;
+    }
+    let before = patch.clone();
+    assert!(!patch.refine(0.15, |_| None));
+    assert_eq!(patch, before);
 }

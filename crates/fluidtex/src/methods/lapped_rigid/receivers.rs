@@ -11,8 +11,6 @@
 //! Receivers are recomputed from the current fluid mesh every frame: the
 //! patch itself is rigid (a frame), the mesh under it is new each frame.
 
-use std::collections::HashSet;
-
 use glam::Vec3;
 
 use super::falloff::angle_between;
@@ -49,23 +47,10 @@ impl ReceiverContext<'_> {
         };
         let mesh = self.mesh;
         let r2 = self.radius * self.radius;
-        let seed = hit.location.triangle;
-        let mut taken = vec![seed];
-        let mut seen: HashSet<u32> = HashSet::from([seed]);
-        let mut head = 0;
-        while head < taken.len() {
-            let t = taken[head];
-            head += 1;
-            for nb in self.topology.triangle_neighbours(t) {
-                if !seen.insert(nb) {
-                    continue;
-                }
-                let [a, b, c] = mesh.corners(nb as usize);
-                if closest_point_on_triangle(p, a, b, c).distance_squared(p) <= r2 {
-                    taken.push(nb);
-                }
-            }
-        }
+        let mut taken = self.topology.grow_region(hit.location.triangle, |nb| {
+            let [a, b, c] = mesh.corners(nb as usize);
+            closest_point_on_triangle(p, a, b, c).distance_squared(p) <= r2
+        });
         taken.retain(|&t| {
             let n = mesh.triangle_normal(t as usize);
             n != Vec3::ZERO && angle_between(n, frame.normal) <= self.phi_max
