@@ -30,7 +30,7 @@
 //!   with a marching-cubes cell of [`SURFACE_CUBE`] particle radii.
 //!
 //! `resolution` is the number of particles across the channel (default
-//! 40). Units: metres, seconds. Deterministic: single-threaded solver and
+//! 24). Units: metres, seconds. Deterministic: single-threaded solver and
 //! reconstruction, seeded jitter.
 
 use glam::Vec3;
@@ -81,7 +81,7 @@ pub const JITTER: f32 = 0.01;
 /// splashsurf compact support radius, in particle radii.
 pub const SURFACE_SUPPORT: f32 = 4.0;
 /// splashsurf marching-cubes cell size, in particle radii.
-pub const SURFACE_CUBE: f32 = 0.5;
+pub const SURFACE_CUBE: f32 = 0.35;
 /// splashsurf iso-surface threshold, relative to the rest density.
 pub const SURFACE_THRESHOLD: f32 = 0.6;
 /// Largest `resolution` (particles across the channel).
@@ -120,11 +120,11 @@ fn to_world(p: Vec3) -> Vec3 {
 }
 
 impl Lava {
-    /// Defaults: 40 particles across the channel, 5 s at 24 fps (the lava
-    /// is solid from frame 96 on).
+    /// Defaults: 24 particles across the channel (≈ 6.5k particles), 5 s
+    /// at 24 fps (the lava is solid from frame 96 on).
     pub fn default_params() -> SceneParams {
         SceneParams {
-            resolution: 40,
+            resolution: 24,
             fps: 24.0,
             first: 0,
             last: 120,

@@ -482,9 +482,10 @@ mod viscous_scene_tests {
         let p = params("viscous-drop", 10, 24.0, 24, 0);
         let mut s = by_name("viscous-drop", Some(p)).expect("viscous-drop");
         let spacing = 2.0 * viscous_drop::DROP_RADIUS / 10.0;
-        // The floor is y = 0; the lowest fluid surface lies about a
-        // particle radius above its top particles.
-        let h = 1.5 * spacing;
+        // The floor is y = 0 and the surface of a resting layer lies near
+        // it (the iso-surface is about a particle radius outside the
+        // particle centres); the drop starts 1.5 spacings above it.
+        let h = 0.5 * spacing;
         let radii: Vec<f32> = (0..=24)
             .map(|f| {
                 let mesh = s.frame(f).expect("frame");
