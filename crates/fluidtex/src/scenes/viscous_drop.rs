@@ -62,7 +62,7 @@ pub const JITTER: f32 = 0.01;
 /// splashsurf compact support radius, in particle radii.
 pub const SURFACE_SUPPORT: f32 = 4.0;
 /// splashsurf marching-cubes cell size, in particle radii.
-pub const SURFACE_CUBE: f32 = 0.5;
+pub const SURFACE_CUBE: f32 = 0.8;
 /// splashsurf iso-surface threshold, relative to the rest density.
 pub const SURFACE_THRESHOLD: f32 = 0.6;
 /// Largest `resolution` (particles across the diameter): 200 would be
