@@ -61,7 +61,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut seconds = 0.0;
         let mut timed = 0;
         let mut preview: Option<TriMesh> = None;
-        if *name == "dam-break" {
+        if scenes::SPH_SCENES.contains(name) {
             let mut scene = scenes::by_name(name, Some(params))?;
             let last = *picks.iter().max().unwrap_or(&params.first);
             let last = last.max(preview_frame.min(params.last));
@@ -159,8 +159,8 @@ fn view(name: &str) -> Mat3 {
         "dam-break" => (-0.5, -0.35),
         _ => (0.6, 0.45),
     };
-    let base = if name == "dam-break" {
-        // The dam break is y-up; the analytic scenes are z-up.
+    let base = if scenes::SPH_SCENES.contains(&name) {
+        // The SPH scenes are y-up; the analytic scenes are z-up.
         Mat3::IDENTITY
     } else {
         Mat3::from_rotation_x(-std::f32::consts::FRAC_PI_2)

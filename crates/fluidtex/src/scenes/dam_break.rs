@@ -33,10 +33,8 @@ use salva3d::object::interaction_groups::InteractionGroups;
 use salva3d::object::{Boundary, Fluid, FluidHandle};
 use salva3d::solver::{DFSPHSolver, XSPHViscosity};
 use serde_json::json;
-use splashsurf_lib::nalgebra::Vector3 as SsVector;
-use splashsurf_lib::sph_interpolation::SphInterpolator;
-use splashsurf_lib::{Parameters, SpatialDecomposition};
 
+use super::sph::{self, Surfacing};
 use super::{Scene, SceneError, SceneInfo, SceneParams};
 use crate::mesh::TriMesh;
 
@@ -62,6 +60,13 @@ pub const SURFACE_CUBE: f32 = 1.0;
 pub const SURFACE_THRESHOLD: f32 = 0.6;
 /// Initial jitter of the particles, in particle spacings (seeded).
 pub const JITTER: f32 = 0.01;
+
+const SURFACING: Surfacing = Surfacing {
+    support: SURFACE_SUPPORT,
+    cube: SURFACE_CUBE,
+    threshold: SURFACE_THRESHOLD,
+    rest_density: REST_DENSITY,
+};
 
 /// The dam-break scene (see the module doc).
 pub struct DamBreak {
@@ -194,85 +199,22 @@ impl DamBreak {
 
     /// Reconstructs the surface of the current state.
     fn mesh(&self, frame: i32) -> Result<TriMesh, SceneError> {
-        let fail = |message: String| SceneError::Simulation { frame, message };
         let fluid = self
             .world
             .fluids()
             .get(self.fluid)
-            .ok_or_else(|| fail("the fluid vanished from the world".into()))?;
-        let live: Vec<usize> = (0..fluid.positions.len())
-            .filter(|&i| !fluid.deleted_particles.get(i).copied().unwrap_or(false))
-            .collect();
-        let positions: Vec<SsVector<f32>> = live
-            .iter()
-            .map(|&i| {
-                let p = fluid.positions[i];
-                SsVector::new(p.x, p.y, p.z)
-            })
-            .collect();
-        let velocities: Vec<SsVector<f32>> = live
-            .iter()
-            .map(|&i| {
-                let v = fluid.velocities[i];
-                SsVector::new(v.x, v.y, v.z)
-            })
-            .collect();
-        if positions.is_empty() {
-            return Ok(TriMesh::default().with_velocity(Vec::new()));
-        }
-        let r = self.radius;
-        let mut parameters = Parameters::new(r, SURFACE_SUPPORT * r, SURFACE_CUBE * r);
-        parameters.rest_density = REST_DENSITY;
-        parameters.iso_surface_threshold = SURFACE_THRESHOLD;
-        parameters.enable_multi_threading = false;
-        parameters.enable_simd = false;
-        parameters.spatial_decomposition = SpatialDecomposition::None;
-        let mut surface = splashsurf_lib::reconstruct_surface::<i64, f32>(&positions, &parameters)
-            .map_err(|e| fail(format!("surface reconstruction: {e}")))?;
-        let grid = surface.grid.clone();
-        splashsurf_lib::postprocessing::marching_cubes_cleanup(
-            &mut surface.mesh,
-            &grid,
-            None,
-            5,
-            false,
-        );
-        let densities = surface
-            .particle_densities
-            .take()
-            .ok_or_else(|| fail("splashsurf returned no particle densities".into()))?;
-        let rest_mass = REST_DENSITY * (2.0 * r).powi(3);
-        let interpolator =
-            SphInterpolator::new(&positions, &densities, rest_mass, SURFACE_SUPPORT * r);
-        let vertex_velocity =
-            interpolator.interpolate_vector_quantity(&velocities, &surface.mesh.vertices, true);
-        let mut triangles = Vec::with_capacity(surface.mesh.triangles.len());
-        let n = surface.mesh.vertices.len();
-        for (t, tri) in surface.mesh.triangles.iter().enumerate() {
-            let mut out = [0u32; 3];
-            for (k, &i) in tri.iter().enumerate() {
-                if i >= n || i > u32::MAX as usize {
-                    return Err(fail(format!("triangle {t} refers to vertex {i} of {n}")));
-                }
-                out[k] = i as u32;
-            }
-            triangles.push(out);
-        }
-        let positions = surface
-            .mesh
-            .vertices
-            .iter()
-            .map(|v| Vec3::new(v.x, v.y, v.z))
-            .collect();
-        let velocity = vertex_velocity
-            .iter()
-            .map(|v| {
-                let v = Vec3::new(v.x, v.y, v.z);
-                // A vertex with no particle in reach has no defined velocity.
-                if v.is_finite() { v } else { Vec3::ZERO }
-            })
-            .collect();
-        Ok(TriMesh::new(positions, triangles).with_velocity(velocity))
+            .ok_or_else(|| SceneError::Simulation {
+                frame,
+                message: "the fluid vanished from the world".into(),
+            })?;
+        let (positions, velocities) = sph::live_state(fluid);
+        sph::reconstruct(
+            &positions,
+            Some(&velocities),
+            self.radius,
+            &SURFACING,
+            frame,
+        )
     }
 
     /// Live fluid particles.

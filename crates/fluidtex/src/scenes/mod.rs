@@ -20,6 +20,11 @@
 //!   its surface reconstructed per frame by splashsurf_lib and velocities
 //!   carried to vertices by SPH interpolation ([`dam_break`], cargo feature
 //!   `sph`, on by default).
+//! * **`viscous-drop`** and **`lava`**: the same SPH pipeline with a strong
+//!   XSPH viscosity, at the 2021 paper's two other scales: a blob that falls
+//!   onto a plane and spreads ([`viscous_drop`], ≈ 61k triangles), and a
+//!   stream down a sloping channel that cools and stops, after which its
+//!   frames are bit-identical ([`lava`], ≈ 270k triangles).
 //!
 //! Time: frame F is at t = (F − first)/fps seconds; velocities are world
 //! units per second (DESIGN §1).
@@ -32,11 +37,17 @@ pub mod analytic;
 #[cfg(feature = "sph")]
 pub mod dam_break;
 pub mod flow;
+#[cfg(feature = "sph")]
+pub mod lava;
 pub mod marching_cubes;
 pub mod quality;
 pub mod relax;
+#[cfg(feature = "sph")]
+mod sph;
 #[cfg(test)]
 mod tests;
+#[cfg(feature = "sph")]
+pub mod viscous_drop;
 
 use glam::Vec3;
 use serde::Serialize;
@@ -76,7 +87,9 @@ pub struct SceneParams {
     /// a surface of area A gets about 3.7·A/h² triangles (measured; the
     /// triangle count grows as N²). `dam-break`: particles along the height
     /// of the water column (particle count grows as N³, triangles as N²).
-    /// Allowed 8–2048 (dam-break: 8–200).
+    /// `viscous-drop`: particles across the drop; `lava`: particles across
+    /// the channel (both grow like dam-break's). Allowed 8–2048 (dam-break:
+    /// 8–200; viscous-drop and lava: 8–120).
     pub resolution: u32,
     /// Frames per second (default 24); frame F is at t = (F − first)/fps.
     pub fps: f64,
@@ -85,7 +98,8 @@ pub struct SceneParams {
     /// Last frame (inclusive), ≥ first.
     pub last: i32,
     /// Seed of the scene's random choices. Analytic scenes are exact functions
-    /// of time and use none; `dam-break` jitters its initial particles with it.
+    /// of time and use none; the SPH scenes jitter their initial particles
+    /// with it.
     pub seed: u64,
 }
 
@@ -192,6 +206,14 @@ pub fn catalogue() -> &'static [(&'static str, &'static str)] {
             "dam-break",
             "SPH dam break (salva3d) reconstructed per frame with splashsurf",
         ),
+        (
+            "viscous-drop",
+            "viscous SPH blob falling onto a plane and spreading (about 61k triangles)",
+        ),
+        (
+            "lava",
+            "viscous SPH stream down a slope that cools and stops (about 270k triangles)",
+        ),
     ]
 }
 
@@ -206,17 +228,29 @@ fn unknown(name: &str) -> SceneError {
     }
 }
 
+/// The scenes made by the SPH pipeline (cargo feature `sph`).
+pub const SPH_SCENES: [&str; 3] = ["dam-break", "viscous-drop", "lava"];
+
+#[cfg(not(feature = "sph"))]
+fn needs_sph(name: &str) -> SceneError {
+    SceneError::InvalidParameter {
+        name: "scene",
+        value: name.into(),
+        allowed: format!("a scene built in: {name} needs the cargo feature `sph`"),
+    }
+}
+
 /// Default parameters of scene `name`.
 pub fn default_params(name: &str) -> Result<SceneParams, SceneError> {
-    if name == "dam-break" {
+    if SPH_SCENES.contains(&name) {
         #[cfg(feature = "sph")]
-        return Ok(dam_break::DamBreak::default_params());
-        #[cfg(not(feature = "sph"))]
-        return Err(SceneError::InvalidParameter {
-            name: "scene",
-            value: name.into(),
-            allowed: "a scene built in: dam-break needs the cargo feature `sph`".into(),
+        return Ok(match name {
+            "viscous-drop" => viscous_drop::ViscousDrop::default_params(),
+            "lava" => lava::Lava::default_params(),
+            _ => dam_break::DamBreak::default_params(),
         });
+        #[cfg(not(feature = "sph"))]
+        return Err(needs_sph(name));
     }
     analytic::default_params(name).ok_or_else(|| unknown(name))
 }
@@ -228,11 +262,15 @@ pub fn by_name(name: &str, params: Option<SceneParams>) -> Result<Box<dyn Scene>
         None => default_params(name)?,
     };
     params.validate()?;
-    if name == "dam-break" {
+    if SPH_SCENES.contains(&name) {
         #[cfg(feature = "sph")]
-        return Ok(Box::new(dam_break::DamBreak::new(params)?));
+        return Ok(match name {
+            "viscous-drop" => Box::new(viscous_drop::ViscousDrop::new(params)?),
+            "lava" => Box::new(lava::Lava::new(params)?),
+            _ => Box::new(dam_break::DamBreak::new(params)?),
+        });
         #[cfg(not(feature = "sph"))]
-        return Err(default_params(name).err().unwrap_or_else(|| unknown(name)));
+        return Err(needs_sph(name));
     }
     analytic::by_name(name, params)
         .map(|s| Box::new(s) as Box<dyn Scene>)

@@ -306,9 +306,9 @@ fn analytic_frames_do_not_depend_on_thread_count_or_order() {
 
 #[test]
 fn unknown_scene_lists_the_valid_ones() {
-    let err = by_name("lava", None).err().expect("unknown");
+    let err = by_name("magma", None).err().expect("unknown");
     let msg = err.to_string();
-    assert!(msg.contains("'lava'"), "{msg}");
+    assert!(msg.contains("'magma'"), "{msg}");
     for (name, _) in catalogue() {
         assert!(msg.contains(name), "{msg}");
     }
@@ -353,7 +353,7 @@ fn parameters_and_frames_are_validated() {
 #[test]
 fn info_records_every_parameter() {
     for (name, _) in catalogue() {
-        if *name == "dam-break" {
+        if SPH_SCENES.contains(name) {
             continue;
         }
         let s = by_name(name, Some(small(name))).expect("scene");
@@ -448,5 +448,189 @@ mod dam_break_tests {
         let info = s.info();
         assert_eq!(info.name, "dam-break");
         assert!(info.parameters["fluid_particles"].as_u64().unwrap_or(0) > 100);
+    }
+}
+
+/// `viscous-drop` and `lava` at tiny sizes: spreading, flowing downhill,
+/// stopping bit for bit, determinism.
+#[cfg(feature = "sph")]
+mod viscous_scene_tests {
+    use super::*;
+
+    fn params(name: &str, resolution: u32, fps: f64, last: i32, seed: u64) -> SceneParams {
+        let mut p = default_params(name).expect("scene");
+        p.resolution = resolution;
+        p.fps = fps;
+        p.last = last;
+        p.seed = seed;
+        p
+    }
+
+    /// Radius of the drop's contact with the floor: the farthest vertex
+    /// from the drop's axis among those within `h` of the floor (0 when
+    /// none touches).
+    fn footprint(mesh: &TriMesh, h: f32) -> f32 {
+        mesh.positions
+            .iter()
+            .filter(|p| p.y < h)
+            .map(|p| (p.x * p.x + p.z * p.z).sqrt())
+            .fold(0.0, f32::max)
+    }
+
+    #[test]
+    fn the_drop_falls_then_its_footprint_spreads_monotonically() {
+        let p = params("viscous-drop", 10, 24.0, 24, 0);
+        let mut s = by_name("viscous-drop", Some(p)).expect("viscous-drop");
+        let spacing = 2.0 * viscous_drop::DROP_RADIUS / 10.0;
+        // The floor is y = 0 and the surface of a resting layer lies near
+        // it (the iso-surface is about a particle radius outside the
+        // particle centres); the drop starts 1.5 spacings above it.
+        let h = 0.5 * spacing;
+        let radii: Vec<f32> = (0..=24)
+            .map(|f| {
+                let mesh = s.frame(f).expect("frame");
+                assert!(!mesh.is_empty(), "frame {f}");
+                assert!(
+                    mesh.velocity()
+                        .expect("velocity")
+                        .iter()
+                        .all(|v| v.is_finite())
+                );
+                assert_eq!(
+                    Topology::new(mesh.vertex_count(), &mesh.triangles).boundary_edge_count(),
+                    0,
+                    "frame {f}: closed surface"
+                );
+                footprint(&mesh, h)
+            })
+            .collect();
+        // In the air at first (the drop starts 0.07 m above the floor)...
+        assert_eq!(radii[0], 0.0, "{radii:?}");
+        let impact = radii.iter().position(|&r| r > 0.0).expect("the drop lands");
+        assert!(
+            (2..=8).contains(&impact),
+            "impact at frame {impact}: {radii:?}"
+        );
+        // ...then the contact disc only grows (within a tenth of a particle
+        // spacing of noise), to well beyond the drop's radius.
+        for f in impact + 1..radii.len() {
+            assert!(
+                radii[f] >= radii[f - 1] - 0.1 * spacing,
+                "frame {f}: footprint shrank {} -> {}: {radii:?}",
+                radii[f - 1],
+                radii[f]
+            );
+        }
+        let last = radii[radii.len() - 1];
+        assert!(last > 1.3 * viscous_drop::DROP_RADIUS, "{radii:?}");
+        assert!(
+            last > radii[impact + 2] + 2.0 * spacing,
+            "still spreading: {radii:?}"
+        );
+    }
+
+    #[test]
+    fn lava_runs_downhill_slows_and_then_stands_bit_identical() {
+        // 6 fps: frame 15 is t = 2.5 s (cooling starts), 24 is t = 4 s (solid).
+        let p = params("lava", 8, 6.0, 28, 0);
+        let mut s = lava::Lava::new(p).expect("lava");
+        let mut centroid = Vec::new();
+        let mut meshes = Vec::new();
+        for f in 0..=28 {
+            let mesh = s.frame(f).expect("frame");
+            let pts = s.particle_positions();
+            let c = pts.iter().map(|p| f64::from(p.x)).sum::<f64>() / pts.len().max(1) as f64;
+            centroid.push(c);
+            meshes.push(mesh);
+        }
+        // Downhill (+x) while it flows.
+        for f in 1..=15 {
+            assert!(centroid[f] > centroid[f - 1], "frame {f}: {centroid:?}");
+        }
+        assert!(centroid[15] - centroid[0] > 0.1, "{centroid:?}");
+        // Cooling (frames 15-24): it slows down frame after frame, and the
+        // last step into the solid state is a small fraction of the early
+        // flow's per-frame advance, so the stop is no jump.
+        let step = |f: usize| centroid[f] - centroid[f - 1];
+        for f in 17..=24 {
+            assert!(
+                step(f) >= 0.0 && step(f) <= step(f - 1),
+                "frame {f}: {centroid:?}"
+            );
+        }
+        let early = (centroid[4] - centroid[0]) / 4.0;
+        assert!(
+            step(24) < 0.05 * early,
+            "{early} vs {}: {centroid:?}",
+            step(24)
+        );
+        // Solid from frame 24 on: the same mesh, bit for bit, zero velocity
+        // (+0.0, not -0.0).
+        let solid = bits(&meshes[24]);
+        assert!(
+            solid.2.iter().flatten().all(|&b| b == 0),
+            "velocities are +0.0"
+        );
+        for (f, m) in meshes.iter().enumerate().skip(25) {
+            assert!(bits(m) == solid, "frame {f} differs from frame 24");
+            assert_eq!(centroid[f], centroid[24]);
+        }
+        // Control: the frame just before still moves.
+        assert!(bits(&meshes[23]) != solid);
+        assert!(
+            meshes[23]
+                .velocity()
+                .expect("velocity")
+                .iter()
+                .any(|v| *v != Vec3::ZERO)
+        );
+    }
+
+    #[test]
+    fn same_seed_same_bytes_on_any_thread_count_other_seed_other_bytes() {
+        for name in ["viscous-drop", "lava"] {
+            let run = |seed: u64, threads: usize| {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .expect("pool");
+                pool.install(|| {
+                    let mut s = by_name(name, Some(params(name, 8, 24.0, 6, seed))).expect("scene");
+                    (0..=6)
+                        .map(|f| bits(&s.frame(f).expect("frame")))
+                        .collect::<Vec<_>>()
+                })
+            };
+            let a = run(5, 1);
+            assert!(a == run(5, 2), "{name}: 1 vs 2 threads");
+            assert!(a != run(6, 1), "{name}: the seed is used");
+        }
+    }
+
+    #[test]
+    fn sizes_are_validated_and_info_is_complete() {
+        for name in ["viscous-drop", "lava"] {
+            let too_big = params(name, 121, 24.0, 4, 0);
+            let err = by_name(name, Some(too_big)).err().expect("refused");
+            assert!(
+                err.to_string()
+                    .starts_with("scene parameter resolution = 121 is out of range"),
+                "{err}"
+            );
+            let s = by_name(name, Some(params(name, 8, 24.0, 4, 0))).expect("scene");
+            let info = s.info();
+            assert_eq!(info.name, name);
+            assert!(info.parameters["fluid_particles"].as_u64().unwrap_or(0) > 100);
+            assert_eq!(info.parameters["resolution"], 8);
+        }
+        let mut s = by_name("lava", Some(params("lava", 8, 24.0, 4, 0))).expect("lava");
+        let _ = s.frame(3).expect("frame 3");
+        assert_eq!(
+            s.frame(2).err(),
+            Some(SceneError::FrameOrder {
+                frame: 2,
+                previous: 3
+            })
+        );
     }
 }
