@@ -77,6 +77,36 @@ pub struct Config {
     /// their defaults, so fingerprints of older runs hold.
     #[serde(skip_serializing_if = "is_default_rigid")]
     pub lapped_rigid: LappedRigidParams,
+    /// Several exemplars per surface, instead of `exemplar` (each with its
+    /// weight, and its own feature map and extra channels). Left out of the
+    /// file when empty, so fingerprints of older runs hold.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub exemplars: Vec<ExemplarEntry>,
+    /// How a new patch picks among several exemplars: probability,
+    /// region, histogram \[probability].
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub exemplar_select: Option<String>,
+    /// Region image of `exemplar_select = "region"` (grey level = exemplar
+    /// index, projected from above over the first frame's x-z extent).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub exemplar_region: Option<PathBuf>,
+}
+
+/// One of several exemplars (`exemplars = [{ path = ..., weight = ... }]`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ExemplarEntry {
+    /// Colour image.
+    pub path: PathBuf,
+    /// Target proportion \[1] (normalised over all exemplars).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub weight: Option<f32>,
+    /// Its feature map; derived when absent (all exemplars alike).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub feature: Option<PathBuf>,
+    /// Its extra channels, name = image (every exemplar the same names).
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub channels: BTreeMap<String, PathBuf>,
 }
 
 fn is_default_optimization(p: &OptimizationParams) -> bool {
@@ -136,6 +166,18 @@ impl Config {
         }
         if let Some(p) = &mut config.lapped_rigid.mask {
             rebase(p);
+        }
+        if let Some(p) = &mut config.exemplar_region {
+            rebase(p);
+        }
+        for e in &mut config.exemplars {
+            rebase(&mut e.path);
+            if let Some(p) = &mut e.feature {
+                rebase(p);
+            }
+            for p in e.channels.values_mut() {
+                rebase(p);
+            }
         }
         Ok(config)
     }
@@ -220,9 +262,19 @@ pub struct RunFlags {
     /// Seed for every random choice [0]
     #[arg(long)]
     pub seed: Option<u64>,
-    /// Colour exemplar (PNG, JPEG, EXR); default: built-in pebbles
-    #[arg(long)]
-    pub exemplar: Option<PathBuf>,
+    /// Colour exemplar (PNG, JPEG, EXR); default: built-in pebbles. Repeat
+    /// for several exemplars per surface, each IMG:WEIGHT (weight 1 when
+    /// left out)
+    #[arg(long = "exemplar", value_name = "IMG[:WEIGHT]")]
+    pub exemplar: Vec<String>,
+    /// Several exemplars: how a new patch picks one [probability]
+    #[arg(long, value_parser = names::<fluidtex::exemplar::ExemplarSelect>())]
+    pub exemplar_select: Option<String>,
+    /// Several exemplars, region selection: grey image of exemplar indices
+    /// (black 0, white the last), seen from above over the first frame;
+    /// default: the mesh's per-vertex exemplar_id
+    #[arg(long, value_name = "IMG")]
+    pub exemplar_region: Option<PathBuf>,
     /// Feature map (grey image, bright = important features, eroded last)
     #[arg(long)]
     pub feature: Option<PathBuf>,
@@ -363,11 +415,34 @@ impl RunFlags {
             gutter,
             fps,
             seed,
-            exemplar,
             feature,
             feature_method,
-            exemplar_filter
+            exemplar_filter,
+            exemplar_select,
+            exemplar_region
         );
+        match self.exemplar.as_slice() {
+            [] => {}
+            [one] => {
+                let (path, _) = exemplar_spec(one)?;
+                config.exemplar = Some(path);
+                config.exemplars.clear();
+            }
+            several => {
+                config.exemplar = None;
+                config.exemplars = several
+                    .iter()
+                    .map(|spec| {
+                        let (path, weight) = exemplar_spec(spec)?;
+                        Ok(ExemplarEntry {
+                            path,
+                            weight,
+                            ..Default::default()
+                        })
+                    })
+                    .collect::<Result<_>>()?;
+            }
+        }
         for spec in &self.channels {
             let Some((name, path)) = spec.split_once('=') else {
                 bail!("--channel {spec}: expected NAME=IMAGE, e.g. displacement=disp.exr");
@@ -513,6 +588,21 @@ impl RunFlags {
         self.rigid.apply(&mut config.lapped_rigid);
         Ok(())
     }
+}
+
+/// `IMG` or `IMG:WEIGHT` of `--exemplar`: the weight is what follows the
+/// last `:` when it reads as a number (so `C:\\tex\\a.png` stays a path).
+fn exemplar_spec(spec: &str) -> Result<(PathBuf, Option<f32>)> {
+    if let Some((path, w)) = spec.rsplit_once(':')
+        && !path.is_empty()
+        && let Ok(weight) = w.parse::<f32>()
+    {
+        if !(weight.is_finite() && weight > 0.0) {
+            bail!("--exemplar {spec}: the weight must be a positive number");
+        }
+        return Ok((PathBuf::from(path), Some(weight)));
+    }
+    Ok((PathBuf::from(spec), None))
 }
 
 /// Flags of the lapped-rigid method (`[lapped_rigid]` keys), one per key.

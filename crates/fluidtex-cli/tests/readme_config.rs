@@ -212,9 +212,20 @@ fn keys_set_by(flag: &str, takes_value: bool, keys: &BTreeSet<String>) -> BTreeS
     let samples: &[&str] = if takes_value {
         // Three-value flags take three words (`--up-axis 0 1 0`).
         &[
-            "7", "7 7 7", "global", "paper", "aligned", "a b c", "a=b.png",
+            "7",
+            "7 7 7",
+            "global",
+            "paper",
+            "aligned",
+            "a b c",
+            "a=b.png",
             // Named settings accept only their names.
-            "advect", "none", "distance", "7,7,7", "a,b,c",
+            "advect",
+            "none",
+            "distance",
+            "histogram",
+            "7,7,7",
+            "a,b,c",
         ]
     } else {
         &[""]

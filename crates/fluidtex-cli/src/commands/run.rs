@@ -6,7 +6,10 @@ use std::sync::Arc;
 use anyhow::{Context, Error, Result, bail};
 use clap::Args;
 use fluidtex::atlas::AtlasParams;
-use fluidtex::exemplar::{Exemplar, ExemplarFilter, FeatureMethod, builtin_pebbles};
+use fluidtex::exemplar::{
+    Exemplar, ExemplarFilter, ExemplarSelect, ExemplarSet, FeatureMethod, RegionImage,
+    builtin_pebbles,
+};
 use fluidtex::io::ReadOptions;
 use fluidtex::methods::{Method, Stat, StatsExt};
 use fluidtex::named::Named;
@@ -161,13 +164,63 @@ pub fn build_exemplar(config: &Config) -> Result<Exemplar> {
     Ok(exemplar.with_filter(filter))
 }
 
+/// The exemplars the config names: `exemplars` (several per surface) or
+/// the one exemplar of [`build_exemplar`].
+pub fn build_exemplar_set(config: &Config) -> Result<ExemplarSet> {
+    let select = match config.exemplar_select.as_deref() {
+        None => ExemplarSelect::default(),
+        Some(name) => {
+            ExemplarSelect::parse_named("exemplar selection", name).map_err(Error::msg)?
+        }
+    };
+    if config.exemplars.is_empty() {
+        if config.exemplar_region.is_some() {
+            bail!("--exemplar-region needs several exemplars (--exemplar IMG:WEIGHT, repeated)");
+        }
+        return Ok(ExemplarSet::single(Arc::new(build_exemplar(config)?)));
+    }
+    if config.exemplar.is_some() || !config.channels.is_empty() || config.feature.is_some() {
+        bail!(
+            "several exemplars: give each its feature map and channels in the config's \
+             `exemplars` entries, not with exemplar, --feature or --channel"
+        );
+    }
+    let method = match config.feature_method.as_deref() {
+        None => FeatureMethod::default(),
+        Some(name) => FeatureMethod::parse_named("feature method", name).map_err(Error::msg)?,
+    };
+    let filter = match config.exemplar_filter.as_deref() {
+        None => ExemplarFilter::default(),
+        Some(name) => ExemplarFilter::parse_named("exemplar filter", name).map_err(Error::msg)?,
+    };
+    let mut entries = Vec::with_capacity(config.exemplars.len());
+    for e in &config.exemplars {
+        let channels: Vec<(String, PathBuf)> = e
+            .channels
+            .iter()
+            .map(|(k, v)| (k.clone(), v.clone()))
+            .collect();
+        let exemplar = Exemplar::load(&e.path, &channels, e.feature.as_deref(), method)?;
+        entries.push((
+            e.path.display().to_string(),
+            Arc::new(exemplar.with_filter(filter)),
+            e.weight.unwrap_or(1.0),
+        ));
+    }
+    let region = match &config.exemplar_region {
+        Some(path) => Some(RegionImage::load(path)?),
+        None => None,
+    };
+    Ok(ExemplarSet::new(entries, select, region)?)
+}
+
 /// The method the config names, its parameters checked before the
 /// exemplar is read.
 pub fn build_method(config: &Config) -> Result<Box<dyn Method>> {
     config
         .method_params()
-        .build(config.method_kind(), config.seed.unwrap_or(0), || {
-            Ok::<_, Error>(Arc::new(build_exemplar(config)?))
+        .build_set(config.method_kind(), config.seed.unwrap_or(0), || {
+            build_exemplar_set(config)
         })
 }
 

@@ -18,6 +18,8 @@
 //!   pyramid ([`mip`], built once with the exemplar), trilinear, for atlas
 //!   texels that show the exemplar minified; [`Exemplar::filter`] says
 //!   whether methods use it ([`ExemplarFilter`]).
+//! - [`set`]: several exemplars on one surface, with the patch's choice
+//!   among them ([`ExemplarSet`], [`ExemplarSelect`]).
 
 pub mod channels;
 pub mod decode;
@@ -26,6 +28,7 @@ pub mod mip;
 pub mod openexr;
 pub mod pebbles;
 mod sampling;
+pub mod set;
 
 use std::path::{Path, PathBuf};
 
@@ -34,6 +37,7 @@ use thiserror::Error;
 pub use feature::{DistanceParams, FeatureMap, FeatureMethod, FeatureOrigin};
 pub use mip::mip_levels;
 pub use pebbles::builtin_pebbles;
+pub use set::{ExemplarSelect, ExemplarSet, RegionImage};
 
 use crate::texture::Texture;
 use sampling::{Lattice, blend, blend_levels};
@@ -135,6 +139,14 @@ pub enum ExemplarError {
     Layout { what: String, reason: String },
     #[error("extra channel name '{name}' is used twice")]
     DuplicateChannel { name: String },
+    #[error("{what}: exemplar weight {value} must be a positive number")]
+    Weight { what: String, value: f32 },
+    #[error("{what} and {other} cannot share a surface: {reason}")]
+    Mismatch {
+        what: String,
+        other: String,
+        reason: String,
+    },
     #[error("{name} = {value} is outside [{min}, {max}]")]
     InvalidParameter {
         name: &'static str,

@@ -36,7 +36,8 @@ use ply_rs_bw::ply::{
 };
 
 use super::{IoError, ReadOptions, read_bytes};
-use crate::mesh::{MeshError, TriMesh};
+use crate::exemplar::set::EXEMPLAR_ID;
+use crate::mesh::{Attribute, MeshError, TriMesh};
 
 /// Velocity property triples tried in order when none is configured.
 pub const VELOCITY_NAMES: [[&str; 3]; 3] = [
@@ -75,6 +76,12 @@ pub fn parse_ply(path: &Path, bytes: &[u8], options: &ReadOptions) -> Result<Tri
         .ok_or_else(|| header_err("no vertex element".into()))?;
     let vertex_count = vertex_def.count;
     let (vertex_def, has_velocity) = vertex_definition(vertex_def, options).map_err(header_err)?;
+    // The region map of several exemplars per surface (crate::exemplar::set).
+    let has_exemplar_id = vertex_def
+        .properties
+        .get(EXEMPLAR_ID)
+        .is_some_and(|p| matches!(p.data_type, PropertyType::Scalar(_)));
+    let mut exemplar_ids = Vec::new();
     let face_def = match header.elements.get("face") {
         Some(def) => Some(face_definition(def).map_err(header_err)?),
         None => None,
@@ -105,6 +112,9 @@ pub fn parse_ply(path: &Path, bytes: &[u8], options: &ReadOptions) -> Result<Tri
                     positions.push(Vec3::from(v.p));
                     if has_velocity {
                         velocity.push(Vec3::from(v.v));
+                    }
+                    if has_exemplar_id {
+                        exemplar_ids.push(v.exemplar_id);
                     }
                 }
             }
@@ -161,6 +171,10 @@ pub fn parse_ply(path: &Path, bytes: &[u8], options: &ReadOptions) -> Result<Tri
     let mut mesh = TriMesh::new(positions, triangles);
     if has_velocity {
         mesh = mesh.with_velocity(velocity);
+    }
+    if has_exemplar_id {
+        mesh.attributes
+            .insert(EXEMPLAR_ID.to_string(), Attribute::Scalar(exemplar_ids));
     }
     Ok(mesh)
 }
@@ -399,6 +413,7 @@ impl PropertyAccess for Skip {
 struct VertexRec {
     p: [f32; 3],
     v: [f32; 3],
+    exemplar_id: f32,
 }
 
 impl VertexRec {
@@ -410,6 +425,7 @@ impl VertexRec {
             k if k == VEL_KEYS[0] => &mut self.v[0],
             k if k == VEL_KEYS[1] => &mut self.v[1],
             k if k == VEL_KEYS[2] => &mut self.v[2],
+            EXEMPLAR_ID => &mut self.exemplar_id,
             _ => return PropertyAccessResult::Ignored,
         };
         *slot = value;
@@ -422,6 +438,7 @@ impl PropertyAccess for VertexRec {
         VertexRec {
             p: [0.0; 3],
             v: [0.0; 3],
+            exemplar_id: 0.0,
         }
     }
     fn set_char(&mut self, k: &str, v: i8) -> PropertyAccessResult {

@@ -35,7 +35,19 @@ use crate::exemplar::{Exemplar, ExemplarFilter};
 /// Leaves `out` as it is and returns `None` for
 /// [`ExemplarFilter::Unfiltered`].
 pub fn apply_footprint_filtering(out: &mut FillBuffers, exemplar: &Exemplar) -> Option<Vec<f32>> {
-    if exemplar.filter == ExemplarFilter::Unfiltered {
+    apply_footprint_filtering_by(out, exemplar.filter, |_| exemplar)
+}
+
+/// [`apply_footprint_filtering`] where texels show different exemplars
+/// (several exemplars per surface): `exemplar_of(source)` is the exemplar
+/// of a texel's source (patch id + 1, never outside or uncovered); its size
+/// scales the footprint and its pyramid is read. `filter` applies to all.
+pub fn apply_footprint_filtering_by<'e>(
+    out: &mut FillBuffers,
+    filter: ExemplarFilter,
+    exemplar_of: impl Fn(u32) -> &'e Exemplar + Sync,
+) -> Option<Vec<f32>> {
+    if filter == ExemplarFilter::Unfiltered {
         return None;
     }
     let FillBuffers {
@@ -53,8 +65,6 @@ pub fn apply_footprint_filtering(out: &mut FillBuffers, exemplar: &Exemplar) -> 
     if n == 0 || c == 0 || source.len() != n || uv.len() != n || values.len() != n * c {
         return Some(lods);
     }
-    let (ew, eh) = exemplar.size();
-    let texels = Vec2::new(ew as f32, eh as f32);
     let (source, uv) = (source.as_slice(), uv.as_slice());
     values
         .par_chunks_mut(w * c)
@@ -62,6 +72,13 @@ pub fn apply_footprint_filtering(out: &mut FillBuffers, exemplar: &Exemplar) -> 
         .enumerate()
         .for_each(|(y, (row, row_lod))| {
             for (x, lod_out) in row_lod.iter_mut().enumerate() {
+                let s = source[y * w + x];
+                if s == OUTSIDE || s == UNCOVERED {
+                    continue;
+                }
+                let exemplar = exemplar_of(s);
+                let (ew, eh) = exemplar.size();
+                let texels = Vec2::new(ew as f32, eh as f32);
                 let Some(lod) = texel_lod(source, uv, w, x, y, texels) else {
                     continue;
                 };

@@ -20,6 +20,9 @@ pub mod lapped_rigid;
 pub mod optimization;
 pub mod registry;
 
+#[cfg(test)]
+mod multi_tests;
+
 use glam::{Vec2, Vec3};
 use std::collections::BTreeMap;
 use thiserror::Error;
@@ -209,6 +212,10 @@ pub enum MethodError {
     },
     #[error("saved state cannot be read: {0}")]
     State(String),
+    /// Input a method cannot use, said in one line naming the frame and
+    /// element (e.g. a per-vertex `exemplar_id` naming no exemplar).
+    #[error("{0}")]
+    Input(String),
 }
 
 /// One texturing method.

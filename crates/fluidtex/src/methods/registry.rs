@@ -16,7 +16,7 @@ use super::erosion::{Erosion, ErosionParams, Variant};
 use super::lapped_rigid::{LappedRigid, LappedRigidParams};
 use super::optimization::{Optimization, OptimizationParams};
 use super::{Method, MethodError};
-use crate::exemplar::Exemplar;
+use crate::exemplar::{Exemplar, ExemplarSet};
 use crate::named::Named;
 
 /// A texturing method.
@@ -113,16 +113,49 @@ impl MethodParams {
     where
         E: From<MethodError>,
     {
+        self.build_set(kind, seed, || Ok(ExemplarSet::single(exemplar()?)))
+    }
+
+    /// Builds `kind` over the exemplars `exemplars` returns (called only
+    /// for methods that read one). Several exemplars per surface are
+    /// offered by the lapped methods (erosion, its baselines advect and
+    /// blend-deformable, lapped-rigid); the others refuse more than one.
+    pub fn build_set<E>(
+        &self,
+        kind: MethodKind,
+        seed: u64,
+        exemplars: impl FnOnce() -> Result<ExemplarSet, E>,
+    ) -> Result<Box<dyn Method>, E>
+    where
+        E: From<MethodError>,
+    {
         self.validate(kind)?;
         if kind == MethodKind::AtlasCheck {
             return Ok(Box::new(AtlasCheck::new(self.atlas_check.clone())?));
         }
-        let exemplar = exemplar()?;
+        let set = Arc::new(exemplars()?);
+        let several = matches!(
+            kind,
+            MethodKind::Erosion
+                | MethodKind::Advect
+                | MethodKind::BlendDeformable
+                | MethodKind::LappedRigid
+        );
+        if set.len() > 1 && !several {
+            return Err(MethodError::InvalidParameter {
+                name: "exemplar",
+                value: format!("{} exemplars with --method {}", set.len(), kind.name()),
+                allowed: "one exemplar; several per surface with erosion, advect, \
+                          blend-deformable or lapped-rigid",
+            }
+            .into());
+        }
+        let exemplar = Arc::clone(set.primary());
         let erosion = |variant| -> Result<Box<dyn Method>, MethodError> {
-            Ok(Box::new(Erosion::with_variant(
+            Ok(Box::new(Erosion::with_exemplars(
                 variant,
                 self.erosion.clone(),
-                Arc::clone(&exemplar),
+                Arc::clone(&set),
                 seed,
             )?))
         };
@@ -142,9 +175,11 @@ impl MethodParams {
                 exemplar,
                 seed,
             )?),
-            MethodKind::LappedRigid => {
-                Box::new(LappedRigid::new(self.lapped_rigid.clone(), exemplar, seed)?)
-            }
+            MethodKind::LappedRigid => Box::new(LappedRigid::with_exemplars(
+                self.lapped_rigid.clone(),
+                Arc::clone(&set),
+                seed,
+            )?),
         })
     }
 }

@@ -94,7 +94,7 @@ pub fn fill(
                 let mut visible = 0u8;
                 for &(i, uv, weight) in &found {
                     let share = weight / total;
-                    ctx.exemplar.sample_all(uv.x, uv.y, &mut sample);
+                    ctx.exemplar_of(i).sample_all(uv.x, uv.y, &mut sample);
                     for (o, s) in out.iter_mut().zip(&sample) {
                         *o += share * s;
                     }

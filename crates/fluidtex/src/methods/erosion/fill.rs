@@ -22,6 +22,7 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 use super::erode::ErosionTest;
+use super::exemplars::MultiFill;
 use super::feature_levels::FeatureLevelSampler;
 use super::patch::Patch;
 use crate::atlas::Atlas;
@@ -200,6 +201,10 @@ pub struct FillContext<'a> {
     pub feature: &'a FeatureLevelSampler<'a>,
     pub test: ErosionTest,
     pub tolerance: LocateTolerance,
+    /// Several exemplars: each patch reads its own exemplar, feature map
+    /// and erosion test ([`Patch::exemplar`]); `None`: every patch reads
+    /// `exemplar`, `feature` and `test`.
+    pub multi: Option<&'a MultiFill<'a>>,
 }
 
 /// What a texel resolved to.
@@ -256,12 +261,36 @@ impl FillContext<'_> {
         Some((uv, w, lod))
     }
 
-    /// True when patch uv `uv` with weight `w` survives erosion, the
-    /// feature map read at level `lod` (see [`super::feature_levels`]).
+    /// The exemplar patch `i` (index in the patch list) shows.
     #[inline]
-    pub fn kept(&self, uv: Vec2, w: f32, lod: f32) -> bool {
-        let f = self.feature.sample(uv.x, uv.y, lod);
-        !self.test.eroded(f, uv.x, uv.y, w)
+    pub fn exemplar_of(&self, i: u32) -> &Exemplar {
+        match self.multi {
+            None => self.exemplar,
+            Some(m) => self
+                .patches
+                .get(i as usize)
+                .and_then(|p| m.exemplars.get(p.exemplar as usize))
+                .map_or(self.exemplar, |e| e),
+        }
+    }
+
+    /// True when uv `uv` of patch `i` with weight `w` survives erosion,
+    /// the patch's feature map read at level `lod` (see
+    /// [`super::feature_levels`]).
+    #[inline]
+    pub fn kept(&self, i: u32, uv: Vec2, w: f32, lod: f32) -> bool {
+        let (feature, test) = match self.multi {
+            None => (self.feature, self.test),
+            Some(m) => {
+                let e = self.patches.get(i as usize).map_or(0, |p| p.exemplar) as usize;
+                match (m.features.get(e), m.tests.get(e)) {
+                    (Some(f), Some(&t)) => (f, t),
+                    _ => (self.feature, self.test),
+                }
+            }
+        };
+        let f = feature.sample(uv.x, uv.y, lod);
+        !test.eroded(f, uv.x, uv.y, w)
     }
 
     /// The lapped decision for one surface point: the first patch, in the
@@ -272,7 +301,7 @@ impl FillContext<'_> {
         candidates.chunk_by(|a, b| a.0 == b.0).find_map(|group| {
             let i = group[0].0;
             let (uv, w, lod) = self.locate(i, group.iter().map(|c| c.1), x, n)?;
-            self.kept(uv, w, lod).then_some(Hit { patch: i, uv })
+            self.kept(i, uv, w, lod).then_some(Hit { patch: i, uv })
         })
     }
 }
@@ -424,7 +453,7 @@ impl FillContext<'_> {
     fn resolve_in_span(&self, cands: &[SpanCandidate], k: u32, x: Vec3, n: Vec3) -> Option<Hit> {
         patch_groups(cands, k).find_map(|(i, tris)| {
             let (uv, w, lod) = self.locate(i, tris, x, n)?;
-            self.kept(uv, w, lod).then_some(Hit { patch: i, uv })
+            self.kept(i, uv, w, lod).then_some(Hit { patch: i, uv })
         })
     }
 }
@@ -534,7 +563,7 @@ pub fn fill(
                 match ctx.resolve_in_span(cands, texel.k, texel.p, texel.n) {
                     Some(hit) => {
                         if !defer {
-                            ctx.exemplar.sample_all(
+                            ctx.exemplar_of(hit.patch).sample_all(
                                 hit.uv.x,
                                 hit.uv.y,
                                 &mut values[t * c..(t + 1) * c],

@@ -11,11 +11,13 @@
 //! 4. [`update`]: new patches below the others until no chart texel is
 //!    uncovered; patches no texel used are deleted.
 //!
-//! Every exemplar channel is driven by the same per-texel selection.
+//! Every exemplar channel is driven by the same per-texel selection. With
+//! several exemplars each patch shows its own ([`exemplars`]).
 
 pub mod blend;
 pub mod distortion;
 pub mod erode;
+pub mod exemplars;
 pub mod feature_levels;
 pub mod fill;
 pub mod patch;
@@ -281,6 +283,8 @@ pub struct Erosion {
     /// Patches dropped by [`Erosion::reset`] since the last step (counted
     /// as deleted by the next step).
     dropped_by_reset: usize,
+    /// Several exemplars per surface; `None`: one (`exemplar`).
+    multi: Option<exemplars::Multi>,
 }
 
 pub(crate) use crate::seed::mix;
@@ -330,7 +334,24 @@ impl Erosion {
             seed,
             state: ErosionState::default(),
             dropped_by_reset: 0,
+            multi: None,
         })
+    }
+
+    /// The method or baseline `variant` over the exemplars of `set`, each
+    /// patch showing the one its strategy chose ([`exemplars`]). One
+    /// exemplar is exactly [`Erosion::with_variant`].
+    pub fn with_exemplars(
+        variant: Variant,
+        params: ErosionParams,
+        set: Arc<crate::exemplar::ExemplarSet>,
+        seed: u64,
+    ) -> Result<Erosion, MethodError> {
+        let mut e = Erosion::with_variant(variant, params, Arc::clone(set.primary()), seed)?;
+        if set.len() > 1 {
+            e.multi = Some(exemplars::Multi::new(set));
+        }
+        Ok(e)
     }
 
     /// The patch state (for tests and statistics).
@@ -346,8 +367,9 @@ impl Erosion {
         self.state.patches.clear();
     }
 
-    /// The erosion test for patches of uv radius `footprint` = r/S.
-    fn erosion_test(&self, footprint: f32) -> ErosionTest {
+    /// The erosion test for patches of uv radius `footprint` = r/S over
+    /// `feature` (the exemplar's feature map).
+    fn erosion_test(&self, footprint: f32, feature: &crate::exemplar::FeatureMap) -> ErosionTest {
         if self.variant != Variant::Erode {
             return ErosionTest::never();
         }
@@ -356,7 +378,7 @@ impl Erosion {
             // Patches larger than the exemplar square cannot reach further than it.
             Falloff::Footprint => footprint.clamp(1e-3, erode::PAPER_REACH),
         };
-        ErosionTest::with_reach(&self.exemplar.feature, self.params.epsilon, reach)
+        ErosionTest::with_reach(feature, self.params.epsilon, reach)
     }
 
     fn shape(
@@ -419,8 +441,25 @@ impl Method for Erosion {
         }
         counts.unused = self.delete_unused(&out, blended.used.as_deref());
         clock.lap("delete");
+        let by_id = self
+            .multi
+            .as_ref()
+            .map(|_| exemplars::by_id(&self.state.patches, self.state.next_id));
         let exemplar_lod = (self.variant != Variant::Blend)
-            .then(|| super::footprint::apply_footprint_filtering(&mut out, &self.exemplar))
+            .then(|| match (&self.multi, &by_id) {
+                (Some(m), Some(by_id)) => {
+                    let all = m.set.exemplars();
+                    super::footprint::apply_footprint_filtering_by(
+                        &mut out,
+                        self.exemplar.filter,
+                        |s| {
+                            let e = by_id.get(s as usize - 1).copied().unwrap_or(0);
+                            all.get(e as usize).map_or(&*self.exemplar, |a| a)
+                        },
+                    )
+                }
+                _ => super::footprint::apply_footprint_filtering(&mut out, &self.exemplar),
+            })
             .flatten();
         clock.lap("exemplar filter");
         let mut result = FrameResult {
@@ -429,6 +468,10 @@ impl Method for Erosion {
             ..Default::default()
         };
         self.record_stats(&mut result.stats, &out, counts);
+        if let (Some(m), Some(by_id)) = (&self.multi, &by_id) {
+            let texels = exemplars::texels_per_exemplar(&out.source, by_id, m.set.len());
+            result.stats.insert("exemplar_texels".into(), texels.into());
+        }
         result.source = Some(out.source);
         result.uv = Some(out.uv);
         result.layers = blended.layers;
@@ -437,11 +480,22 @@ impl Method for Erosion {
     }
 
     fn save_state(&self) -> Result<Vec<u8>, MethodError> {
-        postcard::to_allocvec(&self.state).map_err(|e| MethodError::State(e.to_string()))
+        let mut bytes =
+            postcard::to_allocvec(&self.state).map_err(|e| MethodError::State(e.to_string()))?;
+        // Several exemplars: their ids follow the patch state.
+        if let Some(m) = &self.multi {
+            bytes.extend(m.save(&self.state.patches)?);
+        }
+        Ok(bytes)
     }
 
     fn load_state(&mut self, bytes: &[u8]) -> Result<(), MethodError> {
-        self.state = postcard::from_bytes(bytes).map_err(|e| MethodError::State(e.to_string()))?;
+        let (state, rest) = postcard::take_from_bytes::<ErosionState>(bytes)
+            .map_err(|e| MethodError::State(e.to_string()))?;
+        self.state = state;
+        if let Some(m) = &mut self.multi {
+            m.load(rest, &mut self.state.patches)?;
+        }
         Ok(())
     }
 }
@@ -517,7 +571,23 @@ impl Erosion {
         let align = (self.params.orientation == Orientation::Aligned)
             .then(|| glam::Vec3::from(self.params.up_axis).normalize_or_zero());
         if self.test.is_none() {
-            self.test = Some(self.erosion_test(radius / exemplar_size));
+            self.test = Some(self.erosion_test(radius / exemplar_size, &self.exemplar.feature));
+        }
+        if let Some(m) = &self.multi {
+            m.set
+                .check_mesh(mesh, ctx.number)
+                .map_err(MethodError::Input)?;
+        }
+        if let Some(mut m) = self.multi.take() {
+            if m.tests.is_empty() {
+                m.tests = (m.set.exemplars().iter())
+                    .map(|e| self.erosion_test(radius / exemplar_size, &e.feature))
+                    .collect();
+            }
+            if m.region.is_none() {
+                m.region = crate::exemplar::set::RegionBox::of(mesh);
+            }
+            self.multi = Some(m);
         }
         let test = self.test.unwrap_or_else(ErosionTest::never);
 
@@ -552,6 +622,7 @@ impl Erosion {
             max_plane_distance: 0.125 * radius,
         };
         let feature = self.feature_levels.samplers();
+        let multi_fill = self.multi.as_ref().map(exemplars::Multi::fill);
         let mut blended = Blended::default();
         let uncovered = {
             let frames = fill::patch_frames(&self.state.patches);
@@ -565,6 +636,7 @@ impl Erosion {
                 feature: &feature,
                 test,
                 tolerance,
+                multi: multi_fill.as_ref(),
             };
             counts.candidate_pairs = candidates.len();
             if self.variant == Variant::Blend {
@@ -589,6 +661,7 @@ impl Erosion {
             feature: &feature,
             test,
             tolerance,
+            multi: multi_fill.as_ref(),
         };
         let (seed, random) = (self.seed, self.params.random_rotation);
         let rotation = move |at| rotation_for(seed, random, location_key(at));
@@ -602,6 +675,10 @@ impl Erosion {
             align,
         };
         if !carried {
+            let mut chooser = self
+                .multi
+                .as_ref()
+                .map(|m| m.chooser(seed, mesh, radius, &self.state.patches, &out.source));
             let stats = update::cover(
                 &template,
                 &inputs,
@@ -609,6 +686,7 @@ impl Erosion {
                 &mut self.state.next_id,
                 &uncovered,
                 out,
+                chooser.as_mut(),
             );
             counts.created += stats.created;
             counts.forced = stats.forced;
@@ -698,6 +776,11 @@ impl Erosion {
             })
             .collect();
         self.state.next_id += samples.len() as u32;
+        let mut new = new;
+        if let Some(m) = &self.multi {
+            let at = |p: &Patch| samples.get((p.id - first) as usize).map(|s| s.location);
+            m.assign_initial(seed, ctx.mesh, radius, &mut new, at);
+        }
         let created = new.len();
         self.state.patches.extend(new);
         created

@@ -75,6 +75,12 @@ pub struct Patch {
     /// identical frames (erosion is driven by deformation, and there is none).
     #[serde(skip)]
     pub still: bool,
+    /// Index of the exemplar the patch shows (several exemplars per
+    /// surface; 0 with one). Saved after the patch state by
+    /// [`super::exemplars::Multi::save`], so a one-exemplar state is
+    /// unchanged.
+    #[serde(skip)]
+    pub exemplar: u32,
 }
 
 /// Per-creation inputs from the current frame, built once per frame.
@@ -189,6 +195,7 @@ impl Patch {
             weight: Vec::new(),
             lod: Vec::new(),
             still: false,
+            exemplar: 0,
         };
         // The copied fluid triangles lie on the surface, so do their edge midpoints.
         patch.refine(shape.split_length, Some);

@@ -176,6 +176,7 @@ fn weights_follow_eqs_1_to_3_on_a_hand_built_patch() {
         weight: Vec::new(),
         lod: Vec::new(),
         still: false,
+        exemplar: 0,
     };
     patch.update_weights(&s, None);
     let q_t: Vec<f64> = mesh
@@ -564,6 +565,7 @@ fn blend_fill_is_the_weight_normalised_mix_of_every_covering_patch() {
         feature: &levels.samplers(),
         test: ErosionTest::never(),
         tolerance,
+        multi: None,
     };
     let candidates = Candidates::build(&mesh, &index, &patches, &frames, tolerance);
     let mut out = FillBuffers::new(atlas.width, atlas.height, ex.total_channels());

@@ -29,6 +29,7 @@ use serde::{Deserialize, Serialize};
 
 use super::fill::{Candidates, FillBuffers, FillContext, Hit, Uncovered, patch_frames};
 use super::patch::{FrameSurface, Patch, PatchShape};
+use crate::exemplar::set::Chooser;
 use crate::surface::SurfaceIndex;
 use crate::surface::poisson::DiskSet;
 
@@ -72,6 +73,8 @@ pub struct UpdateInputs<'a> {
 }
 
 /// Covers every texel in `uncovered`, appending new patches to `patches`.
+/// With several exemplars, `chooser` picks each new patch's exemplar (in
+/// creation order, before its fill) and is told what the patch covered.
 pub fn cover(
     template: &FillContext<'_>,
     inputs: &UpdateInputs<'_>,
@@ -79,6 +82,7 @@ pub fn cover(
     next_id: &mut u32,
     uncovered: &[Uncovered],
     out: &mut FillBuffers,
+    mut chooser: Option<&mut Chooser<'_>>,
 ) -> UpdateStats {
     let mut stats = UpdateStats::default();
     if uncovered.is_empty() {
@@ -145,8 +149,13 @@ pub fn cover(
         if created.is_empty() {
             break;
         }
-        for (patch, seed) in created {
+        for (mut patch, seed) in created {
             stats.created += 1;
+            let at = point(&uncovered[seed]);
+            if let Some(c) = chooser.as_deref_mut() {
+                patch.exemplar = c.choose(at, super::location_key(at));
+            }
+            let mut shown = 0usize;
             let one = std::slice::from_ref(&patch);
             let frames = patch_frames(one);
             let ctx = FillContext {
@@ -157,6 +166,7 @@ pub fn cover(
                 feature: template.feature,
                 test: template.test,
                 tolerance: template.tolerance,
+                multi: template.multi,
             };
             let candidates =
                 Candidates::build(mesh, inputs.index, one, &frames, template.tolerance);
@@ -178,8 +188,9 @@ pub fn cover(
                     let u = &uncovered[k];
                     let x = a * u.bary[0] + b * u.bary[1] + c * u.bary[2];
                     if let Some(hit) = ctx.resolve(list, x, n) {
-                        out.write(u.texel as usize, hit, patch.id, template.exemplar);
+                        out.write(u.texel as usize, hit, patch.id, ctx.exemplar_of(0));
                         covered[k] = true;
+                        shown += 1;
                     }
                 }
             }
@@ -193,10 +204,15 @@ pub fn cover(
                     uncovered[seed].texel as usize,
                     hit,
                     patch.id,
-                    template.exemplar,
+                    ctx.exemplar_of(0),
                 );
                 covered[seed] = true;
                 stats.forced += 1;
+                shown += 1;
+            }
+            if let Some(c) = chooser.as_deref_mut() {
+                c.coverage
+                    .push(at.position(mesh), patch.exemplar, shown as f32);
             }
             patches.push(patch);
         }

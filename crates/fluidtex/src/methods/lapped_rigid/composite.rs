@@ -101,6 +101,16 @@ pub struct Layer {
     pub id: u32,
     pub frame: Frame,
     pub fade: f32,
+    /// Index of the patch's exemplar (0 with one exemplar).
+    pub exemplar: u32,
+}
+
+/// What compositing reads per exemplar when there are several.
+pub struct MultiComposite<'a> {
+    pub exemplars: &'a [std::sync::Arc<Exemplar>],
+    pub features: Vec<FeatureSampler<'a>>,
+    /// [`CompositeContext::base_lod`] of each exemplar (its own size).
+    pub base_lods: Vec<Option<f32>>,
 }
 
 /// Everything compositing reads.
@@ -122,6 +132,10 @@ pub struct CompositeContext<'a> {
     pub coverage: f32,
     /// Smallest contribution composited; a patch with none is unused.
     pub keep_weight: f32,
+    /// Several exemplars: each layer reads its own exemplar, feature map
+    /// (for the mask) and base level; `None`: `exemplar`, `feature` and
+    /// `base_lod` for every layer.
+    pub multi: Option<&'a MultiComposite<'a>>,
 }
 
 /// The heaviest layer of a texel so far.
@@ -251,7 +265,17 @@ impl CompositeContext<'_> {
         }
         let layer = &self.layers[i as usize];
         let uv = layer.frame.uv(x);
-        let a = a_fall * self.mask.sample(uv, &self.feature) * layer.fade;
+        let (exemplar, feature, base_lod) = match self.multi {
+            None => (self.exemplar, &self.feature, self.base_lod),
+            Some(m) => {
+                let e = layer.exemplar as usize;
+                match (m.exemplars.get(e), m.features.get(e), m.base_lods.get(e)) {
+                    (Some(x), Some(f), Some(&b)) => (&**x, f, b),
+                    _ => (self.exemplar, &self.feature, self.base_lod),
+                }
+            }
+        };
+        let a = a_fall * self.mask.sample(uv, feature) * layer.fade;
         if a <= 0.0 {
             return 0.0;
         }
@@ -262,7 +286,7 @@ impl CompositeContext<'_> {
         if w <= 0.0 || w < self.keep_weight {
             return 0.0;
         }
-        let lod = match self.base_lod {
+        let lod = match base_lod {
             // The orthographic projection stretches the exemplar by
             // 1/cos θ across the tilt of the fluid triangle.
             Some(base) => {
@@ -271,7 +295,7 @@ impl CompositeContext<'_> {
             }
             None => 0.0,
         };
-        self.exemplar.sample_all_lod(uv.x, uv.y, lod, sample);
+        exemplar.sample_all_lod(uv.x, uv.y, lod, sample);
         for (o, s) in values.iter_mut().zip(sample.iter()) {
             *o += w * s;
         }

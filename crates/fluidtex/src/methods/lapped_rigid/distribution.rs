@@ -27,6 +27,7 @@ use std::collections::HashMap;
 use super::composite::{CompositeBuffers, CompositeContext, Layer, TexelOut, Uncovered};
 use super::receivers::ReceiverContext;
 use super::trackers::Tracker;
+use crate::exemplar::set::Chooser;
 use crate::surface::SurfacePoint;
 use crate::surface::velocity::FlowFrame;
 
@@ -56,6 +57,7 @@ pub fn cover(
     next_id: &mut u32,
     mut uncovered: Vec<Uncovered>,
     out: &mut CompositeBuffers,
+    mut chooser: Option<&mut Chooser<'_>>,
 ) -> CoverStats {
     let mut stats = CoverStats::default();
     if uncovered.is_empty() {
@@ -82,7 +84,7 @@ pub fn cover(
         let at = SurfacePoint::new(uncovered[seed].triangle, uncovered[seed].bary);
         let id = *next_id;
         *next_id += 1;
-        let tracker = Tracker::create(
+        let mut tracker = Tracker::create(
             id,
             mesh,
             rc.vertex_normals,
@@ -90,12 +92,17 @@ pub fn cover(
             rc.radius,
             (inputs.rotation)(at),
         );
+        if let Some(c) = chooser.as_deref_mut() {
+            tracker.exemplar = c.choose(at, super::location_key(at));
+        }
+        let mut shown = 0.0f32;
         let frame = tracker.frame(inputs.exemplar_size);
         let receivers = rc.receivers(&frame);
         let layer = [Layer {
             id,
             frame,
             fade: tracker.fade,
+            exemplar: tracker.exemplar,
         }];
         let ctx = CompositeContext {
             mesh,
@@ -109,6 +116,7 @@ pub fn cover(
             base_lod: template.base_lod,
             coverage: template.coverage,
             keep_weight: template.keep_weight,
+            multi: template.multi,
         };
         for &f in &receivers.triangles {
             let Some(texels) = by_triangle.get(&f) else {
@@ -126,7 +134,7 @@ pub fn cover(
                 let x = a * u.bary[0] + b * u.bary[1] + cc * u.bary[2];
                 let values = &mut out.values[t * c..(t + 1) * c];
                 let shading = ctx.texel_normal(f, u.bary, n);
-                ctx.add_layer(0, shading, x, n, &mut u.sum, values, &mut sample);
+                shown += ctx.add_layer(0, shading, x, n, &mut u.sum, values, &mut sample);
                 if u.sum.alpha >= ctx.coverage {
                     close(&ctx, u, out);
                     closed[k] = true;
@@ -139,7 +147,12 @@ pub fn cover(
                 // Nothing at all here: the new patch's centre, opaque.
                 let t = u.texel as usize;
                 let values = &mut out.values[t * c..(t + 1) * c];
-                ctx.exemplar.sample_all(0.5, 0.5, values);
+                let exemplar = template
+                    .multi
+                    .and_then(|m| m.exemplars.get(tracker.exemplar as usize))
+                    .map_or(ctx.exemplar, |e| &**e);
+                exemplar.sample_all(0.5, 0.5, values);
+                shown += 1.0;
                 u.sum.alpha = 1.0;
                 u.sum.contributions.push(1.0);
                 u.sum.heaviest = Some(super::composite::Heaviest {
@@ -154,6 +167,9 @@ pub fn cover(
             stats.forced += 1;
         }
         stats.created += 1;
+        if let Some(c) = chooser.as_deref_mut() {
+            c.coverage.push(tracker.position, tracker.exemplar, shown);
+        }
         trackers.push(tracker);
     }
     stats

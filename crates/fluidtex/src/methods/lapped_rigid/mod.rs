@@ -22,8 +22,12 @@
 //! patches overlap with partial α the texture blends (the ghosting the 2021
 //! paper removes); the per-texel layer count reports it.
 //!
-//! Several exemplars per surface (the paper's Sec. 4 extension) are not
-//! implemented here: one exemplar drives every patch.
+//! Several exemplars per surface (the paper's Sec. 4 extension): each
+//! tracker carries the index of its exemplar, chosen at creation by the
+//! run's [`ExemplarSet`] strategy ([`crate::exemplar::set`]); its layer
+//! reads that exemplar's channels, feature map (for the derived mask) and
+//! mip level. With one exemplar none of this runs and the saved state is
+//! unchanged; with several the ids follow the tracker state ([`MultiState`]).
 
 pub mod composite;
 pub mod distribution;
@@ -41,13 +45,14 @@ use rand::SeedableRng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use self::composite::{CompositeBuffers, CompositeContext, Layer, LayerLists};
+use self::composite::{CompositeBuffers, CompositeContext, Layer, LayerLists, MultiComposite};
 use self::distribution::{CoverInputs, SinkRule};
 use self::falloff::PatchMask;
 use self::receivers::{ReceiverContext, Receivers};
 use self::trackers::Tracker;
 use super::{ChannelSpec, FrameContext, FrameResult, Method, MethodError, StageClock, check_range};
-use crate::exemplar::{Exemplar, ExemplarFilter};
+use crate::exemplar::set::{Chooser, Coverage, RegionBox};
+use crate::exemplar::{Exemplar, ExemplarFilter, ExemplarSelect, ExemplarSet};
 use crate::mesh::Topology;
 use crate::surface::SurfacePoint;
 use crate::surface::poisson::sample_mesh;
@@ -310,6 +315,24 @@ pub struct LappedRigid {
     mask_image: Option<Texture>,
     seed: u64,
     state: LappedRigidState,
+    /// Several exemplars per surface; `None`: one (`exemplar`).
+    multi: Option<Multi>,
+}
+
+/// The exemplars of a multi-exemplar run.
+struct Multi {
+    set: Arc<ExemplarSet>,
+    /// Where the region image lies, resolved on the first non-empty frame.
+    region: Option<RegionBox>,
+}
+
+/// The part of the state only a multi-exemplar run has, saved after the
+/// tracker state.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct MultiState {
+    /// Exemplar index of each tracker, in tracker order.
+    pub exemplars: Vec<u32>,
+    pub region: Option<RegionBox>,
 }
 
 impl LappedRigid {
@@ -341,7 +364,22 @@ impl LappedRigid {
             mask_image,
             seed,
             state: LappedRigidState::default(),
+            multi: None,
         })
+    }
+
+    /// The method over the exemplars of `set`, each patch showing the one
+    /// its strategy chose. One exemplar is exactly [`LappedRigid::new`].
+    pub fn with_exemplars(
+        params: LappedRigidParams,
+        set: Arc<ExemplarSet>,
+        seed: u64,
+    ) -> Result<LappedRigid, MethodError> {
+        let mut m = LappedRigid::new(params, Arc::clone(set.primary()), seed)?;
+        if set.len() > 1 {
+            m.multi = Some(Multi { set, region: None });
+        }
+        Ok(m)
     }
 
     /// The tracker state (for tests and statistics).
@@ -441,6 +479,14 @@ impl Method for LappedRigid {
                     .unwrap_or(self.params.exemplar_scale * radius),
             );
             let normals = mesh.vertex_normals();
+            if let Some(m) = &mut self.multi {
+                m.set
+                    .check_mesh(mesh, ctx.number)
+                    .map_err(MethodError::Input)?;
+                if m.region.is_none() {
+                    m.region = RegionBox::of(mesh);
+                }
+            }
 
             // 1. Tracker advection and frames (Sec. 3.1.1-3.1.2).
             let before = self.state.trackers.len();
@@ -521,7 +567,7 @@ impl Method for LappedRigid {
                 let samples = sample_mesh(mesh, radius, self.params.normal_dot, 30.0, &mut rng);
                 let first = self.state.next_id;
                 let (seed, random) = (self.seed, self.params.random_rotation);
-                let new: Vec<Tracker> = samples
+                let mut new: Vec<Tracker> = samples
                     .par_iter()
                     .enumerate()
                     .map(|(k, s)| {
@@ -530,6 +576,14 @@ impl Method for LappedRigid {
                         Tracker::create(id, mesh, &normals, s.location, radius, angle)
                     })
                     .collect();
+                if let Some(m) = &self.multi {
+                    // In id order, each an equal share for histogram steering.
+                    let mut c = Chooser::new(&m.set, seed, mesh, m.region, radius);
+                    for (t, s) in new.iter_mut().zip(&samples) {
+                        t.exemplar = c.choose(s.location, t.id as u64);
+                        c.coverage.push(t.position, t.exemplar, 1.0);
+                    }
+                }
                 self.state.next_id += new.len() as u32;
                 created += new.len();
                 self.state.trackers.extend(new);
@@ -554,6 +608,7 @@ impl Method for LappedRigid {
                     id: t.id,
                     frame: t.frame(exemplar_size),
                     fade: t.fade,
+                    exemplar: t.exemplar,
                 })
                 .collect();
             let receivers: Vec<Receivers> =
@@ -565,12 +620,24 @@ impl Method for LappedRigid {
 
             // 4. Algorithm 1.
             let mask = self.mask(radius, exemplar_size);
-            let base_lod = (self.exemplar.filter == ExemplarFilter::Trilinear && atlas.scale > 0.0)
-                .then(|| {
-                    let (ew, eh) = self.exemplar.size();
+            let base_lod_of = |e: &Exemplar| {
+                (e.filter == ExemplarFilter::Trilinear && atlas.scale > 0.0).then(|| {
+                    let (ew, eh) = e.size();
                     let texels_per_world = ew.max(eh) as f32 / exemplar_size;
                     (texels_per_world / atlas.scale as f32).log2()
-                });
+                })
+            };
+            let base_lod = base_lod_of(&self.exemplar);
+            let multi_composite = self.multi.as_ref().map(|m| MultiComposite {
+                exemplars: m.set.exemplars(),
+                features: m
+                    .set
+                    .exemplars()
+                    .iter()
+                    .map(|e| e.feature.sampler())
+                    .collect(),
+                base_lods: m.set.exemplars().iter().map(|e| base_lod_of(e)).collect(),
+            });
             let composite = CompositeContext {
                 mesh,
                 vertex_normals: &normals,
@@ -583,6 +650,7 @@ impl Method for LappedRigid {
                 base_lod,
                 coverage: self.params.coverage,
                 keep_weight: self.params.keep_weight,
+                multi: multi_composite.as_ref(),
             };
             let outcome = composite::fill(&composite, atlas, &lists, &mut out);
             used_ids.extend(outcome.used.iter().map(|&i| layers[i as usize].id));
@@ -599,6 +667,13 @@ impl Method for LappedRigid {
                 rotation: &rotation,
             };
             let first_new = self.state.next_id;
+            let mut chooser = self.multi.as_ref().map(|m| {
+                let mut c = Chooser::new(&m.set, seed, mesh, m.region, radius);
+                if m.set.select == ExemplarSelect::Histogram {
+                    c.coverage = coverage(&self.state.trackers, &out.source);
+                }
+                c
+            });
             let stats = distribution::cover(
                 &composite,
                 &inputs,
@@ -606,6 +681,7 @@ impl Method for LappedRigid {
                 &mut self.state.next_id,
                 outcome.uncovered,
                 &mut out,
+                chooser.as_mut(),
             );
             created += stats.created;
             forced = stats.forced;
@@ -676,6 +752,10 @@ impl Method for LappedRigid {
         if let Some(s) = self.state.exemplar_size {
             stats.insert("exemplar_size".into(), serde_json::json!(s));
         }
+        if let Some(m) = &self.multi {
+            let texels = texels_per_exemplar(&source, &self.state.trackers, m.set.len());
+            stats.insert("exemplar_texels".into(), texels.into());
+        }
         result.source = Some(source);
         result.uv = Some(uv);
         result.layers = Some(layers);
@@ -684,13 +764,86 @@ impl Method for LappedRigid {
     }
 
     fn save_state(&self) -> Result<Vec<u8>, MethodError> {
-        postcard::to_allocvec(&self.state).map_err(|e| MethodError::State(e.to_string()))
+        let state_err = |e: postcard::Error| MethodError::State(e.to_string());
+        let mut bytes = postcard::to_allocvec(&self.state).map_err(state_err)?;
+        // Several exemplars: their ids follow the tracker state.
+        if let Some(m) = &self.multi {
+            let multi = MultiState {
+                exemplars: self.state.trackers.iter().map(|t| t.exemplar).collect(),
+                region: m.region,
+            };
+            bytes.extend(postcard::to_allocvec(&multi).map_err(state_err)?);
+        }
+        Ok(bytes)
     }
 
     fn load_state(&mut self, bytes: &[u8]) -> Result<(), MethodError> {
-        self.state = postcard::from_bytes(bytes).map_err(|e| MethodError::State(e.to_string()))?;
+        let state_err = |e: postcard::Error| MethodError::State(e.to_string());
+        let (state, rest) =
+            postcard::take_from_bytes::<LappedRigidState>(bytes).map_err(state_err)?;
+        self.state = state;
+        if let Some(m) = &mut self.multi {
+            let multi: MultiState = if rest.is_empty() {
+                MultiState::default()
+            } else {
+                postcard::from_bytes(rest).map_err(state_err)?
+            };
+            if multi.exemplars.len() != self.state.trackers.len() {
+                return Err(MethodError::State(format!(
+                    "{} exemplar ids for {} trackers (a state saved with one exemplar cannot \
+                     continue with several)",
+                    multi.exemplars.len(),
+                    self.state.trackers.len()
+                )));
+            }
+            let n = m.set.len();
+            for (t, &e) in self.state.trackers.iter_mut().zip(&multi.exemplars) {
+                if e as usize >= n {
+                    return Err(MethodError::State(format!(
+                        "tracker {} shows exemplar {e}, but {n} exemplars are given",
+                        t.id
+                    )));
+                }
+                t.exemplar = e;
+            }
+            m.region = multi.region;
+        }
         Ok(())
     }
+}
+
+/// The exemplar histogram of the composite: every tracker at P, weighted by
+/// the texels whose heaviest layer it is (`source` holds id + 1).
+fn coverage(trackers: &[Tracker], source: &[u32]) -> Coverage {
+    let mut texels = std::collections::HashMap::<u32, u32>::new();
+    for &s in source {
+        if s != super::SOURCE_OUTSIDE && s != super::SOURCE_UNCOVERED && s > 0 {
+            *texels.entry(s - 1).or_default() += 1;
+        }
+    }
+    let mut c = Coverage::default();
+    for t in trackers {
+        if let Some(&k) = texels.get(&t.id) {
+            c.push(t.position, t.exemplar, k as f32);
+        }
+    }
+    c
+}
+
+/// Covered texels per exemplar, by each texel's heaviest layer.
+fn texels_per_exemplar(source: &[u32], trackers: &[Tracker], count: usize) -> Vec<u64> {
+    let by_id: std::collections::HashMap<u32, u32> =
+        trackers.iter().map(|t| (t.id, t.exemplar)).collect();
+    let mut out = vec![0u64; count];
+    for &s in source {
+        if s != super::SOURCE_OUTSIDE && s != super::SOURCE_UNCOVERED && s > 0 {
+            let e = by_id.get(&(s - 1)).copied().unwrap_or(0) as usize;
+            if let Some(slot) = out.get_mut(e) {
+                *slot += 1;
+            }
+        }
+    }
+    out
 }
 
 /// De-interleaves the composite into one texture per exemplar channel.

@@ -336,6 +336,7 @@ fn the_falloff_at_a_texel_equals_its_formula() {
                 exemplar_size: 1.0,
             },
             fade: 1.0,
+            exemplar: 0,
         }];
         let ctx = composite::CompositeContext {
             mesh: &mesh,
@@ -349,6 +350,7 @@ fn the_falloff_at_a_texel_equals_its_formula() {
             base_lod: None,
             coverage: 0.99,
             keep_weight: 0.0,
+            multi: None,
         };
         let mut sum = composite::TexelSum::default();
         let (mut values, mut sample) = (vec![0.0; 3], vec![0.0; 3]);
@@ -396,6 +398,7 @@ fn two_layer_stack(older_at: f32, younger_at: f32) -> (LappedRigid, Clip) {
             normal: Vec3::Z,
             fade: 1.0,
             sinking: false,
+            exemplar: 0,
         }
     };
     m.set_state(LappedRigidState {

@@ -37,6 +37,11 @@ pub struct Tracker {
     pub fade: f32,
     /// Set once the patch is found to be a sink; it then fades until deleted.
     pub sinking: bool,
+    /// Index of the exemplar the patch shows (several exemplars per
+    /// surface; 0 with one). Saved after the tracker state
+    /// ([`super::MultiState`]), so a one-exemplar state is unchanged.
+    #[serde(skip)]
+    pub exemplar: u32,
 }
 
 /// The orthonormal frame of a tracker this frame, with the exemplar scale.
@@ -101,6 +106,7 @@ impl Tracker {
             normal: n,
             fade: 1.0,
             sinking: false,
+            exemplar: 0,
         }
     }
 
@@ -229,6 +235,7 @@ mod tests {
             normal: Vec3::Z,
             fade: 1.0,
             sinking: false,
+            exemplar: 0,
         };
         let n = Vec3::new(0.1, 0.2, 1.0).normalize();
         tr.rebuild(Vec3::ONE, Vec3::ONE + Vec3::new(0.3, 0.4, 0.9), n, 1.0);

@@ -1,0 +1,206 @@
+//! Several exemplars per surface in the erosion method (and the baselines
+//! built from its patches): each [`Patch`] carries the index of its
+//! exemplar ([`Patch::exemplar`]), chosen at creation by the run's
+//! [`ExemplarSet`] strategy ([`crate::exemplar::set`]); the fill reads
+//! every channel, the feature map and the erosion normaliser of that
+//! exemplar ([`MultiFill`]).
+//!
+//! The single-exemplar path does not come here at all: its fill context has
+//! no [`MultiFill`], and its saved state is byte for byte what it was
+//! before exemplar ids existed. With several exemplars the ids (and where
+//! a region image lies) are saved *after* that state ([`MultiState`]), so
+//! a resumed run continues with the same choices.
+
+use std::sync::Arc;
+
+use glam::{Vec2, Vec3};
+use serde::{Deserialize, Serialize};
+
+use super::erode::ErosionTest;
+use super::feature_levels::{FeatureLevelSampler, FeatureLevels};
+use super::fill::{OUTSIDE, UNCOVERED};
+use super::patch::Patch;
+use crate::exemplar::set::{Chooser, Coverage, RegionBox};
+use crate::exemplar::{Exemplar, ExemplarSelect, ExemplarSet};
+use crate::methods::MethodError;
+use crate::surface::SurfacePoint;
+
+/// The exemplars of a multi-exemplar run and what the erosion derives from
+/// each (feature-map levels, erosion test).
+pub struct Multi {
+    pub set: Arc<ExemplarSet>,
+    pub levels: Vec<FeatureLevels>,
+    /// One per exemplar, built with the single test (r/S known).
+    pub tests: Vec<ErosionTest>,
+    /// Where the region image lies, resolved on the first non-empty frame.
+    pub region: Option<RegionBox>,
+}
+
+/// What the fill reads per patch exemplar.
+pub struct MultiFill<'a> {
+    pub exemplars: &'a [Arc<Exemplar>],
+    pub features: Vec<FeatureLevelSampler<'a>>,
+    pub tests: &'a [ErosionTest],
+}
+
+/// The part of the state only a multi-exemplar run has, saved after the
+/// patch state.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct MultiState {
+    /// Exemplar index of each patch, in patch order.
+    pub exemplars: Vec<u32>,
+    pub region: Option<RegionBox>,
+}
+
+impl Multi {
+    pub fn new(set: Arc<ExemplarSet>) -> Multi {
+        let levels = set
+            .exemplars()
+            .iter()
+            .map(|e| FeatureLevels::new(&e.feature))
+            .collect();
+        Multi {
+            set,
+            levels,
+            tests: Vec::new(),
+            region: None,
+        }
+    }
+
+    /// The fill's view, for one frame.
+    pub fn fill(&self) -> MultiFill<'_> {
+        MultiFill {
+            exemplars: self.set.exemplars(),
+            features: self.levels.iter().map(FeatureLevels::samplers).collect(),
+            tests: &self.tests,
+        }
+    }
+
+    /// A chooser for this frame's new patches; with histogram steering its
+    /// coverage starts from `patches` and the fill's `source`.
+    pub fn chooser<'a>(
+        &'a self,
+        seed: u64,
+        mesh: &'a crate::mesh::TriMesh,
+        radius: f32,
+        patches: &[Patch],
+        source: &[u32],
+    ) -> Chooser<'a> {
+        let mut c = Chooser::new(&self.set, seed, mesh, self.region, radius);
+        if self.set.select == ExemplarSelect::Histogram {
+            c.coverage = coverage(patches, source);
+        }
+        c
+    }
+
+    /// Chooses the exemplars of the first frame's patches, in id order;
+    /// each counts as one patch of equal size for histogram steering.
+    pub fn assign_initial(
+        &self,
+        seed: u64,
+        mesh: &crate::mesh::TriMesh,
+        radius: f32,
+        patches: &mut [Patch],
+        at: impl Fn(&Patch) -> Option<SurfacePoint>,
+    ) {
+        let mut c = Chooser::new(&self.set, seed, mesh, self.region, radius);
+        for p in patches.iter_mut() {
+            let Some(point) = at(p) else { continue };
+            p.exemplar = c.choose(point, p.id as u64);
+            c.coverage.push(point.position(mesh), p.exemplar, 1.0);
+        }
+    }
+
+    /// The state after the patches: exemplar ids in patch order.
+    pub fn save(&self, patches: &[Patch]) -> Result<Vec<u8>, MethodError> {
+        let state = MultiState {
+            exemplars: patches.iter().map(|p| p.exemplar).collect(),
+            region: self.region,
+        };
+        postcard::to_allocvec(&state).map_err(|e| MethodError::State(e.to_string()))
+    }
+
+    /// Restores what [`Multi::save`] wrote onto `patches`; every id must
+    /// name an exemplar.
+    pub fn load(&mut self, bytes: &[u8], patches: &mut [Patch]) -> Result<(), MethodError> {
+        let state: MultiState = if bytes.is_empty() {
+            MultiState::default()
+        } else {
+            postcard::from_bytes(bytes).map_err(|e| MethodError::State(e.to_string()))?
+        };
+        if state.exemplars.len() != patches.len() {
+            return Err(MethodError::State(format!(
+                "{} exemplar ids for {} patches (a state saved with one exemplar cannot \
+                 continue with several)",
+                state.exemplars.len(),
+                patches.len()
+            )));
+        }
+        let n = self.set.len();
+        for (p, &e) in patches.iter_mut().zip(&state.exemplars) {
+            if e as usize >= n {
+                return Err(MethodError::State(format!(
+                    "patch {} shows exemplar {e}, but {n} exemplars are given",
+                    p.id
+                )));
+            }
+            p.exemplar = e;
+        }
+        self.region = state.region;
+        Ok(())
+    }
+}
+
+/// The patch centre p: the vertex whose rest coordinates lie nearest
+/// (0.5, 0.5) (a pinned vertex, within r/4 of p).
+pub fn patch_centre(p: &Patch) -> Option<Vec3> {
+    let c = Vec2::splat(0.5);
+    p.rest
+        .iter()
+        .zip(&p.positions)
+        .min_by(|a, b| a.0.distance_squared(c).total_cmp(&b.0.distance_squared(c)))
+        .map(|(_, &x)| x)
+}
+
+/// The exemplar histogram of the fill: every patch at its centre, weighted
+/// by the atlas texels it shows (`source` holds patch id + 1).
+pub fn coverage(patches: &[Patch], source: &[u32]) -> Coverage {
+    let mut texels = std::collections::HashMap::<u32, u32>::new();
+    for &s in source {
+        if s != OUTSIDE && s != UNCOVERED && s > 0 {
+            *texels.entry(s - 1).or_default() += 1;
+        }
+    }
+    let mut c = Coverage::default();
+    for p in patches {
+        if let (Some(&t), Some(centre)) = (texels.get(&p.id), patch_centre(p)) {
+            c.push(centre, p.exemplar, t as f32);
+        }
+    }
+    c
+}
+
+/// Exemplar index by patch id (ids up to `next_id`; unknown ids read 0).
+pub fn by_id(patches: &[Patch], next_id: u32) -> Vec<u32> {
+    let mut out = vec![0u32; next_id as usize + 1];
+    for p in patches {
+        if let Some(slot) = out.get_mut(p.id as usize) {
+            *slot = p.exemplar;
+        }
+    }
+    out
+}
+
+/// Covered atlas texels per exemplar (`source` holds patch id + 1).
+pub fn texels_per_exemplar(source: &[u32], by_id: &[u32], count: usize) -> Vec<u64> {
+    let mut out = vec![0u64; count];
+    for &s in source {
+        if s != OUTSIDE && s != UNCOVERED && s > 0 {
+            let e = by_id.get(s as usize - 1).copied().unwrap_or(0) as usize;
+            if let Some(slot) = out.get_mut(e) {
+                *slot += 1;
+            }
+        }
+    }
+    out
+}
