@@ -342,11 +342,11 @@ impl Coverage {
         let mut n = 0;
         let r2 = reach * reach;
         for &(c, e, t) in &self.entries {
-            if reach.is_infinite() || c.distance_squared(at) <= r2 {
-                if let Some(slot) = h.get_mut(e as usize) {
-                    *slot += t as f64;
-                    n += 1;
-                }
+            if (reach.is_infinite() || c.distance_squared(at) <= r2)
+                && let Some(slot) = h.get_mut(e as usize)
+            {
+                *slot += t as f64;
+                n += 1;
             }
         }
         (h, n)

@@ -346,7 +346,7 @@ fn a_region_image_projects_from_above() {
 fn region_selection_without_a_map_and_bad_ids_are_one_line_errors() {
     let clip = scene("enright", 16, 1, 64);
     let mut m = build(MethodKind::Erosion, black_white(ExemplarSelect::Region), 0);
-    let err = m.step(&clip.ctx(0)).err().expect("no region source");
+    let err = m.step(&clip.ctx(0)).expect_err("no region source");
     assert!(err.to_string().contains("exemplar_id"), "{err}");
     let mut bad = with_regions(scene("enright", 16, 1, 64));
     if let Some(Attribute::Scalar(ids)) = bad.meshes[0].attributes.get_mut(EXEMPLAR_ID) {
@@ -360,8 +360,7 @@ fn region_selection_without_a_map_and_bad_ids_are_one_line_errors() {
     );
     let err = m
         .step(&bad.ctx(0))
-        .err()
-        .expect("id 2 of 2 exemplars")
+        .expect_err("id 2 of 2 exemplars")
         .to_string();
     assert!(
         err.contains("frame 0") && err.contains("vertex 7") && !err.contains('\n'),
