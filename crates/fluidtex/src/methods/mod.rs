@@ -22,6 +22,8 @@ pub mod registry;
 
 #[cfg(test)]
 mod multi_tests;
+#[cfg(test)]
+pub(crate) mod test_clip;
 
 use glam::{Vec2, Vec3};
 use std::collections::BTreeMap;

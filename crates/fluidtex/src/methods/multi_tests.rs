@@ -9,71 +9,16 @@ use std::sync::Arc;
 use glam::Vec3;
 
 use super::registry::{MethodKind, MethodParams};
-use super::{FrameContext, FrameResult, Method, MethodError, PreviousFrame};
-use crate::atlas::{Atlas, AtlasParams};
+use super::{FrameResult, Method, MethodError};
 use crate::exemplar::feature::{FeatureMap, FeatureOrigin};
 use crate::exemplar::set::{EXEMPLAR_ID, RegionImage};
 use crate::exemplar::{
     Exemplar, ExemplarError, ExemplarSelect, ExemplarSet, ExtraChannel, SampleFormat,
 };
-use crate::mesh::{Attribute, Topology, TriMesh};
+use crate::mesh::Attribute;
+use crate::methods::test_clip::{Clip, scene};
 use crate::named::Named;
-use crate::surface::SurfaceIndex;
 use crate::texture::Texture;
-
-/// Frames of a scene with everything a [`FrameContext`] borrows.
-struct Clip {
-    meshes: Vec<TriMesh>,
-    indices: Vec<SurfaceIndex>,
-    atlases: Vec<Atlas>,
-    topologies: Vec<Topology>,
-    normals: Vec<Vec<Vec3>>,
-}
-
-impl Clip {
-    fn new(meshes: Vec<TriMesh>, atlas: u32) -> Clip {
-        Clip {
-            indices: meshes.iter().map(SurfaceIndex::new).collect(),
-            atlases: meshes
-                .iter()
-                .map(|m| Atlas::build(m, &AtlasParams::square(atlas)).expect("atlas"))
-                .collect(),
-            topologies: meshes
-                .iter()
-                .map(|m| Topology::new(m.vertex_count(), &m.triangles))
-                .collect(),
-            normals: meshes.iter().map(TriMesh::vertex_normals).collect(),
-            meshes,
-        }
-    }
-
-    fn ctx(&self, k: usize) -> FrameContext<'_> {
-        FrameContext {
-            number: k as i32,
-            dt: 1.0 / 24.0,
-            mesh: &self.meshes[k],
-            index: &self.indices[k],
-            topology: &self.topologies[k],
-            normals: &self.normals[k],
-            previous: (k > 0).then(|| PreviousFrame {
-                mesh: &self.meshes[k - 1],
-                index: &self.indices[k - 1],
-            }),
-            atlas: &self.atlases[k],
-        }
-    }
-}
-
-fn scene(name: &str, resolution: u32, frames: i32, atlas: u32) -> Clip {
-    let mut params = crate::scenes::default_params(name).expect("scene");
-    params.resolution = resolution;
-    params.last = params.first + frames - 1;
-    let mut scene = crate::scenes::by_name(name, Some(params)).expect("scene");
-    let meshes = (params.first..=params.last)
-        .map(|f| scene.frame(f).expect("frame"))
-        .collect();
-    Clip::new(meshes, atlas)
-}
 
 /// A flat grey exemplar of `value` (size `size`², flat feature map).
 fn flat(value: f32, size: u32) -> Exemplar {
@@ -352,7 +297,7 @@ fn region_selection_without_a_map_and_bad_ids_are_one_line_errors() {
     if let Some(Attribute::Scalar(ids)) = bad.meshes[0].attributes.get_mut(EXEMPLAR_ID) {
         ids[7] = 2.0;
     }
-    let bad = Clip::new(bad.meshes, 64);
+    let bad = Clip::from_meshes(bad.meshes, 64);
     let mut m = build(
         MethodKind::LappedRigid,
         black_white(ExemplarSelect::Region),

@@ -281,26 +281,14 @@ impl Scene for DamBreak {
                 "xsph_viscosity": XSPH_VISCOSITY,
                 "substeps": format!("ceil(frame_dt / ({CFL} * 2r / max(v_max, sqrt(2 g H))))"),
                 "initial_jitter_spacings": JITTER,
-                "surface": {
-                    "library": "splashsurf_lib 0.14",
-                    "compact_support_radius": SURFACE_SUPPORT * self.radius,
-                    "cube_size": SURFACE_CUBE * self.radius,
-                    "iso_threshold": SURFACE_THRESHOLD,
-                    "cleanup": "marching_cubes_cleanup, 5 iterations",
-                },
+                "surface": SURFACING.info(self.radius),
                 "velocity": "SphInterpolator::interpolate_vector_quantity, first-order corrected",
             }),
         }
     }
 
     fn frame(&mut self, f: i32) -> Result<TriMesh, SceneError> {
-        self.params.check_frame(f)?;
-        if f < self.at {
-            return Err(SceneError::FrameOrder {
-                frame: f,
-                previous: self.at,
-            });
-        }
+        self.params.check_forward(f, self.at)?;
         while self.at < f {
             self.step_frame();
             self.at += 1;

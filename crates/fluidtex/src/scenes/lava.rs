@@ -26,7 +26,7 @@
 //!   the stop is not a visible jump. This is what the `stop` analytic scene
 //!   does with its velocity ramp, and what lets a texturing method give
 //!   bit-identical still frames.
-//! * Surface and velocity: as `dam-break` ([`super::sph::reconstruct`]),
+//! * Surface and velocity: as `dam-break` (`sph::reconstruct`),
 //!   with a marching-cubes cell of [`SURFACE_CUBE`] particle radii.
 //!
 //! `resolution` is the number of particles across the channel (default
@@ -349,26 +349,14 @@ impl Scene for Lava {
                 },
                 "substeps": format!("ceil(frame_dt / ({CFL} * 2r / max(v_max, sqrt(2 g H))))"),
                 "initial_jitter_spacings": JITTER,
-                "surface": {
-                    "library": "splashsurf_lib 0.14",
-                    "compact_support_radius": SURFACE_SUPPORT * self.radius,
-                    "cube_size": SURFACE_CUBE * self.radius,
-                    "iso_threshold": SURFACE_THRESHOLD,
-                    "cleanup": "marching_cubes_cleanup, 5 iterations",
-                },
+                "surface": SURFACING.info(self.radius),
                 "velocity": "SphInterpolator::interpolate_vector_quantity, first-order corrected",
             }),
         }
     }
 
     fn frame(&mut self, f: i32) -> Result<TriMesh, SceneError> {
-        self.params.check_frame(f)?;
-        if f < self.at {
-            return Err(SceneError::FrameOrder {
-                frame: f,
-                previous: self.at,
-            });
-        }
+        self.params.check_forward(f, self.at)?;
         let t = self.params.time(f);
         self.step_to(t);
         self.at = f;

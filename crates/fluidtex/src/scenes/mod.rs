@@ -145,6 +145,19 @@ impl SceneParams {
         }
         Ok(())
     }
+
+    /// [`SceneParams::check_frame`], and frame `f` is not before `at`, the
+    /// frame a simulated scene has reached (it only steps forward).
+    pub(crate) fn check_forward(&self, f: i32, at: i32) -> Result<(), SceneError> {
+        self.check_frame(f)?;
+        if f < at {
+            return Err(SceneError::FrameOrder {
+                frame: f,
+                previous: at,
+            });
+        }
+        Ok(())
+    }
 }
 
 /// Description of a scene, written beside its frames so that a run can be

@@ -38,6 +38,19 @@ pub(crate) struct Surfacing {
     pub rest_density: f32,
 }
 
+impl Surfacing {
+    /// The surfacing settings in world units, for a scene's `scene.json`.
+    pub(crate) fn info(&self, radius: f32) -> serde_json::Value {
+        serde_json::json!({
+            "library": "splashsurf_lib 0.14",
+            "compact_support_radius": self.support * radius,
+            "cube_size": self.cube * radius,
+            "iso_threshold": self.threshold,
+            "cleanup": "marching_cubes_cleanup, 5 iterations",
+        })
+    }
+}
+
 /// Substeps of one frame: the count n and the step dt = frame_dt / n, with
 /// dt ≤ cfl · 2r / v (v: the larger of the fastest particle and `floor_speed`).
 pub(crate) fn substeps(

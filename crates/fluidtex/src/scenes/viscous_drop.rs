@@ -13,7 +13,7 @@
 //! * Floor: two layers of boundary particles, a square of side
 //!   2·[`FLOOR_HALF`] centred under the drop; particles that fall off its
 //!   edge are deleted.
-//! * Surface and velocity: as `dam-break` ([`super::sph::reconstruct`]),
+//! * Surface and velocity: as `dam-break` (`sph::reconstruct`),
 //!   with a marching-cubes cell of [`SURFACE_CUBE`] particle radii: finer
 //!   than the particles, so the smooth blob gets the paper's triangle count
 //!   from a few thousand particles.
@@ -231,26 +231,14 @@ impl Scene for ViscousDrop {
                 "floor_friction_xsph": FLOOR_FRICTION,
                 "substeps": format!("ceil(frame_dt / ({CFL} * 2r / max(v_max, sqrt(2 g h))))"),
                 "initial_jitter_spacings": JITTER,
-                "surface": {
-                    "library": "splashsurf_lib 0.14",
-                    "compact_support_radius": SURFACE_SUPPORT * self.radius,
-                    "cube_size": SURFACE_CUBE * self.radius,
-                    "iso_threshold": SURFACE_THRESHOLD,
-                    "cleanup": "marching_cubes_cleanup, 5 iterations",
-                },
+                "surface": SURFACING.info(self.radius),
                 "velocity": "SphInterpolator::interpolate_vector_quantity, first-order corrected",
             }),
         }
     }
 
     fn frame(&mut self, f: i32) -> Result<TriMesh, SceneError> {
-        self.params.check_frame(f)?;
-        if f < self.at {
-            return Err(SceneError::FrameOrder {
-                frame: f,
-                previous: self.at,
-            });
-        }
+        self.params.check_forward(f, self.at)?;
         while self.at < f {
             self.step_frame();
             self.at += 1;

@@ -15,6 +15,7 @@ use super::*;
 use crate::atlas::{Atlas, AtlasParams};
 use crate::exemplar::{Exemplar, builtin_pebbles};
 use crate::mesh::{Topology, TriMesh};
+use crate::methods::test_clip::{Clip, scene};
 use crate::methods::{
     FrameContext, FrameResult, Method, PreviousFrame, SOURCE_OUTSIDE, SOURCE_UNCOVERED,
 };
@@ -212,58 +213,13 @@ fn weights_follow_eqs_1_to_3_on_a_hand_built_patch() {
     assert_eq!(patch.weight[1], 0.0);
 }
 
-/// Frames of a small scene with an atlas each.
-struct Clip {
-    meshes: Vec<TriMesh>,
-    indices: Vec<SurfaceIndex>,
-    atlases: Vec<Atlas>,
-}
-
-fn clip(name: &str, resolution: u32, frames: i32, atlas: u32) -> Clip {
-    let mut params = crate::scenes::default_params(name).expect("scene");
-    params.resolution = resolution;
-    params.last = params.first + frames - 1;
-    let mut scene = crate::scenes::by_name(name, Some(params)).expect("scene");
-    let meshes: Vec<TriMesh> = (params.first..=params.last)
-        .map(|f| scene.frame(f).expect("frame"))
-        .collect();
-    let indices = meshes.iter().map(SurfaceIndex::new).collect();
-    let atlases = meshes
-        .iter()
-        .map(|m| Atlas::build(m, &AtlasParams::square(atlas)).expect("atlas"))
-        .collect();
-    Clip {
-        meshes,
-        indices,
-        atlases,
-    }
-}
-
 fn exemplar() -> Arc<Exemplar> {
     Arc::new(builtin_pebbles(64, 1))
 }
 
 fn step_all(method: &mut Erosion, clip: &Clip) -> Vec<FrameResult> {
     (0..clip.meshes.len())
-        .map(|k| {
-            let ctx = FrameContext {
-                number: k as i32,
-                dt: 1.0 / 24.0,
-                mesh: &clip.meshes[k],
-                topology: &crate::mesh::Topology::new(
-                    clip.meshes[k].vertex_count(),
-                    &clip.meshes[k].triangles,
-                ),
-                normals: &clip.meshes[k].vertex_normals(),
-                index: &clip.indices[k],
-                previous: (k > 0).then(|| PreviousFrame {
-                    mesh: &clip.meshes[k - 1],
-                    index: &clip.indices[k - 1],
-                }),
-                atlas: &clip.atlases[k],
-            };
-            method.step(&ctx).expect("step")
-        })
+        .map(|k| method.step(&clip.ctx(k)).expect("step"))
         .collect()
 }
 
@@ -273,7 +229,7 @@ fn sources(r: &FrameResult) -> &[u32] {
 
 #[test]
 fn lapped_fill_matches_a_brute_force_reference() {
-    let c = clip("differential-rotation", 12, 4, 96);
+    let c = scene("differential-rotation", 12, 4, 96);
     let ex = exemplar();
     let mut method = Erosion::new(ErosionParams::default(), Arc::clone(&ex), 7).expect("params");
     let results = step_all(&mut method, &c);
@@ -354,7 +310,7 @@ fn lapped_fill_matches_a_brute_force_reference() {
 
 #[test]
 fn every_chart_texel_has_one_source_and_the_exemplar_value_there() {
-    let c = clip("differential-rotation", 12, 3, 96);
+    let c = scene("differential-rotation", 12, 3, 96);
     let ex = exemplar();
     let mut method = Erosion::new(ErosionParams::default(), Arc::clone(&ex), 3).expect("params");
     for (k, r) in step_all(&mut method, &c).iter().enumerate() {
@@ -395,7 +351,7 @@ fn every_chart_texel_has_one_source_and_the_exemplar_value_there() {
 #[test]
 fn a_fluid_at_rest_gives_bit_identical_frames() {
     // Same mesh every frame, zero velocity.
-    let mut c = clip("rigid-rotation", 12, 1, 96);
+    let mut c = scene("rigid-rotation", 12, 1, 96);
     let mesh = c.meshes[0]
         .clone()
         .with_velocity(vec![Vec3::ZERO; c.meshes[0].vertex_count()]);
@@ -414,7 +370,7 @@ fn a_fluid_at_rest_gives_bit_identical_frames() {
 
 #[test]
 fn one_and_two_threads_give_identical_results() {
-    let c = clip("differential-rotation", 12, 3, 96);
+    let c = scene("differential-rotation", 12, 3, 96);
     let run = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
@@ -439,16 +395,12 @@ fn one_and_two_threads_give_identical_results() {
 
 #[test]
 fn saved_state_continues_exactly() {
-    let c = clip("differential-rotation", 12, 3, 96);
+    let c = scene("differential-rotation", 12, 3, 96);
     let mut whole = Erosion::new(ErosionParams::default(), exemplar(), 2).expect("params");
     let all = step_all(&mut whole, &c);
     // Frames 0-1, save, restore into a fresh method, then frame 2.
     let mut first = Erosion::new(ErosionParams::default(), exemplar(), 2).expect("params");
-    let part = Clip {
-        meshes: c.meshes[..2].to_vec(),
-        indices: c.meshes[..2].iter().map(SurfaceIndex::new).collect(),
-        atlases: c.atlases[..2].to_vec(),
-    };
+    let part = Clip::from_meshes(c.meshes[..2].to_vec(), 96);
     step_all(&mut first, &part);
     let bytes = first.save_state().expect("save");
     let mut resumed = Erosion::new(ErosionParams::default(), exemplar(), 2).expect("params");
@@ -474,7 +426,7 @@ fn saved_state_continues_exactly() {
 
 #[test]
 fn global_and_local_placement_both_cover_everything() {
-    let c = clip("differential-rotation", 12, 3, 96);
+    let c = scene("differential-rotation", 12, 3, 96);
     for placement in [Placement::Local, Placement::Global] {
         let params = ErosionParams {
             placement,
@@ -490,7 +442,7 @@ fn global_and_local_placement_both_cover_everything() {
 
 #[test]
 fn missing_velocity_and_bad_parameters_are_errors() {
-    let mut c = clip("rigid-rotation", 10, 1, 64);
+    let mut c = scene("rigid-rotation", 10, 1, 64);
     c.meshes[0].attributes.clear();
     let mut m = Erosion::new(ErosionParams::default(), exemplar(), 0).expect("params");
     let ctx = FrameContext {
@@ -638,7 +590,7 @@ fn blend_fill_is_the_weight_normalised_mix_of_every_covering_patch() {
 
 #[test]
 fn advect_carries_the_first_frame_patches_and_never_renews_them() {
-    let c = clip("differential-rotation", 12, 5, 96);
+    let c = scene("differential-rotation", 12, 5, 96);
     let ex = exemplar();
     let mut method =
         Erosion::with_variant(Variant::Advect, ErosionParams::default(), ex.clone(), 2)
@@ -649,11 +601,7 @@ fn advect_carries_the_first_frame_patches_and_never_renews_them() {
         let mut m2 =
             Erosion::with_variant(Variant::Advect, ErosionParams::default(), ex.clone(), 2)
                 .expect("params");
-        let one = Clip {
-            meshes: vec![c.meshes[0].clone()],
-            indices: vec![SurfaceIndex::new(&c.meshes[0])],
-            atlases: vec![c.atlases[0].clone()],
-        };
+        let one = Clip::from_meshes(vec![c.meshes[0].clone()], c.atlases[0].width);
         step_all(&mut m2, &one);
         m2.state().patches.iter().map(|p| p.id).collect()
     };
@@ -688,7 +636,7 @@ fn advect_carries_the_first_frame_patches_and_never_renews_them() {
 
 #[test]
 fn blend_deformable_covers_everything_and_shows_ghosts() {
-    let c = clip("differential-rotation", 12, 3, 96);
+    let c = scene("differential-rotation", 12, 3, 96);
     let mut method = Erosion::with_variant(Variant::Blend, ErosionParams::default(), exemplar(), 4)
         .expect("params");
     assert_eq!(method.name(), "blend-deformable");
@@ -726,14 +674,7 @@ fn frames_after_the_flow_stops_are_bit_identical() {
         meshes[4].positions, meshes[7].positions,
         "the scene is still"
     );
-    let c = Clip {
-        indices: meshes.iter().map(SurfaceIndex::new).collect(),
-        atlases: meshes
-            .iter()
-            .map(|m| Atlas::build(m, &AtlasParams::square(64)).expect("atlas"))
-            .collect(),
-        meshes,
-    };
+    let c = Clip::from_meshes(meshes, 64);
     let mut method = Erosion::new(ErosionParams::default(), exemplar(), 1).expect("params");
     let r = step_all(&mut method, &c);
     // Control: the frames before the stop do change.
@@ -941,7 +882,7 @@ fn a_patch_carried_rigidly_keeps_its_source_away_from_its_border() {
     // texel of frame k whose 5×5 neighbourhood shows one patch (and no chart
     // border) is carried by
     // the flow to frame k + 1 and must find the same patch there.
-    let c = clip("rigid-rotation", 24, 4, 256);
+    let c = scene("rigid-rotation", 24, 4, 256);
     let mut method = Erosion::new(ErosionParams::default(), exemplar(), 3).expect("method");
     let results = step_all(&mut method, &c);
     let (mut interior, mut kept_carried, mut kept_glued) = (0usize, 0usize, 0usize);

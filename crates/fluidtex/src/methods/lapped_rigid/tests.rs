@@ -10,9 +10,9 @@ use super::falloff::{PatchMask, angle_between};
 use super::receivers::ReceiverContext;
 use super::trackers::{Frame, Tracker};
 use super::*;
-use crate::atlas::{Atlas, AtlasParams};
 use crate::exemplar::{Exemplar, builtin_pebbles};
 use crate::mesh::{Topology, TriMesh};
+use crate::methods::test_clip::{Clip, scene};
 use crate::methods::{FrameContext, FrameResult, Method, PreviousFrame, SOURCE_UNCOVERED};
 use crate::surface::SurfaceIndex;
 
@@ -41,64 +41,6 @@ fn grid(n: usize, cell: f32, v: impl Fn(Vec3) -> Vec3) -> TriMesh {
     }
     let vel = positions.iter().map(|&p| v(p)).collect();
     TriMesh::new(positions, triangles).with_velocity(vel)
-}
-
-/// Frames of a scene with an atlas each.
-struct Clip {
-    meshes: Vec<TriMesh>,
-    indices: Vec<SurfaceIndex>,
-    atlases: Vec<Atlas>,
-    topologies: Vec<crate::mesh::Topology>,
-    normals: Vec<Vec<Vec3>>,
-}
-
-impl Clip {
-    fn from_meshes(meshes: Vec<TriMesh>, atlas: u32) -> Clip {
-        let indices = meshes.iter().map(SurfaceIndex::new).collect();
-        let atlases = meshes
-            .iter()
-            .map(|m| Atlas::build(m, &AtlasParams::square(atlas)).expect("atlas"))
-            .collect();
-        let topologies = meshes
-            .iter()
-            .map(|m| crate::mesh::Topology::new(m.vertex_count(), &m.triangles))
-            .collect();
-        let normals = meshes.iter().map(TriMesh::vertex_normals).collect();
-        Clip {
-            meshes,
-            indices,
-            atlases,
-            topologies,
-            normals,
-        }
-    }
-
-    fn ctx(&self, k: usize) -> FrameContext<'_> {
-        FrameContext {
-            number: k as i32,
-            dt: 1.0 / 24.0,
-            mesh: &self.meshes[k],
-            index: &self.indices[k],
-            topology: &self.topologies[k],
-            normals: &self.normals[k],
-            previous: (k > 0).then(|| PreviousFrame {
-                mesh: &self.meshes[k - 1],
-                index: &self.indices[k - 1],
-            }),
-            atlas: &self.atlases[k],
-        }
-    }
-}
-
-fn scene(name: &str, resolution: u32, frames: i32, atlas: u32) -> Clip {
-    let mut params = crate::scenes::default_params(name).expect("scene");
-    params.resolution = resolution;
-    params.last = params.first + frames - 1;
-    let mut scene = crate::scenes::by_name(name, Some(params)).expect("scene");
-    let meshes = (params.first..=params.last)
-        .map(|f| scene.frame(f).expect("frame"))
-        .collect();
-    Clip::from_meshes(meshes, atlas)
 }
 
 fn exemplar() -> Arc<Exemplar> {

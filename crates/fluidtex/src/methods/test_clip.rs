@@ -1,0 +1,67 @@
+//! Test support: a few frames of a scene with everything a
+//! [`FrameContext`] borrows, built once, for the methods' unit tests.
+
+use glam::Vec3;
+
+use super::{FrameContext, PreviousFrame};
+use crate::atlas::{Atlas, AtlasParams};
+use crate::mesh::{Topology, TriMesh};
+use crate::surface::SurfaceIndex;
+
+/// Consecutive frames with their surface index, atlas, topology and normals.
+pub(crate) struct Clip {
+    pub(crate) meshes: Vec<TriMesh>,
+    pub(crate) indices: Vec<SurfaceIndex>,
+    pub(crate) atlases: Vec<Atlas>,
+    pub(crate) topologies: Vec<Topology>,
+    pub(crate) normals: Vec<Vec<Vec3>>,
+}
+
+impl Clip {
+    /// The frames `meshes`, each with a square atlas of `atlas` texels.
+    pub(crate) fn from_meshes(meshes: Vec<TriMesh>, atlas: u32) -> Clip {
+        Clip {
+            indices: meshes.iter().map(SurfaceIndex::new).collect(),
+            atlases: meshes
+                .iter()
+                .map(|m| Atlas::build(m, &AtlasParams::square(atlas)).expect("atlas"))
+                .collect(),
+            topologies: meshes
+                .iter()
+                .map(|m| Topology::new(m.vertex_count(), &m.triangles))
+                .collect(),
+            normals: meshes.iter().map(TriMesh::vertex_normals).collect(),
+            meshes,
+        }
+    }
+
+    /// The context of frame `k` (numbered from 0, at 24 fps), with frame
+    /// k − 1 as the previous one.
+    pub(crate) fn ctx(&self, k: usize) -> FrameContext<'_> {
+        FrameContext {
+            number: k as i32,
+            dt: 1.0 / 24.0,
+            mesh: &self.meshes[k],
+            index: &self.indices[k],
+            topology: &self.topologies[k],
+            normals: &self.normals[k],
+            previous: (k > 0).then(|| PreviousFrame {
+                mesh: &self.meshes[k - 1],
+                index: &self.indices[k - 1],
+            }),
+            atlas: &self.atlases[k],
+        }
+    }
+}
+
+/// The first `frames` frames of built-in scene `name` at `resolution`.
+pub(crate) fn scene(name: &str, resolution: u32, frames: i32, atlas: u32) -> Clip {
+    let mut params = crate::scenes::default_params(name).expect("scene");
+    params.resolution = resolution;
+    params.last = params.first + frames - 1;
+    let mut scene = crate::scenes::by_name(name, Some(params)).expect("scene");
+    let meshes = (params.first..=params.last)
+        .map(|f| scene.frame(f).expect("frame"))
+        .collect();
+    Clip::from_meshes(meshes, atlas)
+}
