@@ -148,6 +148,7 @@ impl SceneParams {
 
     /// [`SceneParams::check_frame`], and frame `f` is not before `at`, the
     /// frame a simulated scene has reached (it only steps forward).
+    #[cfg(feature = "sph")]
     pub(crate) fn check_forward(&self, f: i32, at: i32) -> Result<(), SceneError> {
         self.check_frame(f)?;
         if f < at {
