@@ -760,6 +760,57 @@ mod tests {
     }
 
     #[test]
+    fn repeated_exemplar_flags_give_weighted_exemplars() {
+        let flags = |specs: &[&str]| RunFlags {
+            exemplar: specs.iter().map(|s| s.to_string()).collect(),
+            ..Default::default()
+        };
+        // One exemplar is today's key, whatever its weight.
+        let mut c = Config::default();
+        flags(&["lava.png"]).apply(&mut c).expect("valid");
+        assert_eq!(c.exemplar, Some(PathBuf::from("lava.png")));
+        assert!(c.exemplars.is_empty());
+        let mut c = Config::default();
+        flags(&["a.png:0.3", "dir:x/b.png", "c.png:2"])
+            .apply(&mut c)
+            .expect("valid");
+        assert_eq!(c.exemplar, None);
+        let got: Vec<(PathBuf, Option<f32>)> = c
+            .exemplars
+            .iter()
+            .map(|e| (e.path.clone(), e.weight))
+            .collect();
+        assert_eq!(
+            got,
+            vec![
+                ("a.png".into(), Some(0.3)),
+                ("dir:x/b.png".into(), None),
+                ("c.png".into(), Some(2.0)),
+            ]
+        );
+        let err = flags(&["a.png:-1", "b.png"])
+            .apply(&mut Config::default())
+            .expect_err("negative weight");
+        assert!(err.to_string().contains("a.png:-1"), "{err}");
+        // The file's entries, relative to the file.
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("shot.toml");
+        std::fs::write(
+            &path,
+            "exemplar_select = \"histogram\"\nexemplars = [{ path = \"a.png\", weight = 0.3, \
+             channels = { displacement = \"a_d.exr\" } }, { path = \"b.png\" }]\n",
+        )
+        .expect("write");
+        let c = Config::load(&path).expect("valid");
+        assert_eq!(c.exemplars[0].path, dir.path().join("a.png"));
+        assert_eq!(
+            c.exemplars[0].channels["displacement"],
+            dir.path().join("a_d.exr")
+        );
+        assert_eq!(c.exemplar_select.as_deref(), Some("histogram"));
+    }
+
+    #[test]
     fn fingerprint_tracks_settings_but_not_the_output_folder() {
         let a = Config {
             atlas: Some(1024),
