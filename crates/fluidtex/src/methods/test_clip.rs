@@ -65,3 +65,30 @@ pub(crate) fn scene(name: &str, resolution: u32, frames: i32, atlas: u32) -> Cli
         .collect();
     Clip::from_meshes(meshes, atlas)
 }
+
+/// A flat n×n grid of square cells of side `cell` in z = 0, centred on the
+/// origin, each cell split along its diagonal, with velocity `v(x)`.
+pub(crate) fn grid(n: usize, cell: f32, v: impl Fn(Vec3) -> Vec3) -> TriMesh {
+    let mut positions = Vec::new();
+    let half = n as f32 * cell / 2.0;
+    for j in 0..=n {
+        for i in 0..=n {
+            positions.push(Vec3::new(
+                i as f32 * cell - half,
+                j as f32 * cell - half,
+                0.0,
+            ));
+        }
+    }
+    let w = (n + 1) as u32;
+    let mut triangles = Vec::new();
+    for j in 0..n as u32 {
+        for i in 0..n as u32 {
+            let a = j * w + i;
+            triangles.push([a, a + 1, a + w + 1]);
+            triangles.push([a, a + w + 1, a + w]);
+        }
+    }
+    let velocity = positions.iter().map(|&p| v(p)).collect();
+    TriMesh::new(positions, triangles).with_velocity(velocity)
+}

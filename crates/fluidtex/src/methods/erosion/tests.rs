@@ -21,30 +21,9 @@ use crate::methods::{
 };
 use crate::surface::{SurfaceIndex, SurfacePoint};
 
-/// A flat n×n grid of unit cells in z = 0, centred on the origin.
+/// A flat n×n grid of cells in z = 0, centred on the origin, at rest.
 fn grid(n: usize, cell: f32) -> TriMesh {
-    let mut positions = Vec::new();
-    let half = n as f32 * cell / 2.0;
-    for j in 0..=n {
-        for i in 0..=n {
-            positions.push(Vec3::new(
-                i as f32 * cell - half,
-                j as f32 * cell - half,
-                0.0,
-            ));
-        }
-    }
-    let w = (n + 1) as u32;
-    let mut triangles = Vec::new();
-    for j in 0..n as u32 {
-        for i in 0..n as u32 {
-            let a = j * w + i;
-            triangles.push([a, a + 1, a + w + 1]);
-            triangles.push([a, a + w + 1, a + w]);
-        }
-    }
-    let v = vec![Vec3::ZERO; positions.len()];
-    TriMesh::new(positions, triangles).with_velocity(v)
+    crate::methods::test_clip::grid(n, cell, |_| Vec3::ZERO)
 }
 
 fn shape(radius: f32) -> PatchShape {

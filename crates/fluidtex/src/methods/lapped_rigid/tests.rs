@@ -12,36 +12,9 @@ use super::trackers::{Frame, Tracker};
 use super::*;
 use crate::exemplar::{Exemplar, builtin_pebbles};
 use crate::mesh::{Topology, TriMesh};
-use crate::methods::test_clip::{Clip, scene};
+use crate::methods::test_clip::{Clip, grid, scene};
 use crate::methods::{FrameContext, FrameResult, Method, PreviousFrame, SOURCE_UNCOVERED};
 use crate::surface::SurfaceIndex;
-
-/// A flat n×n grid of square cells in z = 0, centred on the origin, with
-/// velocity `v(x)`.
-fn grid(n: usize, cell: f32, v: impl Fn(Vec3) -> Vec3) -> TriMesh {
-    let mut positions = Vec::new();
-    let half = n as f32 * cell / 2.0;
-    for j in 0..=n {
-        for i in 0..=n {
-            positions.push(Vec3::new(
-                i as f32 * cell - half,
-                j as f32 * cell - half,
-                0.0,
-            ));
-        }
-    }
-    let w = (n + 1) as u32;
-    let mut triangles = Vec::new();
-    for j in 0..n as u32 {
-        for i in 0..n as u32 {
-            let a = j * w + i;
-            triangles.push([a, a + 1, a + w + 1]);
-            triangles.push([a, a + w + 1, a + w]);
-        }
-    }
-    let vel = positions.iter().map(|&p| v(p)).collect();
-    TriMesh::new(positions, triangles).with_velocity(vel)
-}
 
 fn exemplar() -> Arc<Exemplar> {
     Arc::new(builtin_pebbles(64, 1))
