@@ -339,6 +339,9 @@ pub struct RunFlags {
     /// Split patch edges longer than this many median edge lengths of the frame (0: never, the paper) [2]
     #[arg(long)]
     pub split_edges: Option<f32>,
+    /// Distortion at which erosion starts: Q_T = 1 below it, then falls linearly to 0 at δ_max [1: the paper's Eq. 1]
+    #[arg(long)]
+    pub delta_onset: Option<f32>,
     /// dual-rest: frames between two resets of a layer [24]
     #[arg(long)]
     pub period: Option<u32>,
@@ -515,6 +518,9 @@ impl RunFlags {
         }
         if let Some(v) = self.split_edges {
             e.split_edges = v;
+        }
+        if let Some(v) = self.delta_onset {
+            e.delta_onset = v;
         }
         if let Some(p) = self.period {
             config.dual_rest.period = p;

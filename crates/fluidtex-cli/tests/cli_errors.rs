@@ -235,6 +235,14 @@ fn bad_flags_are_refused_before_any_work() {
             "error: invalid frame range \"5-2\": first frame 5 is after last frame 2",
         ),
         (
+            &["--delta-onset", "3.5"],
+            "error: parameter delta_onset = 3.5 is out of range (allowed: [1, delta_max))",
+        ),
+        (
+            &["--delta-onset", "3"],
+            "error: parameter delta_onset = 3 is out of range (allowed: [1, delta_max))",
+        ),
+        (
             &["--channel", "displacement"],
             "error: --channel displacement: expected NAME=IMAGE, e.g. displacement=disp.exr",
         ),
@@ -249,6 +257,13 @@ fn bad_flags_are_refused_before_any_work() {
         &pattern,
         &out,
         &["--method", "atlas-check", "--atlas", "16"],
+    ));
+    // The onset is checked against the δ_max of the same run.
+    let _ = std::fs::remove_dir_all(&out);
+    ok(&run_args(
+        &pattern,
+        &out,
+        &["--delta-onset", "3", "--delta-max", "4", "--atlas", "16"],
     ));
 }
 

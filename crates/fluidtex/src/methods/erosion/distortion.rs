@@ -67,7 +67,15 @@ pub fn distortion_f64(r: [DVec2; 3], q: [DVec3; 3]) -> Distortion {
 /// 1 for an undistorted triangle, 0 at or beyond δ_max.
 #[inline]
 pub fn triangle_quality(delta: f64, delta_max: f64) -> f64 {
-    ((delta_max - delta) / (delta_max - 1.0)).max(0.0)
+    triangle_quality_from(delta, 1.0, delta_max)
+}
+
+/// Eq. 1 with the fall starting at δ_onset instead of 1:
+/// Q_T = clamp((δ_max − δ_t)/(δ_max − δ_onset), 0, 1). δ_onset = 1 is the
+/// paper's Eq. 1 exactly.
+#[inline]
+pub fn triangle_quality_from(delta: f64, delta_onset: f64, delta_max: f64) -> f64 {
+    ((delta_max - delta) / (delta_max - delta_onset)).clamp(0.0, 1.0)
 }
 
 #[cfg(test)]
@@ -186,5 +194,24 @@ mod tests {
             f64::INFINITY
         );
         assert_eq!(triangle_quality(f64::INFINITY, 3.0), 0.0);
+    }
+
+    #[test]
+    fn quality_onset_holds_one_then_falls_linearly_to_delta_max() {
+        // δ_onset = 1 is the paper's Eq. 1 at every δ.
+        for i in 0..=40 {
+            let d = 1.0 + i as f64 * 0.1;
+            assert_eq!(triangle_quality_from(d, 1.0, 3.0), triangle_quality(d, 3.0));
+        }
+        // δ_onset = 1.5: 1 up to the onset, 0 from δ_max, linear between.
+        assert_eq!(triangle_quality_from(1.0, 1.5, 3.0), 1.0);
+        assert_eq!(triangle_quality_from(1.5, 1.5, 3.0), 1.0);
+        assert!((triangle_quality_from(2.25, 1.5, 3.0) - 0.5).abs() < 1e-12);
+        assert!((triangle_quality_from(2.7, 1.5, 3.0) - 0.2).abs() < 1e-12);
+        assert_eq!(triangle_quality_from(3.0, 1.5, 3.0), 0.0);
+        assert_eq!(triangle_quality_from(f64::INFINITY, 1.5, 3.0), 0.0);
+        // Below the onset a distorted triangle loses nothing; the paper's
+        // Eq. 1 already lowers it.
+        assert!(triangle_quality(1.4, 3.0) < 1.0);
     }
 }

@@ -61,6 +61,13 @@ pub struct ErosionParams {
     pub exemplar_scale: f32,
     /// δ_max of Eq. 1 \[3]: triangles at or beyond this distortion have Q_T = 0.
     pub delta_max: f32,
+    /// Distortion at which erosion starts: Q_T of Eq. 1 stays 1 up to δ_onset
+    /// and falls linearly to 0 at δ_max \[1: the paper's Eq. 1, where any
+    /// distortion lowers Q_T]. Above 1, a patch sheared by a slow flow keeps
+    /// every texel until its distortion is visible instead of shedding a
+    /// thin band of texels every frame from its first frame on; pair it with
+    /// a faster `erosion_rate` so patches are still gone by δ_max.
+    pub delta_onset: f32,
     /// ε of the erosion test, Sec. 5.2 [0.1], in (0, 1).
     pub epsilon: f32,
     /// Vertices farther than this fraction of r from the next surface are removed [1/4] (Sec. 4).
@@ -152,6 +159,7 @@ impl Default for ErosionParams {
             exemplar_size: None,
             exemplar_scale: 2.6,
             delta_max: 3.0,
+            delta_onset: 1.0,
             epsilon: 0.1,
             far_fraction: 0.25,
             centre_fraction: 0.25,
@@ -194,6 +202,13 @@ impl ErosionParams {
             "[0.1, 100]",
         )?;
         check_range("delta_max", self.delta_max, 1.0001, 1000.0, "(1, 1000]")?;
+        if !(self.delta_onset >= 1.0 && self.delta_onset < self.delta_max) {
+            return Err(MethodError::InvalidParameter {
+                name: "delta_onset",
+                value: self.delta_onset.to_string(),
+                allowed: "[1, delta_max)",
+            });
+        }
         check_range("epsilon", self.epsilon, 0.0, 0.9999, "[0, 1)")?;
         check_range("far_fraction", self.far_fraction, 1e-3, 10.0, "[0.001, 10]")?;
         check_range("centre_fraction", self.centre_fraction, 0.0, 1.0, "[0, 1]")?;
@@ -403,6 +418,7 @@ impl Erosion {
             radius,
             exemplar_size,
             delta_max: self.params.delta_max,
+            delta_onset: self.params.delta_onset,
             far_distance: self.params.far_fraction * radius,
             centre_radius: self.params.centre_fraction * radius,
         }

@@ -12,7 +12,7 @@
 use glam::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 
-use super::distortion::{distortion, triangle_quality};
+use super::distortion::{distortion, triangle_quality_from};
 use crate::mesh::{Topology, TriMesh};
 use crate::surface::velocity::FlowInterval;
 use crate::surface::{SurfaceIndex, SurfacePoint, closest_point_on_triangle};
@@ -26,6 +26,8 @@ pub struct PatchShape {
     pub exemplar_size: f32,
     /// δ_max of Eq. 1.
     pub delta_max: f32,
+    /// Distortion below which Q_T stays 1 (1 in the paper's Eq. 1).
+    pub delta_onset: f32,
     /// Vertices farther than this from the next frame's surface are removed (r/4, Sec. 4).
     pub far_distance: f32,
     /// B_V = 1 for vertices within this rest distance of p (r/4, Eq. 2).
@@ -411,7 +413,8 @@ impl Patch {
             } else {
                 0.0
             });
-            let quality = triangle_quality(d.delta, shape.delta_max as f64);
+            let quality =
+                triangle_quality_from(d.delta, shape.delta_onset as f64, shape.delta_max as f64);
             for &v in t {
                 sum[v as usize] += quality;
                 count[v as usize] += 1;

@@ -31,6 +31,7 @@ fn shape(radius: f32) -> PatchShape {
         radius,
         exemplar_size: 2.6 * radius,
         delta_max: 3.0,
+        delta_onset: 1.0,
         far_distance: radius / 4.0,
         centre_radius: radius / 4.0,
         texel_size: 0.0,
@@ -138,6 +139,7 @@ fn weights_follow_eqs_1_to_3_on_a_hand_built_patch() {
         radius: 1.0,
         exemplar_size: 1.0,
         delta_max: 3.0,
+        delta_onset: 1.0,
         far_distance: 0.25,
         centre_radius: 0.0,
         texel_size: 0.0,
@@ -189,6 +191,29 @@ fn weights_follow_eqs_1_to_3_on_a_hand_built_patch() {
     // The stretched corner triangles really lost quality; the others not.
     assert!(q_t.iter().filter(|&&q| q < 0.999).count() >= 1);
     assert!(patch.weight[4] < 1.0 && patch.weight[4] > 0.0);
+    assert_eq!(patch.weight[1], 0.0);
+    // With the onset at the largest distortion of the patch, Q_T = 1
+    // everywhere: the interior and pinned vertices keep their full weight.
+    let worst = mesh
+        .triangles
+        .iter()
+        .map(|t| {
+            distortion(
+                t.map(|v| rest[v as usize]),
+                t.map(|v| mesh.positions[v as usize]),
+            )
+            .delta
+        })
+        .fold(1.0f64, f64::max);
+    assert!(worst > 1.5 && worst < 3.0, "{worst}");
+    let onset = PatchShape {
+        delta_onset: worst as f32 + 1e-4,
+        ..s
+    };
+    patch.weight.clear();
+    patch.update_weights(&onset, None);
+    assert_eq!(patch.weight[4], 1.0);
+    assert_eq!(patch.weight[0], 1.0);
     assert_eq!(patch.weight[1], 0.0);
 }
 
