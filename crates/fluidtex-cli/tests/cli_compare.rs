@@ -111,3 +111,47 @@ fn bad_compare_input_is_one_line_and_writes_nothing() {
         assert!(!dir.path().join("report.json").exists());
     }
 }
+
+#[test]
+fn compare_takes_method_parameters_from_a_config_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("params.toml");
+    // The file's atlas and mesh must not win over compare's own choices.
+    std::fs::write(
+        &config,
+        "mesh = \"nowhere.####.ply\"\natlas = 4096\n[erosion]\ndelta_max = 2.0\ndelta_onset = 1.25\n",
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    compare(
+        &out,
+        &["--methods", "erosion", "--config", config.to_str().unwrap()],
+    )
+    .unwrap();
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(json["atlas_size"], 64);
+    let params = &json["scenes"][0]["methods"][0]["parameters"];
+    assert_eq!(params["atlas"], 64);
+    assert_eq!(params["parameters"]["delta_max"], 2.0);
+    assert_eq!(params["parameters"]["delta_onset"], 1.25);
+    // Without the file: the defaults.
+    let plain = dir.path().join("plain");
+    compare(&plain, &["--methods", "erosion"]).unwrap();
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(plain.join("report.json")).unwrap()).unwrap();
+    let params = &json["scenes"][0]["methods"][0]["parameters"];
+    assert_eq!(params["parameters"]["delta_max"], 3.0);
+    // A bad value in the file is refused before any scene is generated.
+    std::fs::write(&config, "[erosion]\ndelta_onset = 9.0\n").unwrap();
+    let bad = dir.path().join("bad");
+    let e = compare(
+        &bad,
+        &["--methods", "erosion", "--config", config.to_str().unwrap()],
+    )
+    .err()
+    .unwrap();
+    let line = fluidtex_cli::one_line(&e);
+    assert!(line.contains("delta_onset = 9"), "{line}");
+    assert!(!bad.join("report.json").exists());
+}

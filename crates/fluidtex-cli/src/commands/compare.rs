@@ -58,6 +58,12 @@ pub struct CompareArgs {
     /// Colour exemplar (PNG, JPEG, EXR); default: built-in pebbles
     #[arg(long)]
     pub exemplar: Option<PathBuf>,
+    /// TOML config (as `fluidtex run --config`) whose method sections
+    /// ([erosion], [dual_rest], ...) set the compared methods' parameters;
+    /// its mesh, method, frames and output keys are ignored, and compare's
+    /// own --atlas, --seed and --exemplar win over the file's
+    #[arg(long)]
+    pub config: Option<PathBuf>,
     /// No progress lines
     #[arg(long)]
     pub quiet: bool,
@@ -127,11 +133,21 @@ pub fn compare(a: &CompareArgs) -> Result<()> {
     if !(32..=4096).contains(&a.render) {
         bail!("--render {}: allowed 32 to 4096 pixels", a.render);
     }
+    // A config file brings the methods' parameters (e.g. an erosion
+    // δ_max to weigh against the defaults); the scene decides the input.
+    let file = match &a.config {
+        Some(path) => Config::load(path)?,
+        None => Config::default(),
+    };
     let base = Config {
         atlas: Some(a.atlas),
         seed: Some(a.seed),
-        exemplar: a.exemplar.clone(),
-        ..Default::default()
+        exemplar: a.exemplar.clone().or(file.exemplar.clone()),
+        mesh: None,
+        method: None,
+        frames: None,
+        out: None,
+        ..file
     };
     // Validates the atlas size and gives the atlas parameters `run` uses.
     let job = build_job(&base, a.out.clone(), false)?;
