@@ -16,7 +16,7 @@ use super::fill::{
     Candidates, FillBuffers, FillContext, UNCOVERED, Uncovered, patch_groups, walk_band,
 };
 use crate::atlas::Atlas;
-use crate::methods::lapped::{BandResult, BandRows, BandTexel, TexelBuffers, fill_bands};
+use crate::methods::lapped::{BandResult, BandTexel, TexelRows, fill_bands};
 
 pub use crate::methods::lapped::VISIBLE_LAYER_WEIGHT;
 
@@ -42,9 +42,9 @@ pub fn fill(
     out: &mut FillBuffers,
 ) -> BlendOutcome {
     let mut layers = vec![0u8; out.source.len()];
-    let buffers = TexelBuffers {
+    let buffers = TexelRows {
         layers: &mut layers,
-        ..out.texel_buffers()
+        ..out.texel_rows()
     };
     let merged = fill_bands(atlas, buffers, |band, mut rows| {
         let mut result = BandResult::default();
@@ -78,7 +78,7 @@ fn blend_texel(
     ctx: &FillContext<'_>,
     texel: &BandTexel,
     found: &[(u32, Vec2, f32)],
-    rows: &mut BandRows<'_>,
+    rows: &mut TexelRows<'_>,
     sample: &mut [f32],
     result: &mut BandResult<Uncovered>,
 ) {

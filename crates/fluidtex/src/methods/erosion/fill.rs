@@ -32,7 +32,7 @@ use crate::exemplar::Exemplar;
 use crate::mesh::TriMesh;
 pub(crate) use crate::methods::lapped::BandTexel;
 use crate::methods::lapped::bands::for_each_span;
-use crate::methods::lapped::{BandResult, TexelBuffers, TriangleLists, fill_bands};
+use crate::methods::lapped::{BandResult, TexelRows, TriangleLists, fill_bands};
 use crate::surface::SurfaceIndex;
 
 pub use crate::provenance::{SOURCE_OUTSIDE as OUTSIDE, SOURCE_UNCOVERED as UNCOVERED};
@@ -324,8 +324,9 @@ impl FillBuffers {
     }
 
     /// The buffers as the band walk cuts them ([`fill_bands`]).
-    pub fn texel_buffers(&mut self) -> TexelBuffers<'_> {
-        TexelBuffers {
+    pub fn texel_rows(&mut self) -> TexelRows<'_> {
+        TexelRows {
+            base: 0,
             channels: self.channels,
             values: &mut self.values,
             source: &mut self.source,
@@ -490,7 +491,7 @@ pub fn fill(
     out: &mut FillBuffers,
 ) -> Vec<Uncovered> {
     let defer = out.defer_values;
-    let merged = fill_bands(atlas, out.texel_buffers(), |band, mut rows| {
+    let merged = fill_bands(atlas, out.texel_rows(), |band, mut rows| {
         let mut uncovered = Vec::new();
         walk_band(ctx, atlas, candidates, band, |texel, cands| {
             let t = texel.t;

@@ -16,9 +16,14 @@ use super::AtTexel;
 use crate::atlas::{Atlas, Band};
 use crate::mesh::TriMesh;
 
-/// The per-texel outputs of a fill, whole; [`fill_bands`] cuts them into
-/// one [`BandRows`] per band. A buffer the fill does not keep is empty.
-pub struct TexelBuffers<'a> {
+/// Rows of the per-texel outputs of a fill: the whole atlas (`base` 0)
+/// as a fill hands it to [`fill_bands`], or one band's rows as the band
+/// receives them. Texel `t` of the rows is `source[t]`,
+/// `values[t * channels..(t + 1) * channels]`, and so on; a buffer the fill
+/// does not keep is empty.
+pub struct TexelRows<'a> {
+    /// Row-major atlas index of the first texel.
+    pub base: usize,
     /// Values per texel in `values`.
     pub channels: usize,
     pub values: &'a mut [f32],
@@ -30,21 +35,8 @@ pub struct TexelBuffers<'a> {
     pub lod: &'a mut [f32],
 }
 
-/// One band's rows of every per-texel buffer: texel `t` of the band is
-/// `source[t]`, `values[t * channels..(t + 1) * channels]`, and so on.
-pub struct BandRows<'a> {
-    /// Row-major index of the band's first texel in the atlas.
-    pub base: usize,
-    pub channels: usize,
-    pub values: &'a mut [f32],
-    pub source: &'a mut [u32],
-    pub uv: &'a mut [Vec2],
-    pub layers: &'a mut [u8],
-    pub lod: &'a mut [f32],
-}
-
-impl BandRows<'_> {
-    /// The values of band texel `t`.
+impl TexelRows<'_> {
+    /// The values of texel `t`.
     #[inline]
     pub fn values_of(&mut self, t: usize) -> &mut [f32] {
         let c = self.channels;
@@ -81,10 +73,10 @@ fn cut<T>(buffer: &mut [T], texels: usize, per_texel: usize, bands: usize) -> Ve
 
 /// Runs `fill` on every band of `atlas` in parallel, each with its own rows
 /// of `out`, and merges what the bands return (module doc).
-pub fn fill_bands<U, F>(atlas: &Atlas, out: TexelBuffers<'_>, fill: F) -> BandResult<U>
+pub fn fill_bands<U, F>(atlas: &Atlas, out: TexelRows<'_>, fill: F) -> BandResult<U>
 where
     U: AtTexel + Send,
-    F: Fn(&Band, BandRows<'_>) -> BandResult<U> + Sync,
+    F: Fn(&Band, TexelRows<'_>) -> BandResult<U> + Sync,
 {
     let bands = atlas.bands();
     let Some(first) = bands.first() else {
@@ -94,22 +86,24 @@ where
     let texels = (first.y1 - first.y0) as usize * w;
     let c = out.channels;
     let n = bands.len();
-    let rows: Vec<BandRows<'_>> = cut(out.values, texels, c, n)
+    let rows: Vec<TexelRows<'_>> = cut(out.values, texels, c, n)
         .into_iter()
         .zip(cut(out.source, texels, 1, n))
         .zip(cut(out.uv, texels, 1, n))
         .zip(cut(out.layers, texels, 1, n))
         .zip(cut(out.lod, texels, 1, n))
         .zip(bands)
-        .map(|(((((values, source), uv), layers), lod), band)| BandRows {
-            base: band.y0 as usize * w,
-            channels: c,
-            values,
-            source,
-            uv,
-            layers,
-            lod,
-        })
+        .map(
+            |(((((values, source), uv), layers), lod), band)| TexelRows {
+                base: band.y0 as usize * w,
+                channels: c,
+                values,
+                source,
+                uv,
+                layers,
+                lod,
+            },
+        )
         .collect();
     let results: Vec<BandResult<U>> = rows
         .into_par_iter()

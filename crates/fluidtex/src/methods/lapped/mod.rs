@@ -31,7 +31,7 @@ pub mod lists;
 pub mod pending;
 pub mod scale;
 
-pub use bands::{BandResult, BandRows, BandTexel, SpanTexels, TexelBuffers, fill_bands};
+pub use bands::{BandResult, BandTexel, SpanTexels, TexelRows, fill_bands};
 pub use lists::TriangleLists;
 pub use pending::Pending;
 pub use scale::{PatchScale, ScaleKeys};

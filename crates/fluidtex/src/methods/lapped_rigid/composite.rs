@@ -37,7 +37,7 @@ use crate::exemplar::feature::FeatureSampler;
 use crate::mesh::TriMesh;
 use crate::methods::lapped::bands::for_each_span;
 use crate::methods::lapped::{
-    AtTexel, BandResult, BandRows, BandTexel, TexelBuffers, TriangleLists, fill_bands,
+    AtTexel, BandResult, BandTexel, TexelRows, TriangleLists, fill_bands,
 };
 use crate::methods::{SOURCE_OUTSIDE, SOURCE_UNCOVERED};
 
@@ -165,8 +165,9 @@ impl CompositeBuffers {
     }
 
     /// The buffers as the band walk cuts them ([`fill_bands`]).
-    pub fn texel_buffers(&mut self) -> TexelBuffers<'_> {
-        TexelBuffers {
+    pub fn texel_rows(&mut self) -> TexelRows<'_> {
+        TexelRows {
+            base: 0,
             channels: self.channels,
             values: &mut self.values,
             source: &mut self.source,
@@ -341,7 +342,7 @@ pub fn fill(
     lists: &LayerLists,
     out: &mut CompositeBuffers,
 ) -> FillOutcome {
-    let merged = fill_bands(atlas, out.texel_buffers(), |band, mut rows| {
+    let merged = fill_bands(atlas, out.texel_rows(), |band, mut rows| {
         let mut result = BandResult::default();
         let mut sample = vec![0.0f32; rows.channels];
         let mut sum = TexelSum::default();
@@ -370,7 +371,7 @@ impl CompositeContext<'_> {
         &self,
         texel: &BandTexel,
         list: &[u32],
-        rows: &mut BandRows<'_>,
+        rows: &mut TexelRows<'_>,
         sum: &mut TexelSum,
         sample: &mut [f32],
         result: &mut BandResult<Uncovered>,
