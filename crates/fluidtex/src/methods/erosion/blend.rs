@@ -44,7 +44,7 @@ pub fn fill(
     let mut layers = vec![0u8; out.source.len()];
     let buffers = TexelRows {
         layers: &mut layers,
-        ..out.texel_rows()
+        ..out.rows()
     };
     let merged = fill_bands(atlas, buffers, |band, mut rows| {
         let mut result = BandResult::default();

@@ -32,7 +32,7 @@ use crate::exemplar::Exemplar;
 use crate::mesh::TriMesh;
 pub(crate) use crate::methods::lapped::BandTexel;
 use crate::methods::lapped::bands::for_each_span;
-use crate::methods::lapped::{BandResult, TexelRows, TriangleLists, fill_bands};
+use crate::methods::lapped::{BandResult, TexelBuffers, TriangleLists, fill_bands};
 use crate::surface::SurfaceIndex;
 
 pub use crate::provenance::{SOURCE_OUTSIDE as OUTSIDE, SOURCE_UNCOVERED as UNCOVERED};
@@ -290,52 +290,11 @@ impl FillContext<'_> {
 /// A chart texel left uncovered by the fill.
 pub use crate::methods::lapped::ChartTexel as Uncovered;
 
-/// The fill's per-texel results.
-pub struct FillBuffers {
-    pub width: u32,
-    pub height: u32,
-    /// Exemplar channels, interleaved (`channels` per texel).
-    pub channels: usize,
-    pub values: Vec<f32>,
-    /// [`OUTSIDE`], [`UNCOVERED`] or patch id + 1.
-    pub source: Vec<u32>,
-    /// Patch uv per texel (exemplar coordinates), NaN where no patch.
-    pub uv: Vec<Vec2>,
-    /// When set, the fill records only source and uv and leaves `values`
-    /// to a later pass that samples every covered texel once, at its
-    /// footprint's level ([`crate::methods::footprint`]): a level-0 read
-    /// that is overwritten anyway would cost most of the frame with a
-    /// large exemplar.
-    pub defer_values: bool,
-}
+/// The fill's per-texel results (the shared lapped buffers; the lapped
+/// fill keeps no layer count or level).
+pub type FillBuffers = TexelBuffers;
 
-impl FillBuffers {
-    pub fn new(width: u32, height: u32, channels: usize) -> FillBuffers {
-        let n = width as usize * height as usize;
-        FillBuffers {
-            width,
-            height,
-            channels,
-            values: vec![0.0; n * channels],
-            source: vec![OUTSIDE; n],
-            uv: vec![Vec2::NAN; n],
-            defer_values: false,
-        }
-    }
-
-    /// The buffers as the band walk cuts them ([`fill_bands`]).
-    pub fn texel_rows(&mut self) -> TexelRows<'_> {
-        TexelRows {
-            base: 0,
-            channels: self.channels,
-            values: &mut self.values,
-            source: &mut self.source,
-            uv: &mut self.uv,
-            layers: &mut [],
-            lod: &mut [],
-        }
-    }
-
+impl TexelBuffers {
     /// Writes the result of a hit at texel `t`.
     #[inline]
     pub fn write(&mut self, t: usize, hit: Hit, id: u32, exemplar: &Exemplar) {
@@ -491,7 +450,7 @@ pub fn fill(
     out: &mut FillBuffers,
 ) -> Vec<Uncovered> {
     let defer = out.defer_values;
-    let merged = fill_bands(atlas, out.texel_rows(), |band, mut rows| {
+    let merged = fill_bands(atlas, out.rows(), |band, mut rows| {
         let mut uncovered = Vec::new();
         walk_band(ctx, atlas, candidates, band, |texel, cands| {
             let t = texel.t;

@@ -15,6 +15,74 @@ use rayon::prelude::*;
 use super::AtTexel;
 use crate::atlas::{Atlas, Band};
 use crate::mesh::TriMesh;
+use crate::provenance::SOURCE_OUTSIDE;
+
+/// The per-texel outputs of a lapped fill, whole atlas: the exemplar's
+/// channels, the provenance (patch id + 1, or outside / uncovered) and the
+/// patch uv; blending fills add a visible-layer count and the exemplar
+/// level per texel.
+pub struct TexelBuffers {
+    pub width: u32,
+    pub height: u32,
+    /// Exemplar channels, interleaved (`channels` per texel).
+    pub channels: usize,
+    pub values: Vec<f32>,
+    /// [`SOURCE_OUTSIDE`], [`crate::provenance::SOURCE_UNCOVERED`] or
+    /// patch id + 1.
+    pub source: Vec<u32>,
+    /// Patch uv per texel (exemplar coordinates), NaN where no patch.
+    pub uv: Vec<Vec2>,
+    /// Visible layers per texel; empty unless [`TexelBuffers::with_layers`].
+    pub layers: Vec<u8>,
+    /// Exemplar mip level per texel (NaN where none); empty unless
+    /// [`TexelBuffers::with_layers`].
+    pub lod: Vec<f32>,
+    /// When set, the erosion fill records only source and uv and leaves
+    /// `values` to a later pass that samples every covered texel once, at
+    /// its footprint's level ([`crate::methods::footprint`]): a level-0
+    /// read that is overwritten anyway would cost most of the frame with a
+    /// large exemplar.
+    pub defer_values: bool,
+}
+
+impl TexelBuffers {
+    /// Every texel outside the charts, values 0, uv NaN.
+    pub fn new(width: u32, height: u32, channels: usize) -> TexelBuffers {
+        let n = width as usize * height as usize;
+        TexelBuffers {
+            width,
+            height,
+            channels,
+            values: vec![0.0; n * channels],
+            source: vec![SOURCE_OUTSIDE; n],
+            uv: vec![Vec2::NAN; n],
+            layers: Vec::new(),
+            lod: Vec::new(),
+            defer_values: false,
+        }
+    }
+
+    /// Also a layer count (0) and an exemplar level (NaN) per texel.
+    pub fn with_layers(mut self) -> TexelBuffers {
+        let n = self.source.len();
+        self.layers = vec![0; n];
+        self.lod = vec![f32::NAN; n];
+        self
+    }
+
+    /// All the buffers as rows from the first texel, for [`fill_bands`].
+    pub fn rows(&mut self) -> TexelRows<'_> {
+        TexelRows {
+            base: 0,
+            channels: self.channels,
+            values: &mut self.values,
+            source: &mut self.source,
+            uv: &mut self.uv,
+            layers: &mut self.layers,
+            lod: &mut self.lod,
+        }
+    }
+}
 
 /// Rows of the per-texel outputs of a fill: the whole atlas (`base` 0)
 /// as a fill hands it to [`fill_bands`], or one band's rows as the band

@@ -14,10 +14,11 @@
 //! - [`lists`]: per-fluid-triangle lists in patch (= age) order, the
 //!   layout of erosion's candidate patch triangles and of the rigid
 //!   patches' receivers.
-//! - [`bands`]: the parallel walk over the atlas's bands of rows: per span
-//!   the fluid triangle, its normal and its texels' surface points; per
-//!   band a slice of every per-texel buffer; and the deterministic merge of
-//!   the bands' uncovered texels and used patches.
+//! - [`bands`]: the per-texel outputs every lapped fill writes
+//!   ([`TexelBuffers`]) and the parallel walk over the atlas's bands of
+//!   rows: per span the fluid triangle, its normal and its texels' surface
+//!   points; per band its rows of every buffer; and the deterministic merge
+//!   of the bands' uncovered texels and used patches.
 //! - [`pending`]: the uncovered texels the coverage-driven insertion still
 //!   has to close, grouped by fluid triangle, handed out in texel order.
 //! - [`scale`]: the patch radius r and exemplar size S, their checks and
@@ -31,7 +32,7 @@ pub mod lists;
 pub mod pending;
 pub mod scale;
 
-pub use bands::{BandResult, BandTexel, SpanTexels, TexelRows, fill_bands};
+pub use bands::{BandResult, BandTexel, SpanTexels, TexelBuffers, TexelRows, fill_bands};
 pub use lists::TriangleLists;
 pub use pending::Pending;
 pub use scale::{PatchScale, ScaleKeys};

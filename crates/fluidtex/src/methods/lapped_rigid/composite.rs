@@ -35,11 +35,11 @@ use crate::atlas::Atlas;
 use crate::exemplar::Exemplar;
 use crate::exemplar::feature::FeatureSampler;
 use crate::mesh::TriMesh;
+use crate::methods::SOURCE_UNCOVERED;
 use crate::methods::lapped::bands::for_each_span;
 use crate::methods::lapped::{
-    AtTexel, BandResult, BandTexel, TexelRows, TriangleLists, fill_bands,
+    AtTexel, BandResult, BandTexel, TexelBuffers, TexelRows, TriangleLists, fill_bands,
 };
-use crate::methods::{SOURCE_OUTSIDE, SOURCE_UNCOVERED};
 
 pub use crate::methods::lapped::VISIBLE_LAYER_WEIGHT;
 
@@ -136,47 +136,10 @@ impl AtTexel for Uncovered {
     }
 }
 
-/// Per-texel results.
-pub struct CompositeBuffers {
-    pub width: u32,
-    pub height: u32,
-    /// Exemplar channels, interleaved; unnormalised while a texel is open.
-    pub channels: usize,
-    pub values: Vec<f32>,
-    pub source: Vec<u32>,
-    pub uv: Vec<Vec2>,
-    pub layers: Vec<u8>,
-    pub lod: Vec<f32>,
-}
-
-impl CompositeBuffers {
-    pub fn new(width: u32, height: u32, channels: usize) -> CompositeBuffers {
-        let n = width as usize * height as usize;
-        CompositeBuffers {
-            width,
-            height,
-            channels,
-            values: vec![0.0; n * channels],
-            source: vec![SOURCE_OUTSIDE; n],
-            uv: vec![Vec2::NAN; n],
-            layers: vec![0; n],
-            lod: vec![f32::NAN; n],
-        }
-    }
-
-    /// The buffers as the band walk cuts them ([`fill_bands`]).
-    pub fn texel_rows(&mut self) -> TexelRows<'_> {
-        TexelRows {
-            base: 0,
-            channels: self.channels,
-            values: &mut self.values,
-            source: &mut self.source,
-            uv: &mut self.uv,
-            layers: &mut self.layers,
-            lod: &mut self.lod,
-        }
-    }
-}
+/// Per-texel results, with a layer count and an exemplar level per texel
+/// (`TexelBuffers::new(..).with_layers()`); values stay unnormalised while
+/// a texel is open.
+pub type CompositeBuffers = TexelBuffers;
 
 /// Where one texel writes.
 pub struct TexelOut<'b> {
@@ -342,7 +305,7 @@ pub fn fill(
     lists: &LayerLists,
     out: &mut CompositeBuffers,
 ) -> FillOutcome {
-    let merged = fill_bands(atlas, out.texel_rows(), |band, mut rows| {
+    let merged = fill_bands(atlas, out.rows(), |band, mut rows| {
         let mut result = BandResult::default();
         let mut sample = vec![0.0f32; rows.channels];
         let mut sum = TexelSum::default();

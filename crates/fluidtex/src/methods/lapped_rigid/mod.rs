@@ -811,7 +811,7 @@ impl Method for LappedRigid {
         let mut clock = StageClock::default();
         let atlas = ctx.atlas;
         let channels = self.exemplar.total_channels();
-        let mut out = CompositeBuffers::new(atlas.width, atlas.height, channels);
+        let mut out = CompositeBuffers::new(atlas.width, atlas.height, channels).with_layers();
         let mut counts = FrameCounts::default();
         let mut used_ids: Vec<u32> = Vec::new();
         if ctx.mesh.is_empty() {
