@@ -218,6 +218,9 @@ fn mesh_prim(file: &str, stage: &Stage, want: Option<&str>) -> Result<openusd::s
     }
 }
 
+/// Reads an attribute of the prim at a time (`None`: its default value).
+type AttributeAt<'a> = dyn Fn(&str, Option<f64>) -> Result<Option<Value>> + 'a;
+
 /// A Mesh prim at one time sample.
 struct MeshSample {
     points: Vec<[f32; 3]>,
@@ -229,11 +232,7 @@ struct MeshSample {
 impl MeshSample {
     /// Reads the sample at `t` through `at` (attribute name, time → value);
     /// `whose` ("FILE: PRIM") starts every message.
-    fn read(
-        whose: &str,
-        t: Option<f64>,
-        at: &dyn Fn(&str, Option<f64>) -> Result<Option<Value>>,
-    ) -> Result<MeshSample> {
+    fn read(whose: &str, t: Option<f64>, at: &AttributeAt<'_>) -> Result<MeshSample> {
         let when = t.map_or("(default)".to_string(), |t| format!("at time {t}"));
         let points = vec3s(at("points", t)?)
             .with_context(|| format!("{whose}.points {when}"))?
