@@ -403,27 +403,172 @@ pub struct RunFlags {
     pub rigid: RigidFlags,
 }
 
+/// The flags that copy their value to one config key, one row each:
+/// `flag field => config key: how`, where how is `some` (the key is an
+/// option), `value` (the key takes the value), `off` (a `--no-...` switch
+/// clears the key) or `on` (a switch sets it). The same table gives
+/// [`FLAG_KEYS`], which the tests hold against clap's flags and serde's
+/// keys, so a flag or key added to one side only fails a test. Flags whose
+/// value is parsed first (several exemplars, channels, three-part values)
+/// are applied by hand: [`HAND_FLAGS`].
+macro_rules! flag_keys {
+    ($($($flag:ident).+ => $($key:ident).+ : $how:ident),* $(,)?) => {
+        impl RunFlags {
+            /// Copies every set flag of the table to its key.
+            fn apply_table(&self, config: &mut Config) {
+                $( flag_keys!(@$how self.$($flag).+, config.$($key).+); )*
+            }
+        }
+
+        /// (flag field, config key) of every row of the table; a flag field
+        /// of a flattened group is written `group.field`.
+        pub const FLAG_KEYS: &[(&str, &str)] = &[
+            $((flag_keys!(@path $($flag).+), flag_keys!(@path $($key).+))),*
+        ];
+    };
+    (@some $src:expr, $dst:expr) => { if let Some(v) = &$src { $dst = Some(v.to_owned()); } };
+    (@value $src:expr, $dst:expr) => { if let Some(v) = &$src { $dst = v.to_owned(); } };
+    (@off $src:expr, $dst:expr) => { if $src { $dst = false; } };
+    (@on $src:expr, $dst:expr) => { if $src { $dst = Some(true); } };
+    (@path $first:ident $(. $rest:ident)*) => {
+        concat!(stringify!($first) $(, ".", stringify!($rest))*)
+    };
+}
+
+flag_keys! {
+    mesh => mesh: some,
+    frames => frames: some,
+    out => out: some,
+    method => method: some,
+    atlas => atlas: some,
+    gutter => gutter: some,
+    fps => fps: some,
+    seed => seed: some,
+    feature => feature: some,
+    feature_method => feature_method: some,
+    exemplar_filter => exemplar_filter: some,
+    exemplar_select => exemplar_select: some,
+    exemplar_region => exemplar_region: some,
+    preview_video => preview_video: on,
+    prim => prim: some,
+    radius => erosion.radius: some,
+    exemplar_size => erosion.exemplar_size: some,
+    delta_max => erosion.delta_max: value,
+    delta_onset => erosion.delta_onset: value,
+    epsilon => erosion.epsilon: value,
+    far_fraction => erosion.far_fraction: value,
+    centre_fraction => erosion.centre_fraction: value,
+    substeps => erosion.substeps: value,
+    no_rotation => erosion.random_rotation: off,
+    placement => erosion.placement: value,
+    weights => erosion.weights: value,
+    erosion_rate => erosion.erosion_rate: value,
+    falloff => erosion.falloff: value,
+    orientation => erosion.orientation: value,
+    radius_edges => erosion.radius_edges: value,
+    split_edges => erosion.split_edges: value,
+    period => dual_rest.period: value,
+    no_obj => outputs.obj: off,
+    no_glb => outputs.glb: off,
+    no_debug => outputs.debug: off,
+    preview_every => outputs.preview_every: value,
+    exemplar_size => optimization.exemplar_size: some,
+    substeps => optimization.substeps: value,
+    points => optimization.points: value,
+    exemplar_texels => optimization.exemplar_texels: value,
+    levels => optimization.levels: value,
+    levels_after_first => optimization.levels_after_first: value,
+    sizes => optimization.sizes: value,
+    search_grid => optimization.search_grid: value,
+    rerank => optimization.rerank: value,
+    iterations => optimization.iterations: value,
+    centre_spacing => optimization.centre_spacing: value,
+    coherence => optimization.coherence: value,
+    orientation_iterations => optimization.orientation_iterations: value,
+    robust => optimization.robust: value,
+    rigid.rigid_radius => lapped_rigid.radius: some,
+    rigid.rigid_radius_fraction => lapped_rigid.radius_fraction: value,
+    rigid.rigid_radius_edges => lapped_rigid.radius_edges: value,
+    rigid.rigid_exemplar_size => lapped_rigid.exemplar_size: some,
+    rigid.rigid_exemplar_scale => lapped_rigid.exemplar_scale: value,
+    rigid.rigid_phi_max => lapped_rigid.phi_max: value,
+    rigid.rigid_alpha_opaque => lapped_rigid.alpha_opaque: value,
+    rigid.rigid_alpha_transparent => lapped_rigid.alpha_transparent: value,
+    rigid.rigid_far_fraction => lapped_rigid.far_fraction: value,
+    rigid.rigid_substeps => lapped_rigid.substeps: value,
+    rigid.rigid_normal_dot => lapped_rigid.normal_dot: value,
+    rigid.rigid_no_rotation => lapped_rigid.random_rotation: off,
+    rigid.rigid_coverage => lapped_rigid.coverage: value,
+    rigid.rigid_keep_weight => lapped_rigid.keep_weight: value,
+    rigid.mask => lapped_rigid.mask: some,
+    rigid.rigid_mask_feature_weight => lapped_rigid.mask_feature_weight: value,
+    rigid.rigid_mask_softness => lapped_rigid.mask_softness: value,
+    rigid.rigid_sink_speed => lapped_rigid.sink_speed: value,
+    rigid.rigid_sink_fade_rate => lapped_rigid.sink_fade_rate: value,
+}
+
+/// Flags applied by hand in [`RunFlags::apply`] (their value is parsed
+/// first), with the keys each sets.
+pub const HAND_FLAGS: &[(&str, &[&str])] = &[
+    ("exemplar", &["exemplar", "exemplars"]),
+    ("channels", &["channels"]),
+    ("velocity", &["velocity"]),
+    ("up_axis", &["erosion.up_axis"]),
+];
+
+/// Config keys without a flag: rarely changed, set them in the file (the
+/// README's run section lists them too).
+pub const KEYS_WITHOUT_FLAG: &[&str] = &[
+    "erosion.radius_fraction",
+    "erosion.exemplar_scale",
+    "erosion.normal_dot",
+    "atlas_check.cells_per_diagonal",
+    "atlas_check.cell",
+    "outputs.preview_size",
+];
+
 impl RunFlags {
     /// Applies the flags that are set on top of `config`.
     pub fn apply(&self, config: &mut Config) -> Result<()> {
-        macro_rules! set {
-            ($($field:ident),*) => { $( if let Some(v) = &self.$field { config.$field = Some(v.clone()); } )* };
+        self.apply_table(config);
+        self.apply_exemplars(config)?;
+        for spec in &self.channels {
+            let Some((name, path)) = spec.split_once('=') else {
+                bail!("--channel {spec}: expected NAME=IMAGE, e.g. displacement=disp.exr");
+            };
+            if name.is_empty()
+                || !name
+                    .chars()
+                    .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+            {
+                bail!("--channel {spec}: the name must be letters, digits, '_' or '-'");
+            }
+            config
+                .channels
+                .insert(name.to_string(), PathBuf::from(path));
         }
-        set!(
-            mesh,
-            frames,
-            out,
-            method,
-            atlas,
-            gutter,
-            fps,
-            seed,
-            feature,
-            feature_method,
-            exemplar_filter,
-            exemplar_select,
-            exemplar_region
-        );
+        if let Some(v) = &self.velocity {
+            let [a, b, c] = v.as_slice() else {
+                bail!("--velocity needs three property names, e.g. vx,vy,vz");
+            };
+            config.velocity = Some([a.clone(), b.clone(), c.clone()]);
+        }
+        if let Some(a) = &self.up_axis {
+            let [x, y, z] = a.as_slice() else {
+                bail!("--up-axis needs three numbers, e.g. 0,1,0");
+            };
+            config.erosion.up_axis = [*x, *y, *z];
+        }
+        // A video needs previews: every frame unless the user chose.
+        if config.preview_video == Some(true) && config.outputs.preview_every == 0 {
+            config.outputs.preview_every = 1;
+        }
+        Ok(())
+    }
+
+    /// `--exemplar`: one replaces the config's exemplar(s); several become
+    /// weighted `exemplars`.
+    fn apply_exemplars(&self, config: &mut Config) -> Result<()> {
         match self.exemplar.as_slice() {
             [] => {}
             [one] => {
@@ -446,152 +591,6 @@ impl RunFlags {
                     .collect::<Result<_>>()?;
             }
         }
-        for spec in &self.channels {
-            let Some((name, path)) = spec.split_once('=') else {
-                bail!("--channel {spec}: expected NAME=IMAGE, e.g. displacement=disp.exr");
-            };
-            if name.is_empty()
-                || !name
-                    .chars()
-                    .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
-            {
-                bail!("--channel {spec}: the name must be letters, digits, '_' or '-'");
-            }
-            config
-                .channels
-                .insert(name.to_string(), PathBuf::from(path));
-        }
-        if let Some(v) = &self.velocity {
-            let [a, b, c] = v.as_slice() else {
-                bail!("--velocity needs three property names, e.g. vx,vy,vz");
-            };
-            config.velocity = Some([a.clone(), b.clone(), c.clone()]);
-        }
-        let e = &mut config.erosion;
-        if let Some(v) = self.radius {
-            e.radius = Some(v);
-        }
-        if let Some(v) = self.exemplar_size {
-            e.exemplar_size = Some(v);
-        }
-        if let Some(v) = self.delta_max {
-            e.delta_max = v;
-        }
-        if let Some(v) = self.epsilon {
-            e.epsilon = v;
-        }
-        if let Some(v) = self.far_fraction {
-            e.far_fraction = v;
-        }
-        if let Some(v) = self.centre_fraction {
-            e.centre_fraction = v;
-        }
-        if let Some(v) = self.substeps {
-            e.substeps = v;
-        }
-        if self.no_rotation {
-            e.random_rotation = false;
-        }
-        if let Some(v) = self.placement {
-            e.placement = v;
-        }
-        if let Some(v) = self.weights {
-            e.weights = v;
-        }
-        if let Some(v) = self.erosion_rate {
-            e.erosion_rate = v;
-        }
-        if let Some(v) = self.falloff {
-            e.falloff = v;
-        }
-        if let Some(v) = self.orientation {
-            e.orientation = v;
-        }
-        if let Some(a) = &self.up_axis {
-            let [x, y, z] = a.as_slice() else {
-                bail!("--up-axis needs three numbers, e.g. 0,1,0");
-            };
-            e.up_axis = [*x, *y, *z];
-        }
-        if let Some(v) = self.radius_edges {
-            e.radius_edges = v;
-        }
-        if let Some(v) = self.split_edges {
-            e.split_edges = v;
-        }
-        if let Some(v) = self.delta_onset {
-            e.delta_onset = v;
-        }
-        if let Some(p) = self.period {
-            config.dual_rest.period = p;
-        }
-        let o = &mut config.outputs;
-        if self.no_obj {
-            o.obj = false;
-        }
-        if self.no_glb {
-            o.glb = false;
-        }
-        if self.no_debug {
-            o.debug = false;
-        }
-        if let Some(n) = self.preview_every {
-            o.preview_every = n;
-        }
-        if self.preview_video {
-            config.preview_video = Some(true);
-        }
-        if let Some(p) = &self.prim {
-            config.prim = Some(p.clone());
-        }
-        // A video needs previews: every frame unless the user chose.
-        if config.preview_video == Some(true) && config.outputs.preview_every == 0 {
-            config.outputs.preview_every = 1;
-        }
-        let p = &mut config.optimization;
-        if let Some(v) = self.exemplar_size {
-            p.exemplar_size = Some(v);
-        }
-        if let Some(v) = self.substeps {
-            p.substeps = v;
-        }
-        if let Some(v) = self.points {
-            p.points = v;
-        }
-        if let Some(v) = self.exemplar_texels {
-            p.exemplar_texels = v;
-        }
-        if let Some(v) = self.levels {
-            p.levels = v;
-        }
-        if let Some(v) = self.levels_after_first {
-            p.levels_after_first = v;
-        }
-        if let Some(v) = &self.sizes {
-            p.sizes = v.clone();
-        }
-        if let Some(v) = self.search_grid {
-            p.search_grid = v;
-        }
-        if let Some(v) = self.rerank {
-            p.rerank = v;
-        }
-        if let Some(v) = self.iterations {
-            p.iterations = v;
-        }
-        if let Some(v) = self.centre_spacing {
-            p.centre_spacing = v;
-        }
-        if let Some(v) = self.coherence {
-            p.coherence = v;
-        }
-        if let Some(v) = self.orientation_iterations {
-            p.orientation_iterations = v;
-        }
-        if let Some(v) = self.robust {
-            p.robust = v;
-        }
-        self.rigid.apply(&mut config.lapped_rigid);
         Ok(())
     }
 }
@@ -611,7 +610,8 @@ fn exemplar_spec(spec: &str) -> Result<(PathBuf, Option<f32>)> {
     Ok((PathBuf::from(spec), None))
 }
 
-/// Flags of the lapped-rigid method (`[lapped_rigid]` keys), one per key.
+/// Flags of the lapped-rigid method (`[lapped_rigid]` keys), one per key
+/// (applied through the `flag_keys!` table).
 // Field docs are `--help` text: `[4]` is a default, not a link.
 #[allow(rustdoc::broken_intra_doc_links)]
 #[derive(Args, Clone, Debug, Default)]
@@ -675,46 +675,10 @@ pub struct RigidFlags {
     pub rigid_sink_fade_rate: Option<f32>,
 }
 
-impl RigidFlags {
-    /// Applies the flags that are set on top of `p`.
-    pub fn apply(&self, p: &mut LappedRigidParams) {
-        if let Some(v) = self.rigid_radius {
-            p.radius = Some(v);
-        }
-        if let Some(v) = self.rigid_exemplar_size {
-            p.exemplar_size = Some(v);
-        }
-        if let Some(v) = &self.mask {
-            p.mask = Some(v.clone());
-        }
-        if self.rigid_no_rotation {
-            p.random_rotation = false;
-        }
-        macro_rules! set {
-            ($($flag:ident => $field:ident),*) => { $( if let Some(v) = self.$flag { p.$field = v; } )* };
-        }
-        set!(
-            rigid_radius_fraction => radius_fraction,
-            rigid_radius_edges => radius_edges,
-            rigid_exemplar_scale => exemplar_scale,
-            rigid_phi_max => phi_max,
-            rigid_alpha_opaque => alpha_opaque,
-            rigid_alpha_transparent => alpha_transparent,
-            rigid_far_fraction => far_fraction,
-            rigid_substeps => substeps,
-            rigid_normal_dot => normal_dot,
-            rigid_coverage => coverage,
-            rigid_keep_weight => keep_weight,
-            rigid_mask_feature_weight => mask_feature_weight,
-            rigid_mask_softness => mask_softness,
-            rigid_sink_speed => sink_speed,
-            rigid_sink_fade_rate => sink_fade_rate
-        );
-    }
-}
-
 #[cfg(test)]
 mod tests {
+    use std::collections::BTreeSet;
+
     use super::*;
 
     #[test]
@@ -828,5 +792,215 @@ mod tests {
         assert_eq!(a.fingerprint(), b.fingerprint());
         b.erosion.epsilon = 0.2;
         assert_ne!(a.fingerprint(), b.fingerprint());
+    }
+
+    /// The field names a `Deserialize` struct asks for (serde hands them to
+    /// `deserialize_struct`): its keys, including those it leaves out when
+    /// serialising.
+    fn fields_of<'de, T: Deserialize<'de>>() -> &'static [&'static str] {
+        use serde::de::{Error as _, Visitor, value::Error};
+        struct Fields(&'static [&'static str]);
+        impl<'de> serde::Deserializer<'de> for &mut Fields {
+            type Error = Error;
+            fn deserialize_any<V: Visitor<'de>>(self, _: V) -> Result<V::Value, Error> {
+                Err(Error::custom("field names only"))
+            }
+            fn deserialize_struct<V: Visitor<'de>>(
+                self,
+                _: &'static str,
+                fields: &'static [&'static str],
+                _: V,
+            ) -> Result<V::Value, Error> {
+                self.0 = fields;
+                Err(Error::custom("field names only"))
+            }
+            serde::forward_to_deserialize_any! {
+                bool i8 i16 i32 i64 i128 u8 u16 u32 u64 u128 f32 f64 char str string bytes
+                byte_buf option unit unit_struct newtype_struct seq tuple tuple_struct map
+                enum identifier ignored_any
+            }
+        }
+        let mut f = Fields(&[]);
+        let _ = T::deserialize(&mut f);
+        f.0
+    }
+
+    /// Every config key, `section.key` inside the method and output
+    /// sections (tables of user names, `channels` and `exemplars`, are keys).
+    fn config_keys() -> BTreeSet<String> {
+        let sections: [(&str, &[&str]); 6] = [
+            ("erosion", fields_of::<ErosionParams>()),
+            ("atlas_check", fields_of::<AtlasCheckParams>()),
+            ("dual_rest", fields_of::<DualRestParams>()),
+            ("outputs", fields_of::<OutputOptions>()),
+            ("optimization", fields_of::<OptimizationParams>()),
+            ("lapped_rigid", fields_of::<LappedRigidParams>()),
+        ];
+        let mut keys = BTreeSet::new();
+        for &k in fields_of::<Config>() {
+            match sections.iter().find(|(s, _)| *s == k) {
+                Some((s, fields)) => keys.extend(fields.iter().map(|f| format!("{s}.{f}"))),
+                None => {
+                    keys.insert(k.to_string());
+                }
+            }
+        }
+        keys
+    }
+
+    /// The fields of `run`'s flags (clap ids: the field names).
+    fn flag_fields() -> BTreeSet<String> {
+        RunFlags::augment_args(clap::Command::new("run"))
+            .get_arguments()
+            .map(|a| a.get_id().to_string())
+            .collect()
+    }
+
+    /// Where the flag table, the hand-applied flags and the keys without a
+    /// flag disagree with clap's flags and serde's keys, one line each.
+    fn disagreements(
+        flags: &BTreeSet<String>,
+        keys: &BTreeSet<String>,
+        without: &[&str],
+    ) -> Vec<String> {
+        let mut rows: Vec<(&str, &str)> = FLAG_KEYS.to_vec();
+        for (flag, ks) in HAND_FLAGS {
+            rows.extend(ks.iter().map(|k| (*flag, *k)));
+        }
+        let leaf = |f: &str| f.rsplit('.').next().unwrap_or(f).to_string();
+        let mut problems = Vec::new();
+        for &(flag, key) in &rows {
+            if !flags.contains(&leaf(flag)) {
+                problems.push(format!("the table names flag {flag}, which RunFlags lacks"));
+            }
+            if !keys.contains(key) {
+                problems.push(format!("the table names key {key}, which Config lacks"));
+            }
+        }
+        for key in without {
+            if !keys.contains(*key) {
+                problems.push(format!("KEYS_WITHOUT_FLAG names {key}, which Config lacks"));
+            }
+            if rows.iter().any(|r| r.1 == *key) {
+                problems.push(format!("KEYS_WITHOUT_FLAG names {key}, which a flag sets"));
+            }
+        }
+        for f in flags
+            .iter()
+            .filter(|f| !rows.iter().any(|r| leaf(r.0) == **f))
+        {
+            problems.push(format!("flag {f} sets no key: add a row to flag_keys!"));
+        }
+        for k in keys
+            .iter()
+            .filter(|k| !rows.iter().any(|r| r.1 == *k) && !without.contains(&k.as_str()))
+        {
+            problems.push(format!(
+                "config key {k} has no flag: add one to RunFlags and flag_keys!, or list it in \
+                 KEYS_WITHOUT_FLAG"
+            ));
+        }
+        problems
+    }
+
+    #[test]
+    fn every_flag_sets_a_key_and_every_key_has_a_flag_or_is_listed() {
+        let problems = disagreements(&flag_fields(), &config_keys(), KEYS_WITHOUT_FLAG);
+        assert!(problems.is_empty(), "{problems:#?}");
+        // Both sides were really read (the introspection found the keys).
+        assert!(config_keys().contains("lapped_rigid.sink_fade_rate"));
+        assert!(
+            config_keys().contains("exemplar_region"),
+            "skipped when unset"
+        );
+        assert!(flag_fields().contains("rigid_radius"), "flattened group");
+    }
+
+    /// Known-bad controls: a key without a flag, a flag without a key and
+    /// a stale exception are each reported.
+    #[test]
+    fn a_key_or_flag_on_one_side_only_is_caught() {
+        let (flags, keys) = (flag_fields(), config_keys());
+        let mut more_keys = keys.clone();
+        more_keys.insert("erosion.invented".into());
+        let p = disagreements(&flags, &more_keys, KEYS_WITHOUT_FLAG);
+        assert!(
+            p.iter()
+                .any(|l| l.contains("config key erosion.invented has no flag")),
+            "{p:#?}"
+        );
+        let mut more_flags = flags.clone();
+        more_flags.insert("invented".into());
+        let p = disagreements(&more_flags, &keys, KEYS_WITHOUT_FLAG);
+        assert!(
+            p.iter().any(|l| l.contains("flag invented sets no key")),
+            "{p:#?}"
+        );
+        let p = disagreements(&flags, &keys, &["outputs.preview_size", "erosion.radius"]);
+        assert!(
+            p.iter()
+                .any(|l| l.contains("erosion.radius, which a flag sets")),
+            "{p:#?}"
+        );
+        assert!(
+            p.iter()
+                .any(|l| l.contains("erosion.normal_dot has no flag")),
+            "{p:#?}"
+        );
+    }
+
+    /// Each row's flag, applied alone, changes its key.
+    #[test]
+    fn each_table_row_sets_its_key() {
+        use clap::Parser;
+        #[derive(Parser)]
+        struct Cli {
+            #[command(flatten)]
+            flags: RunFlags,
+        }
+        let cmd = <Cli as clap::CommandFactory>::command();
+        // `preview_video` is never serialised (it is not part of the
+        // fingerprint), so it is put back to be compared like the others.
+        let json = |c: &Config| {
+            let mut v = serde_json::to_value(c).expect("json");
+            v["preview_video"] = serde_json::json!(c.preview_video);
+            v
+        };
+        let default = json(&Config::default());
+        for &(flag, key) in FLAG_KEYS {
+            let leaf = flag.rsplit('.').next().unwrap_or(flag);
+            let arg = cmd
+                .get_arguments()
+                .find(|a| a.get_id() == leaf)
+                .unwrap_or_else(|| panic!("{flag}: no such flag"));
+            let long = format!("--{}", arg.get_long().unwrap_or(leaf));
+            let changed = [
+                "7",
+                "0.5",
+                "a",
+                "global",
+                "paper",
+                "aligned",
+                "advect",
+                "none",
+                "distance",
+                "histogram",
+                "3,3,3",
+            ]
+            .iter()
+            .map(|v| vec!["run", long.as_str(), v])
+            .chain([vec!["run", long.as_str()]])
+            .filter_map(|args| Cli::try_parse_from(args).ok())
+            .any(|cli| {
+                let mut c = Config::default();
+                cli.flags.apply(&mut c).expect("apply");
+                let now = json(&c);
+                let at = |v: &serde_json::Value| {
+                    key.split('.').try_fold(v.clone(), |v, k| v.get(k).cloned())
+                };
+                at(&now) != at(&default)
+            });
+            assert!(changed, "{long} does not change {key}");
+        }
     }
 }

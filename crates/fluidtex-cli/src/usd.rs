@@ -124,6 +124,47 @@ pub fn usd_convert(a: &UsdConvertArgs) -> Result<()> {
     }
     let stage = Stage::open(file)
         .map_err(|e| anyhow!("{file}: cannot read the USD stage: {}", crate::one_line(&e)))?;
+    let path = mesh_prim(file, &stage, a.prim.as_deref())?;
+    let prim = stage.prim(path.clone());
+    let at = |name: &str, t: Option<f64>| -> Result<Option<Value>> {
+        prim.attribute(name)
+            .get_at::<Value>(t.map(TimeCode::new))
+            .map_err(|e| anyhow!("{file}: {path}.{name}: {}", crate::one_line(&e)))
+    };
+    let times = prim
+        .attribute("points")
+        .time_sample_times()
+        .map_err(|e| anyhow!("{file}: {path}.points: {}", crate::one_line(&e)))?;
+    let samples: Vec<Option<f64>> = if times.is_empty() {
+        vec![None]
+    } else {
+        times.into_iter().map(Some).collect()
+    };
+    std::fs::create_dir_all(&a.out).with_context(|| format!("{}", a.out.display()))?;
+    for t in samples {
+        let frame = match t {
+            None => 0,
+            Some(t) if t.fract() == 0.0 && (-1e6..=1e6).contains(&t) => t as i32,
+            Some(t) => bail!("{file}: {path}.points: time code {t} is not a whole frame number"),
+        };
+        let sample = MeshSample::read(&format!("{file}: {path}"), t, &at)?;
+        let ply = a.out.join(format!("fluid.{frame:04}.ply"));
+        let velocity = sample.velocity.as_deref();
+        write_ply(
+            &ply,
+            &sample.points,
+            velocity,
+            &sample.counts,
+            &sample.indices,
+        )
+        .with_context(|| format!("{}", ply.display()))?;
+    }
+    Ok(())
+}
+
+/// The Mesh prim to convert: the one named by `--prim`, else the stage's
+/// only Mesh prim.
+fn mesh_prim(file: &str, stage: &Stage, want: Option<&str>) -> Result<openusd::sdf::Path> {
     let mut all = Vec::new();
     stage
         .traverse(PrimPredicate::DEFAULT, |p| all.push(p.clone()))
@@ -147,7 +188,7 @@ pub fn usd_convert(a: &UsdConvertArgs) -> Result<()> {
             .collect::<Vec<_>>()
             .join(", ")
     };
-    let path = match &a.prim {
+    match want {
         Some(want) => {
             let Some(p) = all.iter().find(|p| p.to_string() == *want) else {
                 bail!(
@@ -163,58 +204,53 @@ pub fn usd_convert(a: &UsdConvertArgs) -> Result<()> {
             if t != "Mesh" {
                 bail!("{file}: prim {want} is a {t}, not a Mesh");
             }
-            p.clone()
+            Ok(p.clone())
         }
         None => match meshes.as_slice() {
             [] => bail!("{file}: no Mesh prim in the stage"),
-            [one] => one.clone(),
+            [one] => Ok(one.clone()),
             many => bail!(
                 "{file}: {} Mesh prims ({}); choose one with --prim",
                 many.len(),
                 list(many)
             ),
         },
-    };
-    let prim = stage.prim(path.clone());
-    let at = |name: &str, t: Option<f64>| -> Result<Option<Value>> {
-        prim.attribute(name)
-            .get_at::<Value>(t.map(TimeCode::new))
-            .map_err(|e| anyhow!("{file}: {path}.{name}: {}", crate::one_line(&e)))
-    };
-    let times = prim
-        .attribute("points")
-        .time_sample_times()
-        .map_err(|e| anyhow!("{file}: {path}.points: {}", crate::one_line(&e)))?;
-    let samples: Vec<Option<f64>> = if times.is_empty() {
-        vec![None]
-    } else {
-        times.into_iter().map(Some).collect()
-    };
-    std::fs::create_dir_all(&a.out).with_context(|| format!("{}", a.out.display()))?;
-    for t in samples {
-        let frame = match t {
-            None => 0,
-            Some(t) if t.fract() == 0.0 && (-1e6..=1e6).contains(&t) => t as i32,
-            Some(t) => bail!("{file}: {path}.points: time code {t} is not a whole frame number"),
-        };
+    }
+}
+
+/// Reads an attribute of the prim at a time (`None`: its default value).
+type AttributeAt<'a> = dyn Fn(&str, Option<f64>) -> Result<Option<Value>> + 'a;
+
+/// A Mesh prim at one time sample.
+struct MeshSample {
+    points: Vec<[f32; 3]>,
+    counts: Vec<i32>,
+    indices: Vec<i32>,
+    velocity: Option<Vec<[f32; 3]>>,
+}
+
+impl MeshSample {
+    /// Reads the sample at `t` through `at` (attribute name, time → value);
+    /// `whose` ("FILE: PRIM") starts every message.
+    fn read(whose: &str, t: Option<f64>, at: &AttributeAt<'_>) -> Result<MeshSample> {
         let when = t.map_or("(default)".to_string(), |t| format!("at time {t}"));
         let points = vec3s(at("points", t)?)
-            .with_context(|| format!("{file}: {path}.points {when}"))?
-            .with_context(|| format!("{file}: {path}.points {when}: no value"))?;
+            .with_context(|| format!("{whose}.points {when}"))?
+            .with_context(|| format!("{whose}.points {when}: no value"))?;
         let counts = ints(at("faceVertexCounts", t)?)
-            .with_context(|| format!("{file}: {path}.faceVertexCounts {when}"))?
-            .with_context(|| format!("{file}: {path}.faceVertexCounts {when}: no value"))?;
+            .with_context(|| format!("{whose}.faceVertexCounts {when}"))?
+            .with_context(|| format!("{whose}.faceVertexCounts {when}: no value"))?;
         let indices = ints(at("faceVertexIndices", t)?)
-            .with_context(|| format!("{file}: {path}.faceVertexIndices {when}"))?
-            .with_context(|| format!("{file}: {path}.faceVertexIndices {when}: no value"))?;
+            .with_context(|| format!("{whose}.faceVertexIndices {when}"))?
+            .with_context(|| format!("{whose}.faceVertexIndices {when}: no value"))?;
         let mut velocity = None;
         for name in ["velocities", "primvars:v", "primvars:velocity"] {
             if let Some(v) =
-                vec3s(at(name, t)?).with_context(|| format!("{file}: {path}.{name} {when}"))?
+                vec3s(at(name, t)?).with_context(|| format!("{whose}.{name} {when}"))?
             {
                 if v.len() != points.len() {
                     bail!(
-                        "{file}: {path}.{name} {when}: {} vectors for {} points",
+                        "{whose}.{name} {when}: {} vectors for {} points",
                         v.len(),
                         points.len()
                     );
@@ -224,12 +260,14 @@ pub fn usd_convert(a: &UsdConvertArgs) -> Result<()> {
             }
         }
         check_topology(&counts, &indices, points.len())
-            .map_err(|e| anyhow!("{file}: {path} {when}: {e}"))?;
-        let ply = a.out.join(format!("fluid.{frame:04}.ply"));
-        write_ply(&ply, &points, velocity.as_deref(), &counts, &indices)
-            .with_context(|| format!("{}", ply.display()))?;
+            .map_err(|e| anyhow!("{whose} {when}: {e}"))?;
+        Ok(MeshSample {
+            points,
+            counts,
+            indices,
+            velocity,
+        })
     }
-    Ok(())
 }
 
 /// Points or vectors, as `f32` triples.
@@ -257,10 +295,14 @@ fn ints(v: Option<Value>) -> Result<Option<Vec<i32>>> {
     })
 }
 
+/// Where the type name ends in a value's `Debug` text.
+const TYPE_NAME_END: [char; 3] = ['(', ' ', '{'];
+
+/// The type of a USD value, for messages (its `Debug` name).
 fn kind(v: &Value) -> String {
     let debug = format!("{v:?}");
     debug
-        .split(['(', ' ', '{'])
+        .split(TYPE_NAME_END)
         .next()
         .unwrap_or("another type")
         .to_string()

@@ -228,22 +228,7 @@ fn mutate(bytes: &mut Vec<u8>, fixtures: &[Vec<u8>], rng: &mut Pcg64) {
         }
         // Truncation.
         2 => bytes.truncate(at(rng)),
-        // Splice: a range of another fixture (or this one) over a range here.
-        3 => {
-            if fixtures.is_empty() {
-                return;
-            }
-            let other = &fixtures[rng.random_range(0..fixtures.len())];
-            if other.is_empty() {
-                return;
-            }
-            let a = rng.random_range(0..other.len());
-            let b = rng.random_range(a..=other.len().min(a + 256));
-            let piece = other[a..b].to_vec();
-            let i = at(rng);
-            let j = rng.random_range(i..=len.min(i + 256));
-            bytes.splice(i..j, piece);
-        }
+        3 => splice_fixture(bytes, fixtures, rng),
         // Delete a range.
         4 if len > 0 => {
             let i = rng.random_range(0..len);
@@ -260,60 +245,80 @@ fn mutate(bytes: &mut Vec<u8>, fixtures: &[Vec<u8>], rng: &mut Pcg64) {
                 bytes.splice(j..j, piece.iter().copied());
             }
         }
-        // A number in the text replaced by a troublesome token.
-        6 | 7 => {
-            let starts: Vec<usize> = (0..len)
-                .filter(|&i| {
-                    bytes[i].is_ascii_digit() && (i == 0 || !bytes[i - 1].is_ascii_alphanumeric())
-                })
-                .collect();
-            if starts.is_empty() {
-                return;
-            }
-            let i = starts[rng.random_range(0..starts.len())];
-            let mut j = i;
-            while j < len
-                && (bytes[j].is_ascii_digit() || matches!(bytes[j], b'.' | b'e' | b'-' | b'+'))
-            {
-                j += 1;
-            }
-            let token = TOKENS[rng.random_range(0..TOKENS.len())];
-            bytes.splice(i..j, token.bytes());
-        }
-        // 1, 2, 4 or 8 bytes overwritten with an edge integer or float.
-        _ if len > 0 => {
-            let width = [1usize, 2, 4, 8][rng.random_range(0..4)];
-            let value: u64 = match rng.random_range(0..3) {
-                0 => EDGE_U64[rng.random_range(0..EDGE_U64.len())],
-                1 => [
-                    f32::NAN,
-                    f32::INFINITY,
-                    f32::NEG_INFINITY,
-                    -1.0,
-                    1e30,
-                    f32::MIN_POSITIVE,
-                ][rng.random_range(0..6)]
-                .to_bits() as u64,
-                _ => [f64::NAN, f64::INFINITY, -1.0, 1e300][rng.random_range(0..4)].to_bits(),
-            };
-            let raw = if rng.random_bool(0.5) {
-                value.to_le_bytes()
-            } else {
-                value.to_be_bytes()
-            };
-            let piece: &[u8] = if rng.random_bool(0.5) {
-                &raw[..width]
-            } else {
-                &raw[8 - width..]
-            };
-            let i = rng.random_range(0..len);
-            for (k, b) in piece.iter().enumerate() {
-                if let Some(slot) = bytes.get_mut(i + k) {
-                    *slot = *b;
-                }
-            }
-        }
+        6 | 7 => replace_number(bytes, rng),
+        _ if len > 0 => overwrite_edge(bytes, rng),
         _ => {}
+    }
+}
+
+/// Splice: a range of another fixture (or this one) over a range here.
+fn splice_fixture(bytes: &mut Vec<u8>, fixtures: &[Vec<u8>], rng: &mut Pcg64) {
+    let len = bytes.len();
+    if fixtures.is_empty() {
+        return;
+    }
+    let other = &fixtures[rng.random_range(0..fixtures.len())];
+    if other.is_empty() {
+        return;
+    }
+    let a = rng.random_range(0..other.len());
+    let b = rng.random_range(a..=other.len().min(a + 256));
+    let piece = other[a..b].to_vec();
+    let i = rng.random_range(0..=len);
+    let j = rng.random_range(i..=len.min(i + 256));
+    bytes.splice(i..j, piece);
+}
+
+/// A number in the text replaced by a troublesome token.
+fn replace_number(bytes: &mut Vec<u8>, rng: &mut Pcg64) {
+    let len = bytes.len();
+    let starts: Vec<usize> = (0..len)
+        .filter(|&i| bytes[i].is_ascii_digit() && (i == 0 || !bytes[i - 1].is_ascii_alphanumeric()))
+        .collect();
+    if starts.is_empty() {
+        return;
+    }
+    let i = starts[rng.random_range(0..starts.len())];
+    let mut j = i;
+    while j < len && (bytes[j].is_ascii_digit() || matches!(bytes[j], b'.' | b'e' | b'-' | b'+')) {
+        j += 1;
+    }
+    let token = TOKENS[rng.random_range(0..TOKENS.len())];
+    bytes.splice(i..j, token.bytes());
+}
+
+/// 1, 2, 4 or 8 bytes of a non-empty input overwritten with an edge
+/// integer or float.
+fn overwrite_edge(bytes: &mut [u8], rng: &mut Pcg64) {
+    let width = [1usize, 2, 4, 8][rng.random_range(0..4)];
+    let value: u64 = match rng.random_range(0..3) {
+        0 => EDGE_U64[rng.random_range(0..EDGE_U64.len())],
+        1 => [
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            -1.0,
+            1e30,
+            f32::MIN_POSITIVE,
+        ][rng.random_range(0..6)]
+        .to_bits() as u64,
+        _ => [f64::NAN, f64::INFINITY, -1.0, 1e300][rng.random_range(0..4)].to_bits(),
+    };
+    let raw = if rng.random_bool(0.5) {
+        value.to_le_bytes()
+    } else {
+        value.to_be_bytes()
+    };
+    let piece: &[u8] = if rng.random_bool(0.5) {
+        &raw[..width]
+    } else {
+        &raw[8 - width..]
+    };
+    let i = rng.random_range(0..bytes.len());
+    for (k, b) in piece.iter().enumerate() {
+        if let Some(slot) = bytes.get_mut(i + k) {
+            *slot = *b;
+        }
     }
 }
 

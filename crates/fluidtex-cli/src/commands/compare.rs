@@ -114,17 +114,7 @@ pub fn compare(a: &CompareArgs) -> Result<()> {
     for s in &scene_names {
         scenes::default_params(s)?;
     }
-    let method_names = match &a.methods {
-        Some(m) => split_list("methods", m)?,
-        None => MethodKind::ALL
-            .iter()
-            .map(|m| m.name().to_string())
-            .collect(),
-    };
-    let kinds = method_names
-        .iter()
-        .map(|m| MethodKind::parse_named("method", m).map_err(anyhow::Error::msg))
-        .collect::<Result<Vec<MethodKind>>>()?;
+    let (method_names, kinds) = methods_of(a)?;
     let range = a
         .frames
         .as_deref()
@@ -163,88 +153,24 @@ pub fn compare(a: &CompareArgs) -> Result<()> {
     }
     std::fs::create_dir_all(&a.out)
         .with_context(|| format!("{}: cannot create the output folder", a.out.display()))?;
-    let say = |msg: String| {
-        if !a.quiet {
-            eprintln!("{msg}");
-        }
-    };
-
     // Every scene's parameters and window, checked before any work.
-    let mut plans = Vec::new();
-    for name in &scene_names {
-        let mut params = scenes::default_params(name)?;
-        params.resolution = match a.resolution {
-            Some(r) => r,
-            None => params.resolution.min(DEFAULT_RESOLUTION_CAP),
-        };
-        params.seed = a.seed;
-        params.validate()?;
-        let (first, last) = window(name, params.first, params.last, range);
-        if first < params.first || last > params.last {
-            bail!(
-                "--frames {first}-{last}: scene {name} has frames {}-{}",
-                params.first,
-                params.last
-            );
-        }
-        plans.push((name, params, first, last));
-    }
-
-    let mut scene_reports = Vec::new();
-    for (name, params, first, last) in plans {
-        let mut scene = scenes::by_name(name, Some(params))?;
-        let frames: Vec<i32> = (first..=last).collect();
-        let keep = picture_frames(&frames);
-        let settings = EvalSettings {
-            render_size: a.render,
-            view_dir: eval::default_view(name),
-            keep_renders: keep.clone(),
-            dilate_radius: job.atlas.gutter.max(1) * 2,
-            ..Default::default()
-        };
-        say(format!(
-            "{name}: preparing frames {first}-{last} (resolution {})",
-            params.resolution
-        ));
-        let prepared = eval::prepare(scene.as_mut(), &frames, &job.atlas, &settings, &thresholds)
-            .with_context(|| format!("scene {name}"))?;
-        let mut runs: Vec<MethodRun> = Vec::new();
-        let mut parameters = Vec::new();
-        for (m, &kind) in method_names.iter().zip(&kinds) {
-            let config = Config {
-                method: Some(kind),
-                ..base.clone()
-            };
-            let mut method = build_method(&config)?;
-            let clock = Instant::now();
-            let run = eval::evaluate(
-                &prepared,
-                method.as_mut(),
-                &exemplar,
-                &settings,
-                &thresholds,
-            )
-            .with_context(|| format!("scene {name}, method {m}"))?;
-            say(format!(
-                "{name} / {m}: {} frames in {:.1} s",
-                run.frames.len(),
-                clock.elapsed().as_secs_f64()
-            ));
-            parameters.push(method_parameters(&config, m));
-            runs.push(run);
-        }
-        // The source switch share passes relative to advect on the same
-        // frames: judged once every method of the scene has run.
-        eval::judge_against_floor(&mut runs, &thresholds);
-        let reports = runs
-            .iter()
-            .zip(parameters)
-            .map(|(run, p)| MethodReport::new(run, p))
-            .collect();
-        let images = write_pictures(&a.out, name, &keep, &runs)?;
-        scene_reports.push(SceneReport::new(&prepared, reports, images));
-    }
-
+    let plans = scene_names
+        .iter()
+        .map(|name| plan_scene(a, name, range))
+        .collect::<Result<Vec<_>>>()?;
+    let session = Session {
+        args: a,
+        base: &base,
+        atlas: &job.atlas,
+        exemplar: &exemplar,
+        thresholds: &thresholds,
+        method_names: &method_names,
+        kinds: &kinds,
+    };
+    let scene_reports = plans
+        .into_iter()
+        .map(|plan| session.scene(plan))
+        .collect::<Result<Vec<_>>>()?;
     let report = Report {
         command: command_line(a, &method_names),
         atlas_size: a.atlas,
@@ -261,14 +187,8 @@ pub fn compare(a: &CompareArgs) -> Result<()> {
                 .into(),
         ],
     };
-    let json = serde_json::to_vec_pretty(&report)?;
-    write(&a.out.join("report.json"), &json)?;
-    write(&a.out.join("report.md"), report.to_markdown().as_bytes())?;
-    write(
-        &a.out.join("report.html"),
-        report.to_html(&thresholds).as_bytes(),
-    )?;
-    say(format!(
+    write_reports(&a.out, &report, &thresholds)?;
+    session.say(format!(
         "compare: {} scenes x {} methods in {:.0} s -> {}",
         scene_names.len(),
         method_names.len(),
@@ -276,6 +196,156 @@ pub fn compare(a: &CompareArgs) -> Result<()> {
         a.out.join("report.html").display()
     ));
     Ok(())
+}
+
+/// The methods asked for (every method by default), by name and kind.
+fn methods_of(a: &CompareArgs) -> Result<(Vec<String>, Vec<MethodKind>)> {
+    let names = match &a.methods {
+        Some(m) => split_list("methods", m)?,
+        None => MethodKind::ALL
+            .iter()
+            .map(|m| m.name().to_string())
+            .collect(),
+    };
+    let kinds = names
+        .iter()
+        .map(|m| MethodKind::parse_named("method", m).map_err(anyhow::Error::msg))
+        .collect::<Result<Vec<MethodKind>>>()?;
+    Ok((names, kinds))
+}
+
+/// One scene to measure: its parameters and frame window.
+struct ScenePlan<'a> {
+    name: &'a str,
+    params: scenes::SceneParams,
+    first: i32,
+    last: i32,
+}
+
+/// A scene's parameters as `compare` runs it, its window checked.
+fn plan_scene<'a>(
+    a: &CompareArgs,
+    name: &'a str,
+    range: Option<FrameRange>,
+) -> Result<ScenePlan<'a>> {
+    let mut params = scenes::default_params(name)?;
+    params.resolution = match a.resolution {
+        Some(r) => r,
+        None => params.resolution.min(DEFAULT_RESOLUTION_CAP),
+    };
+    params.seed = a.seed;
+    params.validate()?;
+    let (first, last) = window(name, params.first, params.last, range);
+    if first < params.first || last > params.last {
+        bail!(
+            "--frames {first}-{last}: scene {name} has frames {}-{}",
+            params.first,
+            params.last
+        );
+    }
+    Ok(ScenePlan {
+        name,
+        params,
+        first,
+        last,
+    })
+}
+
+/// What every scene of one `compare` shares.
+struct Session<'a> {
+    args: &'a CompareArgs,
+    base: &'a Config,
+    atlas: &'a fluidtex::atlas::AtlasParams,
+    exemplar: &'a Texture,
+    thresholds: &'a Thresholds,
+    method_names: &'a [String],
+    kinds: &'a [MethodKind],
+}
+
+impl Session<'_> {
+    fn say(&self, msg: String) {
+        if !self.args.quiet {
+            eprintln!("{msg}");
+        }
+    }
+
+    /// Prepares one scene, runs every method on it, and writes its pictures.
+    fn scene(&self, plan: ScenePlan<'_>) -> Result<SceneReport> {
+        let ScenePlan {
+            name,
+            params,
+            first,
+            last,
+        } = plan;
+        let mut scene = scenes::by_name(name, Some(params))?;
+        let frames: Vec<i32> = (first..=last).collect();
+        let keep = picture_frames(&frames);
+        let settings = EvalSettings {
+            render_size: self.args.render,
+            view_dir: eval::default_view(name),
+            keep_renders: keep.clone(),
+            dilate_radius: self.atlas.gutter.max(1) * 2,
+            ..Default::default()
+        };
+        self.say(format!(
+            "{name}: preparing frames {first}-{last} (resolution {})",
+            params.resolution
+        ));
+        let prepared = eval::prepare(
+            scene.as_mut(),
+            &frames,
+            self.atlas,
+            &settings,
+            self.thresholds,
+        )
+        .with_context(|| format!("scene {name}"))?;
+        let mut runs: Vec<MethodRun> = Vec::new();
+        let mut parameters = Vec::new();
+        for (m, &kind) in self.method_names.iter().zip(self.kinds) {
+            let config = Config {
+                method: Some(kind),
+                ..self.base.clone()
+            };
+            let mut method = build_method(&config)?;
+            let clock = Instant::now();
+            let run = eval::evaluate(
+                &prepared,
+                method.as_mut(),
+                self.exemplar,
+                &settings,
+                self.thresholds,
+            )
+            .with_context(|| format!("scene {name}, method {m}"))?;
+            self.say(format!(
+                "{name} / {m}: {} frames in {:.1} s",
+                run.frames.len(),
+                clock.elapsed().as_secs_f64()
+            ));
+            parameters.push(method_parameters(&config, m));
+            runs.push(run);
+        }
+        // The source switch share passes relative to advect on the same
+        // frames: judged once every method of the scene has run.
+        eval::judge_against_floor(&mut runs, self.thresholds);
+        let reports = runs
+            .iter()
+            .zip(parameters)
+            .map(|(run, p)| MethodReport::new(run, p))
+            .collect();
+        let images = write_pictures(&self.args.out, name, &keep, &runs)?;
+        Ok(SceneReport::new(&prepared, reports, images))
+    }
+}
+
+/// report.json, report.md and report.html in `out`.
+fn write_reports(out: &Path, report: &Report, thresholds: &Thresholds) -> Result<()> {
+    let json = serde_json::to_vec_pretty(report)?;
+    write(&out.join("report.json"), &json)?;
+    write(&out.join("report.md"), report.to_markdown().as_bytes())?;
+    write(
+        &out.join("report.html"),
+        report.to_html(thresholds).as_bytes(),
+    )
 }
 
 fn command_line(a: &CompareArgs, methods: &[String]) -> String {

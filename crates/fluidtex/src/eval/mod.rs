@@ -48,6 +48,56 @@ pub mod prepare;
 pub mod report;
 pub mod truth;
 
+/// Two consecutive renders, with the prepared frames they show.
+struct RenderPair<'a> {
+    before: &'a FrameView,
+    after: &'a FrameView,
+    prev: &'a PreparedFrame,
+    frame: &'a PreparedFrame,
+}
+
+impl RenderPair<'_> {
+    /// The measured screen motion between the renders: from the per-pixel
+    /// exemplar uv where both have provenance, else by block matching on
+    /// the colours.
+    fn motion(
+        &self,
+        truth: &[Vec2],
+        thresholds: &Thresholds,
+    ) -> Result<Vec<metrics::Motion>, MetricsError> {
+        let gb = &self.frame.gbuffer;
+        let (p, frame) = (self.prev, self.frame);
+        if self.before.has_provenance && self.after.has_provenance {
+            fn frame_of<'v>(v: &'v FrameView, gb: &GBuffer) -> metrics::ProvenanceFrame<'v> {
+                metrics::ProvenanceFrame {
+                    width: gb.width,
+                    height: gb.height,
+                    source: &v.source,
+                    uv: &v.uv,
+                }
+            }
+            metrics::provenance_motion(
+                &frame_of(self.before, gb),
+                &frame_of(self.after, gb),
+                truth,
+                &p.interior,
+                &frame.interior,
+                thresholds.flow.search_radius_px,
+            )
+        } else {
+            metrics::image_motion(
+                &self.before.colour,
+                &self.after.colour,
+                truth,
+                &p.interior,
+                &frame.interior,
+                thresholds.flow.search_radius_px,
+                thresholds.flow.block_half_px,
+            )
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests;
 
@@ -638,76 +688,29 @@ impl MetricsSink<'_> {
         atlas_view: &AtlasView<'_>,
         set: &mut impl FnMut(Metric, f64),
     ) -> Result<FrameView, EvalError> {
-        let (settings, thresholds) = (self.settings, self.thresholds);
+        let thresholds = self.thresholds;
         let err = |what| Self::metric_err(frame.number, what);
-        let gb = &frame.gbuffer;
-        let mesh = &frame.geometry.atlas.uv_mesh;
-        let colour = atlas_view.colour;
-        let unlit = if settings.supersample > 1 {
-            let k = settings.supersample;
-            let (fine, _) = fine_gbuffer(frame, &self.scene.camera, k);
-            let image = render::shade_textured(
-                &fine,
-                &mesh.triangles,
-                &mesh.uvs,
-                colour,
-                RENDER_BACKGROUND,
-            );
-            box_filter(&image, k)
-        } else {
-            render::shade_textured(gb, &mesh.triangles, &mesh.uvs, colour, RENDER_BACKGROUND)
-        };
-        let (px_source, px_uv) = match (atlas_view.source, atlas_view.uv) {
-            (Some(s), Some(u)) => pixel_provenance(gb, &frame.geometry.atlas, s, u),
-            _ => (Vec::new(), Vec::new()),
-        };
-        let view = FrameView {
-            colour: unlit,
-            has_provenance: !px_source.is_empty(),
-            source: px_source,
-            uv: px_uv,
-        };
+        let view = self.render_view(frame, atlas_view);
         let (Some(p), Some(pv)) = (prev, &self.previous_view) else {
             return Ok(view);
         };
         if let Some(truth) = p.forward.as_deref() {
-            let motion = if pv.has_provenance && view.has_provenance {
-                fn frame_of<'v>(v: &'v FrameView, gb: &GBuffer) -> metrics::ProvenanceFrame<'v> {
-                    metrics::ProvenanceFrame {
-                        width: gb.width,
-                        height: gb.height,
-                        source: &v.source,
-                        uv: &v.uv,
-                    }
-                }
-                metrics::provenance_motion(
-                    &frame_of(pv, gb),
-                    &frame_of(&view, gb),
-                    truth,
-                    &p.interior,
-                    &frame.interior,
-                    thresholds.flow.search_radius_px,
-                )
-            } else {
-                if !self.image_flow_noted {
-                    self.notes.push(
-                        "flow: no per-texel exemplar uv, motion measured by block matching \
-                         on the renders (image_motion)"
-                            .into(),
-                    );
-                    self.image_flow_noted = true;
-                }
-                metrics::image_motion(
-                    &pv.colour,
-                    &view.colour,
-                    truth,
-                    &p.interior,
-                    &frame.interior,
-                    thresholds.flow.search_radius_px,
-                    thresholds.flow.block_half_px,
-                )
+            let pair = RenderPair {
+                before: pv,
+                after: &view,
+                prev: p,
+                frame,
+            };
+            let by_image = !(pv.has_provenance && view.has_provenance);
+            if by_image && !self.image_flow_noted {
+                self.notes.push(
+                    "flow: no per-texel exemplar uv, motion measured by block matching \
+                     on the renders (image_motion)"
+                        .into(),
+                );
+                self.image_flow_noted = true;
             }
-            .map_err(err("flow"))?;
+            let motion = pair.motion(truth, thresholds).map_err(err("flow"))?;
             let stats = metrics::compare_motion(
                 &motion,
                 truth,
@@ -738,6 +741,38 @@ impl MetricsSink<'_> {
             set(Metric::Popping, pop.share());
         }
         Ok(view)
+    }
+
+    /// The frame rendered unlit (supersampled when asked) with the per-pixel
+    /// provenance where the method has it.
+    fn render_view(&self, frame: &PreparedFrame, atlas_view: &AtlasView<'_>) -> FrameView {
+        let gb = &frame.gbuffer;
+        let mesh = &frame.geometry.atlas.uv_mesh;
+        let colour = atlas_view.colour;
+        let unlit = if self.settings.supersample > 1 {
+            let k = self.settings.supersample;
+            let (fine, _) = fine_gbuffer(frame, &self.scene.camera, k);
+            let image = render::shade_textured(
+                &fine,
+                &mesh.triangles,
+                &mesh.uvs,
+                colour,
+                RENDER_BACKGROUND,
+            );
+            box_filter(&image, k)
+        } else {
+            render::shade_textured(gb, &mesh.triangles, &mesh.uvs, colour, RENDER_BACKGROUND)
+        };
+        let (px_source, px_uv) = match (atlas_view.source, atlas_view.uv) {
+            (Some(s), Some(u)) => pixel_provenance(gb, &frame.geometry.atlas, s, u),
+            _ => (Vec::new(), Vec::new()),
+        };
+        FrameView {
+            colour: unlit,
+            has_provenance: !px_source.is_empty(),
+            source: px_source,
+            uv: px_uv,
+        }
     }
 
     /// Source switch share and colour follow ratio: the previous frame's

@@ -76,6 +76,56 @@ pub fn prepare(
 ) -> Result<PreparedScene, EvalError> {
     settings.validate()?;
     let info = scene.info();
+    check_frames(&info, frames)?;
+    let dt = (1.0 / info.fps) as f32;
+    let mut meshes = Vec::with_capacity(frames.len());
+    for &f in frames {
+        let mut mesh = scene.frame(f)?;
+        let report = crate::mesh::validate(&mut mesh).map_err(|e| EvalError::Mesh {
+            frame: f,
+            message: e.to_string(),
+        })?;
+        meshes.push((mesh, report));
+    }
+    let camera = window_camera(meshes.iter().map(|(m, _)| m), settings);
+    let mut out: Vec<PreparedFrame> = Vec::with_capacity(frames.len());
+    for (&number, (mesh, report)) in frames.iter().zip(meshes) {
+        let time = (f64::from(number - info.first)) / info.fps;
+        let geometry =
+            FrameGeometry::build(number, mesh, report, atlas, &mut StageClock::default()).map_err(
+                |e| match e {
+                    DriverError::Atlas { frame, source } => EvalError::Atlas { frame, source },
+                    DriverError::Method(m) => EvalError::Method {
+                        method: String::new(),
+                        source: m,
+                    },
+                },
+            )?;
+        out.push(prepare_frame(time, geometry, &camera, thresholds)?);
+    }
+    let truth = TruthMotion::of(&*scene, settings.trace_substeps);
+    for k in 1..out.len() {
+        let (before, after) = out.split_at_mut(k);
+        let motion = Motion {
+            scene: &*scene,
+            truth: &truth,
+            camera: &camera,
+            dt,
+            thresholds,
+        };
+        motion.attach(&mut before[k - 1], &mut after[0]);
+    }
+    Ok(PreparedScene {
+        info,
+        dt,
+        camera,
+        frames: out,
+        truth,
+    })
+}
+
+/// `frames` must be non-empty, increasing and inside the scene's range.
+fn check_frames(info: &SceneInfo, frames: &[i32]) -> Result<(), EvalError> {
     if frames.is_empty() {
         return Err(EvalError::Frames(format!("scene {}: no frames", info.name)));
     }
@@ -91,19 +141,13 @@ pub fn prepare(
             info.name, info.first, info.last
         )));
     }
-    let dt = (1.0 / info.fps) as f32;
-    let mut meshes = Vec::with_capacity(frames.len());
-    for &f in frames {
-        let mut mesh = scene.frame(f)?;
-        let report = crate::mesh::validate(&mut mesh).map_err(|e| EvalError::Mesh {
-            frame: f,
-            message: e.to_string(),
-        })?;
-        meshes.push((mesh, report));
-    }
-    // One camera for the whole window, framing every frame's surface, so
-    // a surface that travels stays in view.
-    let (lo, hi) = meshes.iter().filter_map(|(m, _)| m.bounding_box()).fold(
+    Ok(())
+}
+
+/// One camera for the whole window, framing every frame's surface, so a
+/// surface that travels stays in view.
+fn window_camera<'m>(meshes: impl Iterator<Item = &'m TriMesh>, settings: &EvalSettings) -> Camera {
+    let (lo, hi) = meshes.filter_map(|m| m.bounding_box()).fold(
         (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
         |(l, h), (a, b)| (l.min(a), h.max(b)),
     );
@@ -112,98 +156,98 @@ pub fn prepare(
     } else {
         (Vec3::ZERO, Vec3::ONE)
     };
-    let camera = Camera::framing(
+    Camera::framing(
         lo,
         hi,
         settings.view_dir,
         settings.render_size,
         settings.render_size,
-    );
-    let mut out: Vec<PreparedFrame> = Vec::with_capacity(frames.len());
-    for (&number, (mesh, report)) in frames.iter().zip(meshes) {
-        let time = (f64::from(number - info.first)) / info.fps;
-        let geometry =
-            FrameGeometry::build(number, mesh, report, atlas, &mut StageClock::default()).map_err(
-                |e| match e {
-                    DriverError::Atlas { frame, source } => EvalError::Atlas { frame, source },
-                    DriverError::Method(m) => EvalError::Method {
-                        method: String::new(),
-                        source: m,
-                    },
-                },
-            )?;
-        let (mesh, a) = (&geometry.mesh, &geometry.atlas);
-        let (points, chart) = texel_points(mesh, a);
-        let still = mesh
-            .velocity()
-            .is_some_and(|v| !v.is_empty() && v.iter().all(|v| *v == Vec3::ZERO));
-        let gbuffer = rasterize(&a.uv_mesh.positions, &a.uv_mesh.triangles, &camera);
-        let foreground: Vec<bool> = gbuffer.triangle.iter().map(|&t| t != BACKGROUND).collect();
-        let interior = interior_mask(
-            gbuffer.width,
-            gbuffer.height,
-            &foreground,
-            Some(&gbuffer.depth),
-            &thresholds.silhouette,
-        )
-        .map_err(|source| EvalError::Metrics {
-            frame: number,
-            what: "interior mask",
-            source,
-        })?;
-        out.push(PreparedFrame {
-            number,
-            time,
-            geometry: Arc::new(geometry),
-            points,
-            chart,
-            still,
-            gbuffer,
-            interior,
-            forward: None,
-            backward: None,
-            carried: None,
-        });
-    }
-    let truth = TruthMotion::of(&*scene, settings.trace_substeps);
-    for k in 1..out.len() {
-        let (before, after) = out.split_at_mut(k);
-        let (prev, next) = (&mut before[k - 1], &mut after[0]);
-        let step = (next.number - prev.number) as f64 * f64::from(dt);
-        prev.forward = Some(
+    )
+}
+
+/// A frame's texel points, render G-buffer and interior mask; its motion
+/// is attached later ([`Motion::attach`]).
+fn prepare_frame(
+    time: f64,
+    geometry: FrameGeometry,
+    camera: &Camera,
+    thresholds: &Thresholds,
+) -> Result<PreparedFrame, EvalError> {
+    let number = geometry.number;
+    let (mesh, a) = (&geometry.mesh, &geometry.atlas);
+    let (points, chart) = texel_points(mesh, a);
+    let still = mesh
+        .velocity()
+        .is_some_and(|v| !v.is_empty() && v.iter().all(|v| *v == Vec3::ZERO));
+    let gbuffer = rasterize(&a.uv_mesh.positions, &a.uv_mesh.triangles, camera);
+    let foreground: Vec<bool> = gbuffer.triangle.iter().map(|&t| t != BACKGROUND).collect();
+    let interior = interior_mask(
+        gbuffer.width,
+        gbuffer.height,
+        &foreground,
+        Some(&gbuffer.depth),
+        &thresholds.silhouette,
+    )
+    .map_err(|source| EvalError::Metrics {
+        frame: number,
+        what: "interior mask",
+        source,
+    })?;
+    Ok(PreparedFrame {
+        number,
+        time,
+        geometry: Arc::new(geometry),
+        points,
+        chart,
+        still,
+        gbuffer,
+        interior,
+        forward: None,
+        backward: None,
+        carried: None,
+    })
+}
+
+/// What the true motion between two prepared frames reads.
+struct Motion<'a> {
+    scene: &'a dyn Scene,
+    truth: &'a TruthMotion,
+    camera: &'a Camera,
+    dt: f32,
+    thresholds: &'a Thresholds,
+}
+
+impl Motion<'_> {
+    /// The true motion from `prev` to `next`: forward on `prev`, backward
+    /// (with visibility) on `next`, and the carried sample points.
+    fn attach(&self, prev: &mut PreparedFrame, next: &mut PreparedFrame) {
+        let step = (next.number - prev.number) as f64 * f64::from(self.dt);
+        let motion = |frame: &PreparedFrame, step: f64| {
             true_motion(
-                &*scene,
-                &truth,
-                &prev.geometry.mesh,
-                &prev.gbuffer,
-                &camera,
-                prev.time,
+                self.scene,
+                self.truth,
+                &frame.geometry.mesh,
+                &frame.gbuffer,
+                self.camera,
+                frame.time,
                 step,
             )
-            .0,
-        );
-        let (back, depth) = true_motion(
-            &*scene,
-            &truth,
-            &next.geometry.mesh,
-            &next.gbuffer,
-            &camera,
-            next.time,
-            -step,
-        );
+        };
+        prev.forward = Some(motion(prev, step).0);
+        let (back, depth) = motion(next, -step);
         // `back` is where the point was minus where it is; the metrics want
         // the displacement over the frame, and whether the point was seen.
-        let visible = visible_before(&back, &depth, &next.gbuffer, &prev.gbuffer, thresholds);
+        let visible = visible_before(&back, &depth, &next.gbuffer, &prev.gbuffer, self.thresholds);
         next.backward = Some((back.into_iter().map(|m| -m).collect(), visible));
-        prev.carried = Some(carry_points(&*scene, &truth, prev, next, step, thresholds));
+        prev.carried = Some(carry_points(
+            self.scene,
+            self.truth,
+            prev,
+            next,
+            step,
+            self.thresholds,
+        ));
     }
-    Ok(PreparedScene {
-        info,
-        dt,
-        camera,
-        frames: out,
-        truth,
-    })
 }
 
 /// Samples points on `prev` (seeded by the committed thresholds and the

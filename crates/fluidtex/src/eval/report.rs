@@ -371,69 +371,7 @@ impl Report {
             let _ = writeln!(s, "<p class=\"note\">Not measured: {}</p>", esc(n));
         }
         for scene in &self.scenes {
-            let _ = writeln!(
-                s,
-                "<h2>{}</h2><p class=\"note\">{}. Frames {}–{} ({} frames, {} fps); render {}² px; \
-                 true motion: {}.</p>",
-                esc(&scene.name),
-                esc(&scene.description),
-                scene.frames.first().copied().unwrap_or(0),
-                scene.frames.last().copied().unwrap_or(0),
-                scene.frames.len(),
-                scene.fps,
-                scene.render_size,
-                esc(&scene.truth_motion)
-            );
-            s.push_str("<table><tr><th>method</th>");
-            for &m in COLUMNS {
-                let _ = write!(s, "<th>{}</th>", esc(m.name()));
-                if m == Metric::Distortion {
-                    let _ = write!(s, "<th>{ANISOTROPY}</th>");
-                }
-            }
-            s.push_str("<th>s/frame</th><th>patches</th></tr>\n");
-            for m in &scene.methods {
-                let _ = write!(s, "<tr><th>{}</th>", esc(&m.name));
-                for &c in COLUMNS {
-                    match m.cell(metric_key(c)) {
-                        Some(cell) if cell.frames > 0 => {
-                            let class = if cell.pass { "pass" } else { "fail" };
-                            let _ =
-                                write!(s, "<td class=\"{class}\">{}</td>", esc(&cell_text(cell)));
-                        }
-                        _ => s.push_str("<td class=\"na\">n/a</td>"),
-                    }
-                    if c == Metric::Distortion {
-                        let text = m.anisotropy.as_ref().map_or("—".into(), spread_text);
-                        let _ = write!(s, "<td>{}</td>", esc(&text));
-                    }
-                }
-                let _ = writeln!(
-                    s,
-                    "<td>{}</td><td>{}</td></tr>",
-                    spread_text(&m.seconds_per_frame),
-                    m.patches.as_ref().map_or("—".into(), spread_text)
-                );
-            }
-            s.push_str("</table>\n");
-            for m in &scene.methods {
-                for n in &m.notes {
-                    let _ = writeln!(s, "<p class=\"note\">{}: {}</p>", esc(&m.name), esc(n));
-                }
-            }
-            s.push_str("<div class=\"plots\">");
-            for &m in PER_FRAME {
-                s.push_str(&plot(scene, m, threshold_of(thresholds, m)));
-            }
-            s.push_str("</div>\n");
-            for (caption, file) in &scene.images {
-                let _ = writeln!(
-                    s,
-                    "<figure><figcaption>{}</figcaption><a href=\"{f}\"><img src=\"{f}\"></a></figure>",
-                    esc(caption),
-                    f = esc(file)
-                );
-            }
+            scene_html(&mut s, scene, thresholds);
         }
         s.push_str("<h2>Method parameters</h2><table><tr><th>method</th><th>parameters</th></tr>");
         let mut seen = Vec::new();
@@ -455,6 +393,78 @@ impl Report {
     }
 }
 
+/// One scene's section of the HTML report: heading, table of cells,
+/// notes, per-frame plots and pictures.
+fn scene_html(s: &mut String, scene: &SceneReport, thresholds: &Thresholds) {
+    let _ = writeln!(
+        s,
+        "<h2>{}</h2><p class=\"note\">{}. Frames {}–{} ({} frames, {} fps); render {}² px; \
+             true motion: {}.</p>",
+        esc(&scene.name),
+        esc(&scene.description),
+        scene.frames.first().copied().unwrap_or(0),
+        scene.frames.last().copied().unwrap_or(0),
+        scene.frames.len(),
+        scene.fps,
+        scene.render_size,
+        esc(&scene.truth_motion)
+    );
+    scene_table(s, scene);
+    for m in &scene.methods {
+        for n in &m.notes {
+            let _ = writeln!(s, "<p class=\"note\">{}: {}</p>", esc(&m.name), esc(n));
+        }
+    }
+    s.push_str("<div class=\"plots\">");
+    for &m in PER_FRAME {
+        s.push_str(&plot(scene, m, threshold_of(thresholds, m)));
+    }
+    s.push_str("</div>\n");
+    for (caption, file) in &scene.images {
+        let _ = writeln!(
+            s,
+            "<figure><figcaption>{}</figcaption><a href=\"{f}\"><img src=\"{f}\"></a></figure>",
+            esc(caption),
+            f = esc(file)
+        );
+    }
+}
+
+/// The scene's table: a row per method, a cell per metric.
+fn scene_table(s: &mut String, scene: &SceneReport) {
+    s.push_str("<table><tr><th>method</th>");
+    for &m in COLUMNS {
+        let _ = write!(s, "<th>{}</th>", esc(m.name()));
+        if m == Metric::Distortion {
+            let _ = write!(s, "<th>{ANISOTROPY}</th>");
+        }
+    }
+    s.push_str("<th>s/frame</th><th>patches</th></tr>\n");
+    for m in &scene.methods {
+        let _ = write!(s, "<tr><th>{}</th>", esc(&m.name));
+        for &c in COLUMNS {
+            match m.cell(metric_key(c)) {
+                Some(cell) if cell.frames > 0 => {
+                    let class = if cell.pass { "pass" } else { "fail" };
+                    let _ = write!(s, "<td class=\"{class}\">{}</td>", esc(&cell_text(cell)));
+                }
+                _ => s.push_str("<td class=\"na\">n/a</td>"),
+            }
+            if c == Metric::Distortion {
+                let text = m.anisotropy.as_ref().map_or("—".into(), spread_text);
+                let _ = write!(s, "<td>{}</td>", esc(&text));
+            }
+        }
+        let _ = writeln!(
+            s,
+            "<td>{}</td><td>{}</td></tr>",
+            spread_text(&m.seconds_per_frame),
+            m.patches.as_ref().map_or("—".into(), spread_text)
+        );
+    }
+    s.push_str("</table>\n");
+}
+
 fn esc(t: &str) -> String {
     t.replace('&', "&amp;")
         .replace('<', "&lt;")
@@ -470,9 +480,37 @@ const PALETTE: [&str; 8] = [
 /// An inline SVG plot of metric `m` over frames, one line per method, the
 /// threshold dashed. Infinite values are drawn at the top edge.
 fn plot(scene: &SceneReport, m: Metric, threshold: Option<f64>) -> String {
-    let key = metric_key(m);
-    let (w, h, left, right, top, bottom) = (300.0, 170.0, 46.0, 8.0, 8.0, 34.0);
-    let series: Vec<Vec<(i32, f64)>> = scene
+    let series = series_of(scene, metric_key(m));
+    let area = PlotArea::fit(scene, &series, threshold);
+    let mut s = area.axes();
+    if let Some(t) = threshold.filter(|t| t.is_finite()) {
+        let _ = write!(
+            s,
+            "<line x1=\"{}\" x2=\"{}\" y1=\"{y}\" y2=\"{y}\" stroke=\"#444\" \
+             stroke-dasharray=\"4 3\"/>",
+            area.left,
+            area.w - area.right,
+            y = area.y(t)
+        );
+    }
+    area.lines(&mut s, &series);
+    area.legend(&mut s, scene);
+    let _ = write!(
+        s,
+        "</svg><figcaption>{}{}</figcaption></figure>",
+        esc(m.name()),
+        if threshold.is_some() {
+            " (dashed: threshold)"
+        } else {
+            ""
+        }
+    );
+    s
+}
+
+/// Per method, the (frame, value) points of metric `key` (NaN left out).
+fn series_of(scene: &SceneReport, key: &str) -> Vec<Vec<(i32, f64)>> {
+    scene
         .methods
         .iter()
         .map(|mr| {
@@ -487,117 +525,149 @@ fn plot(scene: &SceneReport, m: Metric, threshold: Option<f64>) -> String {
                 .filter(|(_, v)| !v.is_nan())
                 .collect()
         })
-        .collect();
-    let finite = series
-        .iter()
-        .flatten()
-        .map(|&(_, v)| v)
-        .chain(threshold)
-        .filter(|v| v.is_finite());
-    let (mut lo, mut hi) = finite.fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(v), b.max(v)));
-    if lo > hi {
-        (lo, hi) = (0.0, 1.0);
-    }
-    lo = lo.min(0.0);
-    if hi - lo < 1e-9 {
-        hi = lo + 1.0;
-    }
-    hi += 0.05 * (hi - lo);
-    let f0 = scene.frames.first().copied().unwrap_or(0) as f64;
-    let f1 = (scene.frames.last().copied().unwrap_or(1) as f64).max(f0 + 1.0);
-    let x = |f: f64| left + (f - f0) / (f1 - f0) * (w - left - right);
-    let y = |v: f64| {
-        let v = if v.is_infinite() { hi } else { v.clamp(lo, hi) };
-        top + (hi - v) / (hi - lo) * (h - top - bottom)
-    };
-    let mut s = format!(
-        "<figure><svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" \
-         font-size=\"10\"><rect x=\"{left}\" y=\"{top}\" width=\"{}\" height=\"{}\" \
-         fill=\"#fafafa\" stroke=\"#999\"/>",
-        w - left - right,
-        h - top - bottom
-    );
-    for v in [lo, 0.5 * (lo + hi), hi] {
-        let _ = write!(
-            s,
-            "<text x=\"{}\" y=\"{}\" text-anchor=\"end\">{}</text>",
-            left - 3.0,
-            y(v) + 3.0,
-            num(v)
-        );
-    }
-    for f in [f0, f1] {
-        let _ = write!(
-            s,
-            "<text x=\"{}\" y=\"{}\" text-anchor=\"middle\">{}</text>",
-            x(f),
-            h - bottom + 12.0,
-            f as i64
-        );
-    }
-    let _ = write!(
-        s,
-        "<text x=\"{}\" y=\"{}\" text-anchor=\"middle\">frame</text>",
-        0.5 * (left + w - right),
-        h - bottom + 12.0
-    );
-    if let Some(t) = threshold.filter(|t| t.is_finite()) {
-        let _ = write!(
-            s,
-            "<line x1=\"{left}\" x2=\"{}\" y1=\"{y}\" y2=\"{y}\" stroke=\"#444\" \
-             stroke-dasharray=\"4 3\"/>",
-            w - right,
-            y = y(t)
-        );
-    }
-    for (k, pts) in series.iter().enumerate() {
-        let colour = PALETTE[k % PALETTE.len()];
-        let path: Vec<String> = pts
+        .collect()
+}
+
+/// A plot's size, margins and ranges (frames on x, values on y).
+struct PlotArea {
+    w: f64,
+    h: f64,
+    left: f64,
+    right: f64,
+    top: f64,
+    bottom: f64,
+    lo: f64,
+    hi: f64,
+    f0: f64,
+    f1: f64,
+}
+
+impl PlotArea {
+    /// The area whose value range holds 0, every finite point and the
+    /// threshold, with 5 % headroom.
+    fn fit(scene: &SceneReport, series: &[Vec<(i32, f64)>], threshold: Option<f64>) -> PlotArea {
+        let finite = series
             .iter()
-            .map(|&(f, v)| format!("{:.1},{:.1}", x(f as f64), y(v)))
-            .collect();
-        if path.len() > 1 {
-            let _ = write!(
-                s,
-                "<polyline fill=\"none\" stroke=\"{colour}\" stroke-width=\"1.5\" points=\"{}\"/>",
-                path.join(" ")
-            );
+            .flatten()
+            .map(|&(_, v)| v)
+            .chain(threshold)
+            .filter(|v| v.is_finite());
+        let (mut lo, mut hi) = finite.fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(v), b.max(v)));
+        if lo > hi {
+            (lo, hi) = (0.0, 1.0);
         }
-        for &(f, v) in pts {
-            let _ = write!(
-                s,
-                "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"2\" fill=\"{colour}\"/>",
-                x(f as f64),
-                y(v)
-            );
+        lo = lo.min(0.0);
+        if hi - lo < 1e-9 {
+            hi = lo + 1.0;
+        }
+        hi += 0.05 * (hi - lo);
+        let f0 = scene.frames.first().copied().unwrap_or(0) as f64;
+        let f1 = (scene.frames.last().copied().unwrap_or(1) as f64).max(f0 + 1.0);
+        PlotArea {
+            w: 300.0,
+            h: 170.0,
+            left: 46.0,
+            right: 8.0,
+            top: 8.0,
+            bottom: 34.0,
+            lo,
+            hi,
+            f0,
+            f1,
         }
     }
-    // Legend.
-    let mut lx = left;
-    for (k, mr) in scene.methods.iter().enumerate() {
-        let colour = PALETTE[k % PALETTE.len()];
+
+    fn x(&self, f: f64) -> f64 {
+        self.left + (f - self.f0) / (self.f1 - self.f0) * (self.w - self.left - self.right)
+    }
+
+    fn y(&self, v: f64) -> f64 {
+        let (lo, hi) = (self.lo, self.hi);
+        let v = if v.is_infinite() { hi } else { v.clamp(lo, hi) };
+        self.top + (hi - v) / (hi - lo) * (self.h - self.top - self.bottom)
+    }
+
+    /// The SVG's opening, frame and axis labels.
+    fn axes(&self) -> String {
+        let (w, h, left, right, top, bottom) =
+            (self.w, self.h, self.left, self.right, self.top, self.bottom);
+        let mut s = format!(
+            "<figure><svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" \
+             font-size=\"10\"><rect x=\"{left}\" y=\"{top}\" width=\"{}\" height=\"{}\" \
+             fill=\"#fafafa\" stroke=\"#999\"/>",
+            w - left - right,
+            h - top - bottom
+        );
+        for v in [self.lo, 0.5 * (self.lo + self.hi), self.hi] {
+            let _ = write!(
+                s,
+                "<text x=\"{}\" y=\"{}\" text-anchor=\"end\">{}</text>",
+                left - 3.0,
+                self.y(v) + 3.0,
+                num(v)
+            );
+        }
+        for f in [self.f0, self.f1] {
+            let _ = write!(
+                s,
+                "<text x=\"{}\" y=\"{}\" text-anchor=\"middle\">{}</text>",
+                self.x(f),
+                h - bottom + 12.0,
+                f as i64
+            );
+        }
         let _ = write!(
             s,
-            "<rect x=\"{lx}\" y=\"{}\" width=\"8\" height=\"8\" fill=\"{colour}\"/>\
-             <text x=\"{}\" y=\"{}\">{}</text>",
-            h - 12.0,
-            lx + 10.0,
-            h - 4.0,
-            esc(&mr.name)
+            "<text x=\"{}\" y=\"{}\" text-anchor=\"middle\">frame</text>",
+            0.5 * (left + w - right),
+            h - bottom + 12.0
         );
-        lx += 16.0 + 6.0 * mr.name.len() as f64;
+        s
     }
-    let _ = write!(
-        s,
-        "</svg><figcaption>{}{}</figcaption></figure>",
-        esc(m.name()),
-        if threshold.is_some() {
-            " (dashed: threshold)"
-        } else {
-            ""
+
+    /// A polyline and dots per method.
+    fn lines(&self, s: &mut String, series: &[Vec<(i32, f64)>]) {
+        for (k, pts) in series.iter().enumerate() {
+            let colour = PALETTE[k % PALETTE.len()];
+            let path: Vec<String> = pts
+                .iter()
+                .map(|&(f, v)| format!("{:.1},{:.1}", self.x(f as f64), self.y(v)))
+                .collect();
+            if path.len() > 1 {
+                let _ = write!(
+                    s,
+                    "<polyline fill=\"none\" stroke=\"{colour}\" stroke-width=\"1.5\" points=\"{}\"/>",
+                    path.join(" ")
+                );
+            }
+            for &(f, v) in pts {
+                let _ = write!(
+                    s,
+                    "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"2\" fill=\"{colour}\"/>",
+                    self.x(f as f64),
+                    self.y(v)
+                );
+            }
         }
-    );
-    s
+    }
+
+    /// The method names with their colours, along the bottom.
+    fn legend(&self, s: &mut String, scene: &SceneReport) {
+        let mut lx = self.left;
+        for (k, mr) in scene.methods.iter().enumerate() {
+            let colour = PALETTE[k % PALETTE.len()];
+            let _ = write!(
+                s,
+                "<rect x=\"{lx}\" y=\"{}\" width=\"8\" height=\"8\" fill=\"{colour}\"/>\
+                 <text x=\"{}\" y=\"{}\">{}</text>",
+                self.h - 12.0,
+                lx + 10.0,
+                self.h - 4.0,
+                esc(&mr.name)
+            );
+            lx += 16.0 + 6.0 * mr.name.len() as f64;
+        }
+    }
 }
 
 /// Rows of images stacked top to bottom, each row left to right, `gap`

@@ -68,11 +68,38 @@ struct Stone {
 /// [`builtin_pebbles`] plus which stone each texel belongs to.
 pub fn pebbles_with_masks(size: u32, seed: u64) -> PebbleLayout {
     let size = size.clamp(SIZE_RANGE.0, SIZE_RANGE.1);
-    let n = size as usize;
     let stones: Vec<Stone> = (0..CELLS * CELLS).map(|c| stone(seed, c)).collect();
-    let geometry = Geometry::new(&stones);
+    let (id, inward) = stone_map(size, &stones);
+    let height = heights(&id, &inward, stones.len());
+    let colour = shade(size, seed, &stones, &id, &height);
+    let colour = Texture {
+        width: size,
+        height: size,
+        channels: 3,
+        data: colour,
+    };
+    let feature = FeatureMap {
+        map: Texture {
+            width: size,
+            height: size,
+            channels: 1,
+            data: height,
+        },
+        origin: FeatureOrigin::Builtin,
+    };
+    // Sizes match and values are finite and in range by construction.
+    let exemplar = Exemplar::assemble(colour, SampleFormat::U8, Vec::new(), feature);
+    PebbleLayout {
+        exemplar,
+        stone: id,
+    }
+}
 
-    // Pass 1: stone id and inward distance per texel.
+/// Pass 1: the stone id ([`CREVICE`] between stones) and the inward
+/// distance of every texel.
+fn stone_map(size: u32, stones: &[Stone]) -> (Vec<u32>, Vec<f32>) {
+    let n = size as usize;
+    let geometry = Geometry::new(stones);
     let mut id = vec![CREVICE; n * n];
     let mut inward = vec![0.0f32; n * n];
     id.par_chunks_mut(n)
@@ -84,22 +111,27 @@ pub fn pebbles_with_masks(size: u32, seed: u64) -> PebbleLayout {
                     (x as f32 + 0.5) / size as f32 * CELLS as f32,
                     (y as f32 + 0.5) / size as f32 * CELLS as f32,
                 ];
-                let (k, t) = geometry.stone_at(&stones, p);
+                let (k, t) = geometry.stone_at(stones, p);
                 if t > 0.0 {
                     ids[x] = k;
                     ts[x] = t;
                 }
             }
         });
-    let mut t_max = vec![0.0f32; stones.len()];
-    for (&k, &t) in id.iter().zip(&inward) {
+    (id, inward)
+}
+
+/// A dome per stone: 1 − (1 − s)² of the inward distance relative to the
+/// stone's deepest texel; 0 in the crevices.
+fn heights(id: &[u32], inward: &[f32], stones: usize) -> Vec<f32> {
+    let mut t_max = vec![0.0f32; stones];
+    for (&k, &t) in id.iter().zip(inward) {
         if let Some(m) = t_max.get_mut(k as usize) {
             *m = m.max(t);
         }
     }
-    let height: Vec<f32> = id
-        .iter()
-        .zip(&inward)
+    id.iter()
+        .zip(inward)
         .map(|(&k, &t)| match t_max.get(k as usize) {
             Some(&m) if m > 0.0 => {
                 let s = (t / m).clamp(0.0, 1.0);
@@ -107,9 +139,13 @@ pub fn pebbles_with_masks(size: u32, seed: u64) -> PebbleLayout {
             }
             _ => 0.0,
         })
-        .collect();
+        .collect()
+}
 
-    // Pass 2: colour, lit through the height field's normals.
+/// Pass 2: the colour, lit through the height field's normals, in 8-bit
+/// levels.
+fn shade(size: u32, seed: u64, stones: &[Stone], id: &[u32], height: &[f32]) -> Vec<f32> {
+    let n = size as usize;
     let mut colour = vec![0.0f32; n * n * 3];
     let (coarse, fine) = (
         ValueNoise::new(seed ^ 0x9e37, 48),
@@ -155,27 +191,7 @@ pub fn pebbles_with_masks(size: u32, seed: u64) -> PebbleLayout {
             }
         });
 
-    let colour = Texture {
-        width: size,
-        height: size,
-        channels: 3,
-        data: colour,
-    };
-    let feature = FeatureMap {
-        map: Texture {
-            width: size,
-            height: size,
-            channels: 1,
-            data: height,
-        },
-        origin: FeatureOrigin::Builtin,
-    };
-    // Sizes match and values are finite and in range by construction.
-    let exemplar = Exemplar::assemble(colour, SampleFormat::U8, Vec::new(), feature);
-    PebbleLayout {
-        exemplar,
-        stone: id,
-    }
+    colour
 }
 
 /// The 5×5 cell offsets, own cell first, then the inner ring, then the

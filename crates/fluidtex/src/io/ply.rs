@@ -81,7 +81,6 @@ pub fn parse_ply(path: &Path, bytes: &[u8], options: &ReadOptions) -> Result<Tri
         .properties
         .get(EXEMPLAR_ID)
         .is_some_and(|p| matches!(p.data_type, PropertyType::Scalar(_)));
-    let mut exemplar_ids = Vec::new();
     let face_def = match header.elements.get("face") {
         Some(def) => Some(face_definition(def).map_err(header_err)?),
         None => None,
@@ -92,59 +91,19 @@ pub fn parse_ply(path: &Path, bytes: &[u8], options: &ReadOptions) -> Result<Tri
         encoding: header.encoding,
         line: 0,
     };
-    let mut positions = Vec::new();
-    let mut velocity = Vec::new();
+    let mut vertices = Vertices::default();
     let mut triangles = Vec::new();
     let mut described = Vec::new();
     for (name, def) in &header.elements {
         described.push(super::counted(def.count, name));
         match name.as_str() {
             "vertex" => {
-                // Never trust a header count for an allocation.
-                let cap = vertex_count.min(rest.len() / 3);
-                positions.reserve(cap);
-                if has_velocity {
-                    velocity.reserve(cap);
-                }
-                let parser = Parser::<VertexRec>::new();
-                for i in 0..vertex_count {
-                    let v = ctx.element(&parser, &mut rest, &vertex_def, i)?;
-                    positions.push(Vec3::from(v.p));
-                    if has_velocity {
-                        velocity.push(Vec3::from(v.v));
-                    }
-                    if has_exemplar_id {
-                        exemplar_ids.push(v.exemplar_id);
-                    }
-                }
+                let (v, e) = (has_velocity, has_exemplar_id);
+                vertices = ctx.vertices(&mut rest, &vertex_def, vertex_count, v, e)?;
             }
             "face" => {
                 let Some(face_def) = &face_def else { continue };
-                triangles.reserve(face_def.count.min(rest.len() / 4));
-                let parser = Parser::<FaceRec>::new();
-                for i in 0..face_def.count {
-                    let f = ctx.element(&parser, &mut rest, face_def, i)?;
-                    let indices = f
-                        .indices()
-                        .map_err(|reason| ctx.elem_err("face", i, reason))?;
-                    if let Some(&index) = indices.iter().find(|&&k| k as usize >= vertex_count) {
-                        return Err(IoError::Mesh {
-                            path: path.to_path_buf(),
-                            source: MeshError::IndexOutOfRange {
-                                face: i,
-                                index,
-                                vertex_count,
-                            },
-                        });
-                    }
-                    if !super::fan(&indices, &mut triangles) {
-                        return Err(ctx.elem_err(
-                            "face",
-                            i,
-                            format!("has {} corners; a face needs at least 3", indices.len()),
-                        ));
-                    }
-                }
+                triangles = ctx.faces(&mut rest, face_def, vertex_count)?;
             }
             _ => {
                 let parser = Parser::<Skip>::new();
@@ -168,15 +127,94 @@ pub fn parse_ply(path: &Path, bytes: &[u8], options: &ReadOptions) -> Result<Tri
             ),
         });
     }
-    let mut mesh = TriMesh::new(positions, triangles);
+    let mut mesh = TriMesh::new(vertices.positions, triangles);
     if has_velocity {
-        mesh = mesh.with_velocity(velocity);
+        mesh = mesh.with_velocity(vertices.velocity);
     }
     if has_exemplar_id {
-        mesh.attributes
-            .insert(EXEMPLAR_ID.to_string(), Attribute::Scalar(exemplar_ids));
+        mesh.attributes.insert(
+            EXEMPLAR_ID.to_string(),
+            Attribute::Scalar(vertices.exemplar_ids),
+        );
     }
     Ok(mesh)
+}
+
+/// The per-vertex data of a PLY file; `velocity` is empty without
+/// velocity properties, `exemplar_ids` without an exemplar id.
+#[derive(Default)]
+struct Vertices {
+    positions: Vec<Vec3>,
+    velocity: Vec<Vec3>,
+    exemplar_ids: Vec<f32>,
+}
+
+impl Ctx<'_> {
+    /// Reads the `count` vertices of `def`, with velocity and exemplar ids
+    /// where the header has them.
+    fn vertices(
+        &mut self,
+        rest: &mut &[u8],
+        def: &ElementDef,
+        count: usize,
+        has_velocity: bool,
+        has_exemplar_id: bool,
+    ) -> Result<Vertices, IoError> {
+        let mut out = Vertices::default();
+        // Never trust a header count for an allocation.
+        let cap = count.min(rest.len() / 3);
+        out.positions.reserve(cap);
+        if has_velocity {
+            out.velocity.reserve(cap);
+        }
+        let parser = Parser::<VertexRec>::new();
+        for i in 0..count {
+            let v = self.element(&parser, rest, def, i)?;
+            out.positions.push(Vec3::from(v.p));
+            if has_velocity {
+                out.velocity.push(Vec3::from(v.v));
+            }
+            if has_exemplar_id {
+                out.exemplar_ids.push(v.exemplar_id);
+            }
+        }
+        Ok(out)
+    }
+
+    /// Reads the faces of `def` as triangles over `vertex_count` vertices.
+    fn faces(
+        &mut self,
+        rest: &mut &[u8],
+        def: &ElementDef,
+        vertex_count: usize,
+    ) -> Result<Vec<[u32; 3]>, IoError> {
+        let mut triangles = Vec::with_capacity(def.count.min(rest.len() / 4));
+        let parser = Parser::<FaceRec>::new();
+        for i in 0..def.count {
+            let f = self.element(&parser, rest, def, i)?;
+            let indices = f
+                .indices()
+                .map_err(|reason| self.elem_err("face", i, reason))?;
+            if let Some(&index) = indices.iter().find(|&&k| k as usize >= vertex_count) {
+                return Err(IoError::Mesh {
+                    path: self.path.to_path_buf(),
+                    source: MeshError::IndexOutOfRange {
+                        face: i,
+                        index,
+                        vertex_count,
+                    },
+                });
+            }
+            if !super::fan(&indices, &mut triangles) {
+                return Err(self.elem_err(
+                    "face",
+                    i,
+                    format!("has {} corners; a face needs at least 3", indices.len()),
+                ));
+            }
+        }
+        Ok(triangles)
+    }
 }
 
 /// Element-at-a-time reading state.

@@ -41,157 +41,16 @@ pub fn parse_vtk(path: &Path, bytes: &[u8], options: &ReadOptions) -> Result<Tri
         pos: 0,
         binary: false,
     };
-    let magic = c.line()?;
-    if !magic.starts_with("# vtk DataFile") {
-        return Err(c.header("not a legacy VTK file (first line is not \"# vtk DataFile ...\")"));
-    }
-    let _title = c.line()?;
-    c.binary = match c.line()?.trim() {
-        "ASCII" => false,
-        "BINARY" => true,
-        other => return Err(c.header(&format!("expected ASCII or BINARY, found {other:?}"))),
-    };
-    let dataset = c.keyword_line()?;
-    let polydata = match dataset.as_slice() {
-        [k, t] if k == "DATASET" && t == "UNSTRUCTURED_GRID" => false,
-        [k, t] if k == "DATASET" && t == "POLYDATA" => true,
-        _ => {
-            return Err(c.header(&format!(
-                "expected DATASET UNSTRUCTURED_GRID or POLYDATA, found {:?}",
-                dataset.join(" ")
-            )));
-        }
-    };
-
-    let mut positions: Option<Vec<Vec3>> = None;
-    let mut polygons: Vec<Vec<u32>> = Vec::new();
-    let mut cell_types: Option<Vec<u32>> = None;
-    let mut velocity: Option<Vec<Vec3>> = None;
-    let mut section_len = 0usize; // point count of POINT_DATA, or 0 in CELL_DATA
-    let mut in_point_data = false;
-    let wanted: Vec<&str> = match &options.vtk_velocity_array {
-        Some(name) => vec![name.as_str()],
-        None => VELOCITY_ARRAYS.to_vec(),
-    };
-    let mut best_rank = usize::MAX;
-
-    while !c.at_end() {
-        let words = c.keyword_line()?;
-        let Some(key) = words.first() else { continue };
-        match key.as_str() {
-            "POINTS" => {
-                let n = c.count(&words, 1)?;
-                let ty = c.word(&words, 2)?;
-                let v = c.array(n.saturating_mul(3), ty, "point", 3)?;
-                positions = Some(
-                    v.chunks_exact(3)
-                        .map(|p| Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32))
-                        .collect(),
-                );
-            }
-            "CELLS" | "POLYGONS" | "TRIANGLE_STRIPS" | "VERTICES" | "LINES" => {
-                let element = if key == "CELLS" { "cell" } else { "polygon" };
-                let lists = c.cell_lists(&words, element)?;
-                match key.as_str() {
-                    "CELLS" | "POLYGONS" => polygons = lists,
-                    "TRIANGLE_STRIPS" => {
-                        polygons.extend(lists.iter().flat_map(|s| strip(s)).map(|t| t.to_vec()))
-                    }
-                    _ => {} // points and lines carry no surface
-                }
-            }
-            "CELL_TYPES" => {
-                let n = c.count(&words, 1)?;
-                let v = c.array(n, "int", "cell type", 1)?;
-                cell_types = Some(v.iter().map(|&t| t as u32).collect());
-            }
-            "POINT_DATA" => {
-                section_len = c.count(&words, 1)?;
-                in_point_data = true;
-            }
-            "CELL_DATA" => {
-                section_len = c.count(&words, 1)?;
-                in_point_data = false;
-            }
-            "VECTORS" | "NORMALS" | "SCALARS" | "FIELD" => {
-                // Every array is read (to get past it); velocity is kept.
-                for (name, comps, values) in c.attribute_arrays(&words, section_len)? {
-                    let rank = wanted.iter().position(|w| *w == name);
-                    if let (true, 3, Some(rank)) = (in_point_data, comps, rank)
-                        && rank < best_rank
-                    {
-                        best_rank = rank;
-                        velocity = Some(
-                            values
-                                .chunks_exact(3)
-                                .map(|v| Vec3::new(v[0] as f32, v[1] as f32, v[2] as f32))
-                                .collect(),
-                        );
-                    }
-                }
-            }
-            "METADATA" => c.skip_metadata()?,
-            other => return Err(c.header(&format!("unsupported section {other:?}"))),
-        }
-    }
-
-    let positions = positions.ok_or_else(|| c.header("no POINTS section"))?;
+    let polydata = read_header(&mut c)?;
+    let mut sections = Sections::read(&mut c, options)?;
+    let positions = sections
+        .positions
+        .take()
+        .ok_or_else(|| c.header("no POINTS section"))?;
     let n = positions.len();
-    let mut triangles = Vec::with_capacity(polygons.len());
-    for (i, poly) in polygons.iter().enumerate() {
-        let keep = match (&cell_types, polydata) {
-            (_, true) => true,
-            (Some(types), false) => {
-                let t = types.get(i).copied().ok_or_else(|| IoError::Counts {
-                    path: path.to_path_buf(),
-                    reason: format!("{} cells but {} cell types", polygons.len(), types.len()),
-                })?;
-                match t {
-                    5..=9 => true,  // triangle, strip, polygon, pixel, quad
-                    1..=4 => false, // vertex, poly-vertex, line, poly-line
-                    other => {
-                        return Err(IoError::Element {
-                            path: path.to_path_buf(),
-                            element: "cell".into(),
-                            index: i,
-                            reason: format!("has type {other}, not a surface cell"),
-                        });
-                    }
-                }
-            }
-            (None, false) if polygons.is_empty() => true,
-            (None, false) => return Err(c.header("CELLS without CELL_TYPES")),
-        };
-        if !keep {
-            continue;
-        }
-        if let Some(&index) = poly.iter().find(|&&k| k as usize >= n) {
-            return Err(IoError::Mesh {
-                path: path.to_path_buf(),
-                source: MeshError::IndexOutOfRange {
-                    face: i,
-                    index,
-                    vertex_count: n,
-                },
-            });
-        }
-        if cell_types.as_ref().and_then(|t| t.get(i)) == Some(&6) {
-            triangles.extend(strip(poly));
-        } else if cell_types.as_ref().and_then(|t| t.get(i)) == Some(&8) && poly.len() == 4 {
-            // A pixel's corners are in raster order, not around the boundary.
-            triangles.push([poly[0], poly[1], poly[3]]);
-            triangles.push([poly[0], poly[3], poly[2]]);
-        } else if !super::fan(poly, &mut triangles) {
-            return Err(IoError::Element {
-                path: path.to_path_buf(),
-                element: "cell".into(),
-                index: i,
-                reason: format!("has {} corners; a face needs at least 3", poly.len()),
-            });
-        }
-    }
+    let triangles = sections.triangles(&c, polydata, n)?;
     let mut mesh = TriMesh::new(positions, triangles);
-    if let Some(v) = velocity {
+    if let Some(v) = sections.velocity {
         if v.len() != n {
             return Err(IoError::Counts {
                 path: path.to_path_buf(),
@@ -203,6 +62,198 @@ pub fn parse_vtk(path: &Path, bytes: &[u8], options: &ReadOptions) -> Result<Tri
         return Err(c.header(&format!("no 3-component point array named {name:?}")));
     }
     Ok(mesh)
+}
+
+/// Reads the four header lines; returns true for POLYDATA, false for an
+/// UNSTRUCTURED_GRID.
+fn read_header(c: &mut Cursor<'_>) -> Result<bool, IoError> {
+    let magic = c.line()?;
+    if !magic.starts_with("# vtk DataFile") {
+        return Err(c.header("not a legacy VTK file (first line is not \"# vtk DataFile ...\")"));
+    }
+    let _title = c.line()?;
+    c.binary = match c.line()?.trim() {
+        "ASCII" => false,
+        "BINARY" => true,
+        other => return Err(c.header(&format!("expected ASCII or BINARY, found {other:?}"))),
+    };
+    let dataset = c.keyword_line()?;
+    match dataset.as_slice() {
+        [k, t] if k == "DATASET" && t == "UNSTRUCTURED_GRID" => Ok(false),
+        [k, t] if k == "DATASET" && t == "POLYDATA" => Ok(true),
+        _ => Err(c.header(&format!(
+            "expected DATASET UNSTRUCTURED_GRID or POLYDATA, found {:?}",
+            dataset.join(" ")
+        ))),
+    }
+}
+
+/// What the sections after the header hold.
+#[derive(Default)]
+struct Sections {
+    positions: Option<Vec<Vec3>>,
+    polygons: Vec<Vec<u32>>,
+    cell_types: Option<Vec<u32>>,
+    velocity: Option<Vec<Vec3>>,
+    /// Point count of the current POINT_DATA section, or 0 in CELL_DATA.
+    section_len: usize,
+    in_point_data: bool,
+    /// Rank in the wanted names of the velocity kept so far.
+    best_rank: usize,
+}
+
+fn vec3s(values: &[f64]) -> Vec<Vec3> {
+    values
+        .chunks_exact(3)
+        .map(|p| Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32))
+        .collect()
+}
+
+impl Sections {
+    /// Reads every section to the end of the file.
+    fn read(c: &mut Cursor<'_>, options: &ReadOptions) -> Result<Sections, IoError> {
+        let wanted: Vec<&str> = match &options.vtk_velocity_array {
+            Some(name) => vec![name.as_str()],
+            None => VELOCITY_ARRAYS.to_vec(),
+        };
+        let mut s = Sections {
+            best_rank: usize::MAX,
+            ..Default::default()
+        };
+        while !c.at_end() {
+            let words = c.keyword_line()?;
+            let Some(key) = words.first() else { continue };
+            match key.as_str() {
+                "POINTS" => {
+                    let n = c.count(&words, 1)?;
+                    let ty = c.word(&words, 2)?;
+                    s.positions = Some(vec3s(&c.array(n.saturating_mul(3), ty, "point", 3)?));
+                }
+                "CELLS" | "POLYGONS" | "TRIANGLE_STRIPS" | "VERTICES" | "LINES" => {
+                    let element = if key == "CELLS" { "cell" } else { "polygon" };
+                    let lists = c.cell_lists(&words, element)?;
+                    match key.as_str() {
+                        "CELLS" | "POLYGONS" => s.polygons = lists,
+                        "TRIANGLE_STRIPS" => s
+                            .polygons
+                            .extend(lists.iter().flat_map(|l| strip(l)).map(|t| t.to_vec())),
+                        _ => {} // points and lines carry no surface
+                    }
+                }
+                "CELL_TYPES" => {
+                    let n = c.count(&words, 1)?;
+                    let v = c.array(n, "int", "cell type", 1)?;
+                    s.cell_types = Some(v.iter().map(|&t| t as u32).collect());
+                }
+                "POINT_DATA" | "CELL_DATA" => {
+                    s.section_len = c.count(&words, 1)?;
+                    s.in_point_data = key == "POINT_DATA";
+                }
+                "VECTORS" | "NORMALS" | "SCALARS" | "FIELD" => {
+                    s.read_attributes(c, &words, &wanted)?;
+                }
+                "METADATA" => c.skip_metadata()?,
+                other => return Err(c.header(&format!("unsupported section {other:?}"))),
+            }
+        }
+        Ok(s)
+    }
+
+    /// Reads an attribute section (to get past it); keeps the best-ranked
+    /// 3-component point array of `wanted` as the velocity.
+    fn read_attributes(
+        &mut self,
+        c: &mut Cursor<'_>,
+        words: &[String],
+        wanted: &[&str],
+    ) -> Result<(), IoError> {
+        for (name, comps, values) in c.attribute_arrays(words, self.section_len)? {
+            let rank = wanted.iter().position(|w| *w == name);
+            if let (true, 3, Some(rank)) = (self.in_point_data, comps, rank)
+                && rank < self.best_rank
+            {
+                self.best_rank = rank;
+                self.velocity = Some(vec3s(&values));
+            }
+        }
+        Ok(())
+    }
+
+    /// The cell type of cell `i`, when the file has cell types.
+    fn cell_type(&self, i: usize) -> Option<u32> {
+        self.cell_types.as_ref().and_then(|t| t.get(i)).copied()
+    }
+
+    /// Whether cell `i` is a surface cell (polydata cells all are).
+    fn is_surface(&self, c: &Cursor<'_>, polydata: bool, i: usize) -> Result<bool, IoError> {
+        let path = c.path;
+        match (&self.cell_types, polydata) {
+            (_, true) => Ok(true),
+            (Some(types), false) => {
+                let t = types.get(i).copied().ok_or_else(|| IoError::Counts {
+                    path: path.to_path_buf(),
+                    reason: format!(
+                        "{} cells but {} cell types",
+                        self.polygons.len(),
+                        types.len()
+                    ),
+                })?;
+                match t {
+                    5..=9 => Ok(true),  // triangle, strip, polygon, pixel, quad
+                    1..=4 => Ok(false), // vertex, poly-vertex, line, poly-line
+                    other => Err(IoError::Element {
+                        path: path.to_path_buf(),
+                        element: "cell".into(),
+                        index: i,
+                        reason: format!("has type {other}, not a surface cell"),
+                    }),
+                }
+            }
+            (None, false) if self.polygons.is_empty() => Ok(true),
+            (None, false) => Err(c.header("CELLS without CELL_TYPES")),
+        }
+    }
+
+    /// The surface cells as triangles over `n` points.
+    fn triangles(
+        &self,
+        c: &Cursor<'_>,
+        polydata: bool,
+        n: usize,
+    ) -> Result<Vec<[u32; 3]>, IoError> {
+        let path = c.path;
+        let mut triangles = Vec::with_capacity(self.polygons.len());
+        for (i, poly) in self.polygons.iter().enumerate() {
+            if !self.is_surface(c, polydata, i)? {
+                continue;
+            }
+            if let Some(&index) = poly.iter().find(|&&k| k as usize >= n) {
+                return Err(IoError::Mesh {
+                    path: path.to_path_buf(),
+                    source: MeshError::IndexOutOfRange {
+                        face: i,
+                        index,
+                        vertex_count: n,
+                    },
+                });
+            }
+            if self.cell_type(i) == Some(6) {
+                triangles.extend(strip(poly));
+            } else if self.cell_type(i) == Some(8) && poly.len() == 4 {
+                // A pixel's corners are in raster order, not around the boundary.
+                triangles.push([poly[0], poly[1], poly[3]]);
+                triangles.push([poly[0], poly[3], poly[2]]);
+            } else if !super::fan(poly, &mut triangles) {
+                return Err(IoError::Element {
+                    path: path.to_path_buf(),
+                    element: "cell".into(),
+                    index: i,
+                    reason: format!("has {} corners; a face needs at least 3", poly.len()),
+                });
+            }
+        }
+        Ok(triangles)
+    }
 }
 
 /// Triangles of a strip, alternating orientation so all face the same way.

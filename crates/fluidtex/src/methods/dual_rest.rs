@@ -15,12 +15,14 @@
 
 use std::sync::Arc;
 
+use glam::Vec2;
 use serde::{Deserialize, Serialize};
 
 use super::erosion::{Erosion, ErosionParams, Variant};
+use super::lapped::VISIBLE_LAYER_WEIGHT;
 use super::{
-    ChannelSpec, FrameContext, FrameResult, Method, MethodError, SOURCE_OUTSIDE, SOURCE_UNCOVERED,
-    Stat, StatsExt,
+    ChannelSpec, FrameContext, FrameResult, Method, MethodError, MethodStats, SOURCE_OUTSIDE,
+    SOURCE_UNCOVERED, Stat, StatsExt,
 };
 use crate::exemplar::Exemplar;
 use crate::texture::Texture;
@@ -152,93 +154,136 @@ impl Method for DualRest {
 /// ids are interleaved (A's k → 2k, B's k → 2k + 1) so the two layers'
 /// patches stay distinct in `source`.
 fn cross_fade(a: FrameResult, b: FrameResult, wa: f32) -> FrameResult {
-    let wb = 1.0 - wa;
-    let n = a.source.as_ref().map_or(0, Vec::len);
     let empty = Vec::new();
     let sa = a.source.as_ref().unwrap_or(&empty);
     let sb = b.source.as_ref().unwrap_or(&empty);
-    let covered = |s: u32| s != SOURCE_OUTSIDE && s != SOURCE_UNCOVERED;
-    let relabel = |s: u32, layer: u32| {
-        if covered(s) {
-            2 * (s - 1) + layer + 1
-        } else {
-            s
-        }
-    };
-    let mut source = Vec::with_capacity(n);
-    let mut layers = Vec::with_capacity(n);
-    // Per texel, the weight each layer gets.
-    let mut shares = Vec::with_capacity(n);
-    for t in 0..n {
-        let (ca, cb) = (covered(sa[t]), sb.get(t).is_some_and(|&s| covered(s)));
-        let (xa, xb) = match (ca, cb) {
-            (true, true) => (wa, wb),
-            (true, false) => (1.0, 0.0),
-            (false, true) => (0.0, 1.0),
-            (false, false) => (0.0, 0.0),
-        };
-        shares.push((xa, xb));
-        let visible = u8::from(xa >= 0.05) + u8::from(xb >= 0.05);
-        layers.push(visible);
-        source.push(if !ca && !cb {
-            sa[t]
-        } else if xa >= xb {
-            relabel(sa[t], 0)
-        } else {
-            relabel(sb[t], 1)
-        });
-    }
+    let mix = TexelMix::new(sa, sb, wa);
     let channels: Vec<Texture> = a
         .channels
         .iter()
         .zip(&b.channels)
-        .map(|(ta, tb)| {
-            let ch = ta.channels;
-            let mut out = ta.clone();
-            for (t, &(xa, xb)) in shares.iter().enumerate() {
-                if xa == 1.0 || (xa == 0.0 && xb == 0.0) {
-                    continue;
-                }
-                for c in 0..ch {
-                    let i = t * ch + c;
-                    out.data[i] = xa * ta.data[i] + xb * tb.data[i];
-                }
-            }
-            out
-        })
+        .map(|(ta, tb)| mix.blend(ta, tb))
         .collect();
     let uv = match (&a.uv, &b.uv) {
-        (Some(ua), Some(ub)) => Some(
-            shares
-                .iter()
-                .enumerate()
-                .map(|(t, &(xa, xb))| if xb > xa { ub[t] } else { ua[t] })
-                .collect(),
-        ),
+        (Some(ua), Some(ub)) => Some(mix.dominant(ua, ub, Vec2::NAN)),
         _ => None,
     };
     // The level of the layer whose uv is reported: the one that dominates.
     let exemplar_lod = match (&a.exemplar_lod, &b.exemplar_lod) {
-        (Some(la), Some(lb)) => Some(
-            shares
-                .iter()
-                .enumerate()
-                .map(|(t, &(xa, xb))| {
-                    let l = if xb > xa { lb } else { la };
-                    l.get(t).copied().unwrap_or(f32::NAN)
-                })
-                .collect(),
-        ),
+        (Some(la), Some(lb)) => Some(mix.dominant(la, lb, f32::NAN)),
         _ => None,
     };
+    let stats = merged_stats(&a, &b, &mix.source, wa);
+    let mut timings = a.timings;
+    for (name, secs) in b.timings {
+        match timings.iter_mut().find(|(n, _)| *n == name) {
+            Some(slot) => slot.1 += secs,
+            None => timings.push((name, secs)),
+        }
+    }
+    FrameResult {
+        channels,
+        source: Some(mix.source),
+        uv,
+        layers: Some(mix.layers),
+        exemplar_lod,
+        stats,
+        timings,
+    }
+}
+
+/// Per texel, the weight of each layer and what the mix shows.
+struct TexelMix {
+    /// (weight of A, weight of B).
+    shares: Vec<(f32, f32)>,
+    source: Vec<u32>,
+    layers: Vec<u8>,
+}
+
+impl TexelMix {
+    /// Both layers where both cover a texel (`wa` and 1 − `wa`), the one
+    /// that covers it otherwise; the source is the heavier layer's patch.
+    fn new(sa: &[u32], sb: &[u32], wa: f32) -> TexelMix {
+        let wb = 1.0 - wa;
+        let n = sa.len();
+        let covered = |s: u32| s != SOURCE_OUTSIDE && s != SOURCE_UNCOVERED;
+        let relabel = |s: u32, layer: u32| {
+            if covered(s) {
+                2 * (s - 1) + layer + 1
+            } else {
+                s
+            }
+        };
+        let mut mix = TexelMix {
+            shares: Vec::with_capacity(n),
+            source: Vec::with_capacity(n),
+            layers: Vec::with_capacity(n),
+        };
+        for t in 0..n {
+            let (ca, cb) = (covered(sa[t]), sb.get(t).is_some_and(|&s| covered(s)));
+            let (xa, xb) = match (ca, cb) {
+                (true, true) => (wa, wb),
+                (true, false) => (1.0, 0.0),
+                (false, true) => (0.0, 1.0),
+                (false, false) => (0.0, 0.0),
+            };
+            mix.shares.push((xa, xb));
+            let visible =
+                u8::from(xa >= VISIBLE_LAYER_WEIGHT) + u8::from(xb >= VISIBLE_LAYER_WEIGHT);
+            mix.layers.push(visible);
+            mix.source.push(if !ca && !cb {
+                sa[t]
+            } else if xa >= xb {
+                relabel(sa[t], 0)
+            } else {
+                relabel(sb[t], 1)
+            });
+        }
+        mix
+    }
+
+    /// One channel texture of A and B mixed by the shares (A's texel
+    /// where A alone shows or nothing does).
+    fn blend(&self, ta: &Texture, tb: &Texture) -> Texture {
+        let ch = ta.channels;
+        let mut out = ta.clone();
+        for (t, &(xa, xb)) in self.shares.iter().enumerate() {
+            if xa == 1.0 || (xa == 0.0 && xb == 0.0) {
+                continue;
+            }
+            for c in 0..ch {
+                let i = t * ch + c;
+                out.data[i] = xa * ta.data[i] + xb * tb.data[i];
+            }
+        }
+        out
+    }
+
+    /// Per texel, the value of the dominant layer (A on ties), `missing`
+    /// where its buffer is short.
+    fn dominant<T: Copy>(&self, a: &[T], b: &[T], missing: T) -> Vec<T> {
+        self.shares
+            .iter()
+            .enumerate()
+            .map(|(t, &(xa, xb))| {
+                let l = if xb > xa { b } else { a };
+                l.get(t).copied().unwrap_or(missing)
+            })
+            .collect()
+    }
+}
+
+/// Both layers' statistics (prefixed `layer_a_`, `layer_b_`), the patch
+/// counts summed, and the mix's own coverage.
+fn merged_stats(a: &FrameResult, b: &FrameResult, source: &[u32], wa: f32) -> MethodStats {
     let mut stats = std::collections::BTreeMap::new();
-    for (prefix, r) in [("a", &a), ("b", &b)] {
+    for (prefix, r) in [("a", a), ("b", b)] {
         for (k, v) in &r.stats {
             stats.insert(format!("layer_{prefix}_{k}"), v.clone());
         }
     }
     let sum = |key| {
-        let n = |s: &super::MethodStats| s.value(key).and_then(|v| v.as_u64()).unwrap_or(0);
+        let n = |s: &MethodStats| s.value(key).and_then(|v| v.as_u64()).unwrap_or(0);
         n(&a.stats) + n(&b.stats)
     };
     for key in [
@@ -254,22 +299,7 @@ fn cross_fade(a: FrameResult, b: FrameResult, wa: f32) -> FrameResult {
     stats.insert("texels_in_charts".into(), in_charts.into());
     stats.insert("uncovered_texels".into(), uncovered.into());
     stats.insert("weight_a".into(), serde_json::json!(wa));
-    let mut timings = a.timings;
-    for (name, secs) in b.timings {
-        match timings.iter_mut().find(|(n, _)| *n == name) {
-            Some(slot) => slot.1 += secs,
-            None => timings.push((name, secs)),
-        }
-    }
-    FrameResult {
-        channels,
-        source: Some(source),
-        uv,
-        layers: Some(layers),
-        exemplar_lod,
-        stats,
-        timings,
-    }
+    stats
 }
 
 #[cfg(test)]

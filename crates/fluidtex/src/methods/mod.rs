@@ -10,12 +10,16 @@
 //! - [`atlas_check`]: a world-space checker, to look at the atlas chain itself.
 //!
 //! [`footprint`] is a post-pass of the lapped methods: minified exemplar
-//! texels are re-read through the exemplar's mip pyramid.
+//! texels are re-read through the exemplar's mip pyramid. [`lapped`] holds
+//! what the patch methods (erosion and its baselines, lapped-rigid) share:
+//! per-triangle patch lists, the band walk over the atlas with its
+//! deterministic merge, and the bookkeeping of coverage-driven insertion.
 
 pub mod atlas_check;
 pub mod dual_rest;
 pub mod erosion;
 pub mod footprint;
+pub mod lapped;
 pub mod lapped_rigid;
 pub mod optimization;
 pub mod registry;
@@ -260,4 +264,13 @@ pub(crate) fn check_range(
             allowed,
         })
     }
+}
+
+/// [`check_range`] over rows of (name, value, lo, hi, allowed), in order:
+/// the first failing row is the error.
+pub(crate) fn check_ranges(
+    rows: &[(&'static str, f32, f32, f32, &'static str)],
+) -> Result<(), MethodError> {
+    rows.iter()
+        .try_for_each(|&(name, v, lo, hi, allowed)| check_range(name, v, lo, hi, allowed))
 }

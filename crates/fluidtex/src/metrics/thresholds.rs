@@ -15,6 +15,28 @@ use super::MetricsError;
 const FILE: &str = "metrics/thresholds.toml";
 const COMMITTED: &str = include_str!("thresholds.toml");
 
+/// One range check: (key, value, whether it is allowed, the allowed range).
+type Check = (&'static str, f64, bool, &'static str);
+
+/// The first failing check, in order, as an error naming its key.
+fn check_all(checks: &[Check]) -> Result<(), MetricsError> {
+    for &(name, value, ok, allowed) in checks {
+        if !(ok && value.is_finite()) {
+            return Err(MetricsError::Invalid {
+                name,
+                value,
+                allowed,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// A share: in [0, 1].
+fn share(v: f64) -> bool {
+    (0.0..=1.0).contains(&v)
+}
+
 /// Coverage (share of chart texels with no source).
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -302,199 +324,203 @@ impl Thresholds {
     }
 
     fn validate(&self) -> Result<(), MetricsError> {
-        fn check(
-            name: &'static str,
-            value: f64,
-            ok: bool,
-            allowed: &'static str,
-        ) -> Result<(), MetricsError> {
-            if ok && value.is_finite() {
-                Ok(())
-            } else {
-                Err(MetricsError::Invalid {
-                    name,
-                    value,
-                    allowed,
-                })
-            }
-        }
-        let share = |v: f64| (0.0..=1.0).contains(&v);
-        let c = &self.coverage;
-        check(
-            "coverage.max_uncovered_share",
-            c.max_uncovered_share,
-            share(c.max_uncovered_share),
-            "[0, 1]",
-        )?;
-        let g = &self.ghosting;
-        let w = g.min_layer_weight as f64;
-        check(
-            "ghosting.min_layer_weight",
-            w,
-            w > 0.0 && w <= 1.0,
-            "(0, 1]",
-        )?;
-        check(
-            "ghosting.max_share",
-            g.max_share,
-            share(g.max_share),
-            "[0, 1]",
-        )?;
-        let r = self.contrast.min_ratio;
-        check("contrast.min_ratio", r, r > 0.0, "(0, inf)")?;
-        let d = &self.distortion;
-        let q = d.quantile as f64;
-        check("distortion.quantile", q, q > 0.0 && q <= 1.0, "(0, 1]")?;
-        check(
-            "distortion.max_delta",
-            d.max_delta,
-            d.max_delta >= 1.0,
-            "[1, inf)",
-        )?;
-        let f = &self.fidelity;
-        check(
-            "fidelity.max_ratio",
-            f.max_ratio,
-            f.max_ratio > 0.0,
-            "(0, inf)",
-        )?;
-        check(
-            "fidelity.levels",
-            f.levels as f64,
-            (1..=8).contains(&f.levels),
-            "1..=8",
-        )?;
-        check(
-            "fidelity.patch_size",
-            f.patch_size as f64,
-            (3..=15).contains(&f.patch_size) && f.patch_size % 2 == 1,
-            "odd, 3..=15",
-        )?;
-        check(
-            "fidelity.projections",
-            f.projections as f64,
-            (1..=4096).contains(&f.projections),
-            "1..=4096",
-        )?;
-        check(
-            "fidelity.patches_per_level",
-            f.patches_per_level as f64,
-            (16..=1 << 20).contains(&f.patches_per_level),
-            "16..=1048576",
-        )?;
-        let fl = &self.flow;
-        check(
-            "flow.min_speed_px",
-            fl.min_speed_px as f64,
-            fl.min_speed_px >= 0.0,
-            "[0, inf)",
-        )?;
-        check(
-            "flow.search_radius_px",
-            fl.search_radius_px as f64,
-            (1..=32).contains(&fl.search_radius_px),
-            "1..=32",
-        )?;
-        check(
-            "flow.block_half_px",
-            fl.block_half_px as f64,
-            (1..=16).contains(&fl.block_half_px),
-            "1..=16",
-        )?;
-        check(
-            "flow.min_cos",
-            fl.min_cos as f64,
-            (-1.0..=1.0).contains(&fl.min_cos),
-            "[-1, 1]",
-        )?;
-        check(
-            "flow.max_median_epe_px",
-            fl.max_median_epe_px,
-            fl.max_median_epe_px >= 0.0,
-            "[0, inf)",
-        )?;
-        check(
-            "flow.min_aligned_share",
-            fl.min_aligned_share,
-            share(fl.min_aligned_share),
-            "[0, 1]",
-        )?;
-        let s = &self.silhouette;
-        check(
-            "silhouette.radius_px",
-            s.radius_px as f64,
-            s.radius_px <= 32,
-            "0..=32",
-        )?;
-        check(
-            "silhouette.relative_depth_jump",
-            s.relative_depth_jump as f64,
-            s.relative_depth_jump > 0.0,
-            "(0, inf)",
-        )?;
-        let p = &self.popping;
-        check(
-            "popping.sigma_factor",
-            p.sigma_factor as f64,
-            p.sigma_factor > 0.0,
-            "(0, inf)",
-        )?;
-        check(
-            "popping.max_mean_share",
-            p.max_mean_share,
-            share(p.max_mean_share),
-            "[0, 1]",
-        )?;
-        check(
-            "popping.max_worst_share",
-            p.max_worst_share,
-            share(p.max_worst_share),
-            "[0, 1]",
-        )?;
-        let sw = &self.source_switch;
-        check(
-            "source_switch.samples",
-            sw.samples as f64,
-            (100..=10_000_000).contains(&sw.samples),
-            "100..=10000000",
-        )?;
-        check(
-            "source_switch.max_excess_over_floor",
-            sw.max_excess_over_floor,
-            share(sw.max_excess_over_floor),
-            "[0, 1]",
-        )?;
-        if sw.floor_method.trim().is_empty() {
+        check_all(&self.image_checks())?;
+        check_all(&self.motion_checks())?;
+        if self.source_switch.floor_method.trim().is_empty() {
             return Err(MetricsError::Thresholds {
                 file: FILE,
                 message: "source_switch.floor_method is empty".into(),
             });
         }
+        check_all(&self.follow_checks())
+    }
+
+    /// Range checks of the single-image metrics.
+    fn image_checks(&self) -> Vec<Check> {
+        let (c, g, d, f) = (
+            &self.coverage,
+            &self.ghosting,
+            &self.distortion,
+            &self.fidelity,
+        );
+        let w = g.min_layer_weight as f64;
+        let q = d.quantile as f64;
+        let r = self.contrast.min_ratio;
+        vec![
+            (
+                "coverage.max_uncovered_share",
+                c.max_uncovered_share,
+                share(c.max_uncovered_share),
+                "[0, 1]",
+            ),
+            (
+                "ghosting.min_layer_weight",
+                w,
+                w > 0.0 && w <= 1.0,
+                "(0, 1]",
+            ),
+            (
+                "ghosting.max_share",
+                g.max_share,
+                share(g.max_share),
+                "[0, 1]",
+            ),
+            ("contrast.min_ratio", r, r > 0.0, "(0, inf)"),
+            ("distortion.quantile", q, q > 0.0 && q <= 1.0, "(0, 1]"),
+            (
+                "distortion.max_delta",
+                d.max_delta,
+                d.max_delta >= 1.0,
+                "[1, inf)",
+            ),
+            (
+                "fidelity.max_ratio",
+                f.max_ratio,
+                f.max_ratio > 0.0,
+                "(0, inf)",
+            ),
+            (
+                "fidelity.levels",
+                f.levels as f64,
+                (1..=8).contains(&f.levels),
+                "1..=8",
+            ),
+            (
+                "fidelity.patch_size",
+                f.patch_size as f64,
+                (3..=15).contains(&f.patch_size) && f.patch_size % 2 == 1,
+                "odd, 3..=15",
+            ),
+            (
+                "fidelity.projections",
+                f.projections as f64,
+                (1..=4096).contains(&f.projections),
+                "1..=4096",
+            ),
+            (
+                "fidelity.patches_per_level",
+                f.patches_per_level as f64,
+                (16..=1 << 20).contains(&f.patches_per_level),
+                "16..=1048576",
+            ),
+        ]
+    }
+
+    /// Range checks of the metrics over frame pairs and renders.
+    fn motion_checks(&self) -> Vec<Check> {
+        let (fl, s, p, sw) = (
+            &self.flow,
+            &self.silhouette,
+            &self.popping,
+            &self.source_switch,
+        );
+        vec![
+            (
+                "flow.min_speed_px",
+                fl.min_speed_px as f64,
+                fl.min_speed_px >= 0.0,
+                "[0, inf)",
+            ),
+            (
+                "flow.search_radius_px",
+                fl.search_radius_px as f64,
+                (1..=32).contains(&fl.search_radius_px),
+                "1..=32",
+            ),
+            (
+                "flow.block_half_px",
+                fl.block_half_px as f64,
+                (1..=16).contains(&fl.block_half_px),
+                "1..=16",
+            ),
+            (
+                "flow.min_cos",
+                fl.min_cos as f64,
+                (-1.0..=1.0).contains(&fl.min_cos),
+                "[-1, 1]",
+            ),
+            (
+                "flow.max_median_epe_px",
+                fl.max_median_epe_px,
+                fl.max_median_epe_px >= 0.0,
+                "[0, inf)",
+            ),
+            (
+                "flow.min_aligned_share",
+                fl.min_aligned_share,
+                share(fl.min_aligned_share),
+                "[0, 1]",
+            ),
+            (
+                "silhouette.radius_px",
+                s.radius_px as f64,
+                s.radius_px <= 32,
+                "0..=32",
+            ),
+            (
+                "silhouette.relative_depth_jump",
+                s.relative_depth_jump as f64,
+                s.relative_depth_jump > 0.0,
+                "(0, inf)",
+            ),
+            (
+                "popping.sigma_factor",
+                p.sigma_factor as f64,
+                p.sigma_factor > 0.0,
+                "(0, inf)",
+            ),
+            (
+                "popping.max_mean_share",
+                p.max_mean_share,
+                share(p.max_mean_share),
+                "[0, 1]",
+            ),
+            (
+                "popping.max_worst_share",
+                p.max_worst_share,
+                share(p.max_worst_share),
+                "[0, 1]",
+            ),
+            (
+                "source_switch.samples",
+                sw.samples as f64,
+                (100..=10_000_000).contains(&sw.samples),
+                "100..=10000000",
+            ),
+            (
+                "source_switch.max_excess_over_floor",
+                sw.max_excess_over_floor,
+                share(sw.max_excess_over_floor),
+                "[0, 1]",
+            ),
+        ]
+    }
+
+    /// Range checks of colour following and the size cost.
+    fn follow_checks(&self) -> Vec<Check> {
         let cf = &self.colour_follow;
-        check(
-            "colour_follow.min_move_texels",
-            cf.min_move_texels as f64,
-            cf.min_move_texels >= 0.0,
-            "[0, inf)",
-        )?;
-        check(
-            "colour_follow.min_moving_samples",
-            cf.min_moving_samples as f64,
-            cf.min_moving_samples >= 1,
-            "1 or more",
-        )?;
-        check(
-            "colour_follow.max_ratio",
-            cf.max_ratio,
-            cf.max_ratio > 0.0,
-            "(0, inf)",
-        )?;
-        check(
-            "size_cost.max_ratio",
-            self.size_cost.max_ratio,
-            self.size_cost.max_ratio > 0.0,
-            "(0, inf)",
-        )
+        let size = self.size_cost.max_ratio;
+        vec![
+            (
+                "colour_follow.min_move_texels",
+                cf.min_move_texels as f64,
+                cf.min_move_texels >= 0.0,
+                "[0, inf)",
+            ),
+            (
+                "colour_follow.min_moving_samples",
+                cf.min_moving_samples as f64,
+                cf.min_moving_samples >= 1,
+                "1 or more",
+            ),
+            (
+                "colour_follow.max_ratio",
+                cf.max_ratio,
+                cf.max_ratio > 0.0,
+                "(0, inf)",
+            ),
+            ("size_cost.max_ratio", size, size > 0.0, "(0, inf)"),
+        ]
     }
 
     /// The verdict on one frame's value (one sequence's value for

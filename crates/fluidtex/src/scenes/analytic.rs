@@ -78,67 +78,6 @@ fn definition(name: &str, resolution: Option<u32>) -> Option<Definition> {
         .find(|(n, _)| *n == name)
         .map(|(_, d)| *d)?;
     let d = match name {
-        // Enright et al. 2002: unit cube, sphere r = 0.15 at (0.35, 0.35, 0.35), T = 3 s;
-        // frames 0–72 at 24 fps are exactly one period.
-        "enright" => Definition {
-            description,
-            motion: Box::new(PulledBack {
-                shape: Shape::Sphere {
-                    center: DVec3::splat(0.35),
-                    radius: 0.15,
-                },
-                field: Field::Enright,
-                amplitude: Amplitude::Cosine { period: 3.0 },
-            }),
-            domain: (DVec3::ZERO, DVec3::ONE),
-            closed: true,
-            defaults: params(64, 0, 72),
-        },
-        // Single vortex, T = 8 s (frames 0–192).
-        "vortex" => Definition {
-            description,
-            motion: Box::new(PulledBack {
-                shape: PUCK,
-                field: Field::SingleVortex,
-                amplitude: Amplitude::Cosine { period: 8.0 },
-            }),
-            domain: VORTEX_DOMAIN,
-            closed: true,
-            defaults: params(96, 0, 192),
-        },
-        // A quarter turn per second about the vertical axis through the
-        // centre: one full turn over frames 0–96.
-        "rigid-rotation" => Definition {
-            description,
-            motion: Box::new(PulledBack {
-                shape: SPHERE,
-                field: Field::RigidRotation {
-                    center: DVec3::splat(0.5),
-                    omega: 0.5 * PI,
-                },
-                amplitude: Amplitude::Constant,
-            }),
-            domain: SPHERE_DOMAIN,
-            closed: true,
-            defaults: params(40, 0, 96),
-        },
-        // ω(ζ) = π/4 + (π/4)/0.3 · ζ: the top pole turns a quarter turn per
-        // second, the bottom pole stays still.
-        "differential-rotation" => Definition {
-            description,
-            motion: Box::new(PulledBack {
-                shape: SPHERE,
-                field: Field::DifferentialRotation {
-                    center: DVec3::splat(0.5),
-                    omega0: 0.25 * PI,
-                    omega1: 0.25 * PI / 0.3,
-                },
-                amplitude: Amplitude::Constant,
-            }),
-            domain: SPHERE_DOMAIN,
-            closed: true,
-            defaults: params(40, 0, 96),
-        },
         // The plane z = 0.5 over the unit square, γ = 0.5/s. The grid's z
         // range is set from the cell size so the plane passes mid-cell.
         "shear" => {
@@ -159,22 +98,6 @@ fn definition(name: &str, resolution: Option<u32>) -> Option<Definition> {
                 defaults: params(64, 0, 96),
             }
         }
-        // The vortex at full speed for 1 s, ramped to 0 over the next second,
-        // then still: frames 48–84 are identical.
-        "stop" => Definition {
-            description,
-            motion: Box::new(PulledBack {
-                shape: PUCK,
-                field: Field::SingleVortex,
-                amplitude: Amplitude::Ramp {
-                    hold: 1.0,
-                    ramp: 1.0,
-                },
-            }),
-            domain: VORTEX_DOMAIN,
-            closed: true,
-            defaults: params(96, 0, 84),
-        },
         // Merged (through the blend) while d < R + k/4 = 0.17: about
         // t ∈ (1.15 s, 2.85 s), frames 28–68 of 0–96.
         "split-merge" => Definition {
@@ -191,9 +114,99 @@ fn definition(name: &str, resolution: Option<u32>) -> Option<Definition> {
             closed: true,
             defaults: params(64, 0, 96),
         },
+        _ => Definition {
+            description,
+            ..flow_definition(name)?
+        },
+    };
+    Some(d)
+}
+
+/// The scenes that carry a closed shape along a velocity field backwards
+/// in time ([`PulledBack`]); the description is filled in by the caller.
+fn flow_definition(name: &str) -> Option<Definition> {
+    let d = match name {
+        // Enright et al. 2002: unit cube, sphere r = 0.15 at (0.35, 0.35, 0.35), T = 3 s;
+        // frames 0–72 at 24 fps are exactly one period.
+        "enright" => pulled_back(
+            PulledBack {
+                shape: Shape::Sphere {
+                    center: DVec3::splat(0.35),
+                    radius: 0.15,
+                },
+                field: Field::Enright,
+                amplitude: Amplitude::Cosine { period: 3.0 },
+            },
+            (DVec3::ZERO, DVec3::ONE),
+            params(64, 0, 72),
+        ),
+        // Single vortex, T = 8 s (frames 0–192).
+        "vortex" => pulled_back(
+            PulledBack {
+                shape: PUCK,
+                field: Field::SingleVortex,
+                amplitude: Amplitude::Cosine { period: 8.0 },
+            },
+            VORTEX_DOMAIN,
+            params(96, 0, 192),
+        ),
+        // A quarter turn per second about the vertical axis through the
+        // centre: one full turn over frames 0–96.
+        "rigid-rotation" => pulled_back(
+            PulledBack {
+                shape: SPHERE,
+                field: Field::RigidRotation {
+                    center: DVec3::splat(0.5),
+                    omega: 0.5 * PI,
+                },
+                amplitude: Amplitude::Constant,
+            },
+            SPHERE_DOMAIN,
+            params(40, 0, 96),
+        ),
+        // ω(ζ) = π/4 + (π/4)/0.3 · ζ: the top pole turns a quarter turn per
+        // second, the bottom pole stays still.
+        "differential-rotation" => pulled_back(
+            PulledBack {
+                shape: SPHERE,
+                field: Field::DifferentialRotation {
+                    center: DVec3::splat(0.5),
+                    omega0: 0.25 * PI,
+                    omega1: 0.25 * PI / 0.3,
+                },
+                amplitude: Amplitude::Constant,
+            },
+            SPHERE_DOMAIN,
+            params(40, 0, 96),
+        ),
+        // The vortex at full speed for 1 s, ramped to 0 over the next second,
+        // then still: frames 48–84 are identical.
+        "stop" => pulled_back(
+            PulledBack {
+                shape: PUCK,
+                field: Field::SingleVortex,
+                amplitude: Amplitude::Ramp {
+                    hold: 1.0,
+                    ramp: 1.0,
+                },
+            },
+            VORTEX_DOMAIN,
+            params(96, 0, 84),
+        ),
         _ => return None,
     };
     Some(d)
+}
+
+/// A closed [`PulledBack`] scene in `domain`.
+fn pulled_back(motion: PulledBack, domain: (DVec3, DVec3), defaults: SceneParams) -> Definition {
+    Definition {
+        description: "",
+        motion: Box::new(motion),
+        domain,
+        closed: true,
+        defaults,
+    }
 }
 
 /// Default parameters of an analytic scene, `None` for other names.

@@ -148,69 +148,7 @@ fn evaluate(
 /// Extracts the zero level set of `motion` at time `t` over `grid`.
 pub fn extract(motion: &dyn Motion, t: f64, grid: &Grid) -> Contour {
     let mut cache: HashMap<u64, (f64, DVec3)> = HashMap::new();
-    // Blocks (origin in cells) of the current size, coarsest first.
-    let mut size = TOP_BLOCK;
-    let mut blocks: Vec<[usize; 3]> = Vec::new();
-    for k in (0..grid.cells[2]).step_by(size) {
-        for j in (0..grid.cells[1]).step_by(size) {
-            for i in (0..grid.cells[0]).step_by(size) {
-                blocks.push([i, j, k]);
-            }
-        }
-    }
-    loop {
-        let corners = |b: [usize; 3]| {
-            (0..8).map(move |c| {
-                let o = corner_offset(c);
-                grid.node_id(b[0] + o[0] * size, b[1] + o[1] * size, b[2] + o[2] * size)
-            })
-        };
-        evaluate(
-            motion,
-            t,
-            grid,
-            blocks.iter().flat_map(|&b| corners(b)).collect(),
-            &mut cache,
-        );
-        let cache_ref = &cache;
-        blocks = blocks
-            .into_par_iter()
-            .filter(|b| {
-                let (mut lo, mut hi) =
-                    (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-                let (mut any_in, mut any_out) = (false, false);
-                for id in corners(*b) {
-                    let (v, p) = cache_ref
-                        .get(&id)
-                        .copied()
-                        .unwrap_or((f64::NAN, DVec3::NAN));
-                    lo = lo.min(p);
-                    hi = hi.max(p);
-                    if v < 0.0 {
-                        any_in = true;
-                    } else {
-                        any_out = true;
-                    }
-                }
-                // Grow the images' box for the curvature of the flow map.
-                let grow = DVec3::splat(BAND_MARGIN * (hi - lo).length() + 0.5 * grid.h);
-                (any_in && any_out) || motion.box_bound(lo - grow, hi + grow, t) <= 0.0
-            })
-            .collect();
-        if size == BLOCK {
-            break;
-        }
-        size /= 2;
-        blocks = blocks
-            .iter()
-            .flat_map(|b| {
-                (0..8).map(move |c| {
-                    let o = corner_offset(c);
-                    [b[0] + o[0] * size, b[1] + o[1] * size, b[2] + o[2] * size]
-                })
-            })
-            .collect();
-    }
+    let blocks = refine_blocks(motion, t, grid, &mut cache);
     let refined_blocks = blocks.len();
 
     // Every node of the kept finest blocks.
@@ -255,6 +193,88 @@ pub fn extract(motion: &dyn Motion, t: f64, grid: &Grid) -> Contour {
         }
     }
     out
+}
+
+/// The finest blocks (origins in cells) that may hold the surface: blocks
+/// from [`TOP_BLOCK`] cells down to [`BLOCK`], each level keeping only the
+/// blocks [`may_hold_surface`] and splitting them in eight. The corner
+/// values land in `cache`.
+fn refine_blocks(
+    motion: &dyn Motion,
+    t: f64,
+    grid: &Grid,
+    cache: &mut HashMap<u64, (f64, DVec3)>,
+) -> Vec<[usize; 3]> {
+    // Blocks (origin in cells) of the current size, coarsest first.
+    let mut size = TOP_BLOCK;
+    let mut blocks: Vec<[usize; 3]> = Vec::new();
+    for k in (0..grid.cells[2]).step_by(size) {
+        for j in (0..grid.cells[1]).step_by(size) {
+            for i in (0..grid.cells[0]).step_by(size) {
+                blocks.push([i, j, k]);
+            }
+        }
+    }
+    loop {
+        let corners = |b: [usize; 3]| {
+            (0..8).map(move |c| {
+                let o = corner_offset(c);
+                grid.node_id(b[0] + o[0] * size, b[1] + o[1] * size, b[2] + o[2] * size)
+            })
+        };
+        evaluate(
+            motion,
+            t,
+            grid,
+            blocks.iter().flat_map(|&b| corners(b)).collect(),
+            cache,
+        );
+        let cache_ref = &*cache;
+        blocks = blocks
+            .into_par_iter()
+            .filter(|b| may_hold_surface(motion, t, grid, corners(*b), cache_ref))
+            .collect();
+        if size == BLOCK {
+            return blocks;
+        }
+        size /= 2;
+        blocks = blocks
+            .iter()
+            .flat_map(|b| {
+                (0..8).map(move |c| {
+                    let o = corner_offset(c);
+                    [b[0] + o[0] * size, b[1] + o[1] * size, b[2] + o[2] * size]
+                })
+            })
+            .collect();
+    }
+}
+
+/// Whether a block with these corner nodes may hold the surface: its
+/// corners lie on both sides, or the shape's bound over the box of the
+/// corners' images (grown for the flow map's curvature) says it may.
+fn may_hold_surface(
+    motion: &dyn Motion,
+    t: f64,
+    grid: &Grid,
+    corners: impl Iterator<Item = u64>,
+    cache: &HashMap<u64, (f64, DVec3)>,
+) -> bool {
+    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+    let (mut any_in, mut any_out) = (false, false);
+    for id in corners {
+        let (v, p) = cache.get(&id).copied().unwrap_or((f64::NAN, DVec3::NAN));
+        lo = lo.min(p);
+        hi = hi.max(p);
+        if v < 0.0 {
+            any_in = true;
+        } else {
+            any_out = true;
+        }
+    }
+    // Grow the images' box for the curvature of the flow map.
+    let grow = DVec3::splat(BAND_MARGIN * (hi - lo).length() + 0.5 * grid.h);
+    (any_in && any_out) || motion.box_bound(lo - grow, hi + grow, t) <= 0.0
 }
 
 fn triangulate_loop(idx: &[u32], out: &mut Contour) {

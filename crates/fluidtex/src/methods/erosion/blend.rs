@@ -11,16 +11,14 @@
 //! combined.
 
 use glam::Vec2;
-use rayon::prelude::*;
 
 use super::fill::{
     Candidates, FillBuffers, FillContext, UNCOVERED, Uncovered, patch_groups, walk_band,
 };
 use crate::atlas::Atlas;
+use crate::methods::lapped::{BandResult, BandTexel, TexelRows, fill_bands};
 
-/// Layers below this normalised weight are not counted as visible layers
-/// (the ghost-fraction rule of docs/evaluation.md); they still contribute.
-pub const VISIBLE_LAYER_WEIGHT: f32 = 0.05;
+pub use crate::methods::lapped::VISIBLE_LAYER_WEIGHT;
 
 /// What the blended fill produced besides the buffers.
 pub struct BlendOutcome {
@@ -43,90 +41,77 @@ pub fn fill(
     candidates: &Candidates,
     out: &mut FillBuffers,
 ) -> BlendOutcome {
-    let w = atlas.width as usize;
-    let c = out.channels;
     let mut layers = vec![0u8; out.source.len()];
-    let bands = atlas.bands();
-    let Some(first) = bands.first() else {
-        return BlendOutcome {
-            uncovered: Vec::new(),
-            layers,
-            used: Vec::new(),
-        };
+    let buffers = TexelRows {
+        layers: &mut layers,
+        ..out.rows()
     };
-    let band_rows = (first.y1 - first.y0) as usize;
-    let results: Vec<(Vec<Uncovered>, Vec<u32>)> = out
-        .values
-        .par_chunks_mut(band_rows * w * c)
-        .zip(out.source.par_chunks_mut(band_rows * w))
-        .zip(out.uv.par_chunks_mut(band_rows * w))
-        .zip(layers.par_chunks_mut(band_rows * w))
-        .zip(bands.par_iter())
-        .map(|((((values, source), uvs), layers), band)| {
-            let mut missing = Vec::new();
-            let mut used = Vec::new();
-            let mut found: Vec<(u32, Vec2, f32)> = Vec::new();
-            let mut sample = vec![0.0f32; c];
-            let base = band.y0 as usize * w;
-            walk_band(ctx, atlas, candidates, band, |texel, cands| {
-                let t = texel.t;
-                found.clear();
-                for (i, tris) in patch_groups(cands, texel.k) {
-                    if let Some((uv, weight, _)) = ctx.locate(i, tris, texel.p, texel.n)
-                        && weight > 0.0
-                    {
-                        found.push((i, uv, weight));
-                    }
+    let merged = fill_bands(atlas, buffers, |band, mut rows| {
+        let mut result = BandResult::default();
+        let mut found: Vec<(u32, Vec2, f32)> = Vec::new();
+        let mut sample = vec![0.0f32; rows.channels];
+        walk_band(ctx, atlas, candidates, band, |texel, cands| {
+            found.clear();
+            for (i, tris) in patch_groups(cands, texel.k) {
+                if let Some((uv, weight, _)) = ctx.locate(i, tris, texel.p, texel.n)
+                    && weight > 0.0
+                {
+                    found.push((i, uv, weight));
                 }
-                let total: f32 = found.iter().map(|l| l.2).sum();
-                if found.is_empty() || total <= 0.0 {
-                    source[t] = UNCOVERED;
-                    missing.push(Uncovered {
-                        texel: (base + t) as u32,
-                        triangle: texel.triangle,
-                        bary: texel.bary,
-                    });
-                    return;
-                }
-                let out = &mut values[t * c..(t + 1) * c];
-                out.fill(0.0);
-                let mut heaviest = found[0];
-                let mut visible = 0u8;
-                for &(i, uv, weight) in &found {
-                    let share = weight / total;
-                    ctx.exemplar_of(i).sample_all(uv.x, uv.y, &mut sample);
-                    for (o, s) in out.iter_mut().zip(&sample) {
-                        *o += share * s;
-                    }
-                    if share >= VISIBLE_LAYER_WEIGHT {
-                        visible = visible.saturating_add(1);
-                        used.push(ctx.patches[i as usize].id);
-                    }
-                    if weight > heaviest.2 {
-                        heaviest = (i, uv, weight);
-                    }
-                }
-                source[t] = ctx.patches[heaviest.0 as usize].id + 1;
-                uvs[t] = heaviest.1;
-                layers[t] = visible;
-            });
-            used.sort_unstable();
-            used.dedup();
-            (missing, used)
-        })
-        .collect();
-    let mut uncovered = Vec::new();
-    let mut used = Vec::new();
-    for (m, u) in results {
-        uncovered.extend(m);
-        used.extend(u);
-    }
-    uncovered.sort_unstable_by_key(|u| u.texel);
-    used.sort_unstable();
-    used.dedup();
+            }
+            blend_texel(ctx, texel, &found, &mut rows, &mut sample, &mut result);
+        });
+        result.used.sort_unstable();
+        result.used.dedup();
+        result
+    });
     BlendOutcome {
-        uncovered,
+        uncovered: merged.uncovered,
         layers,
-        used,
+        used: merged.used,
     }
+}
+
+/// Writes the weight-normalised blend of the `found` layers (patch index,
+/// uv, weight) at `texel`, or records it as uncovered when none weighs.
+fn blend_texel(
+    ctx: &FillContext<'_>,
+    texel: &BandTexel,
+    found: &[(u32, Vec2, f32)],
+    rows: &mut TexelRows<'_>,
+    sample: &mut [f32],
+    result: &mut BandResult<Uncovered>,
+) {
+    let t = texel.t;
+    let total: f32 = found.iter().map(|l| l.2).sum();
+    if found.is_empty() || total <= 0.0 {
+        rows.source[t] = UNCOVERED;
+        result.uncovered.push(Uncovered {
+            texel: (rows.base + t) as u32,
+            triangle: texel.triangle,
+            bary: texel.bary,
+        });
+        return;
+    }
+    let out = rows.values_of(t);
+    out.fill(0.0);
+    let mut heaviest = found[0];
+    let mut visible = 0u8;
+    for &(i, uv, weight) in found {
+        let share = weight / total;
+        ctx.exemplar_of(i).sample_all(uv.x, uv.y, sample);
+        for (o, s) in out.iter_mut().zip(sample.iter()) {
+            *o += share * s;
+        }
+        if share >= VISIBLE_LAYER_WEIGHT {
+            visible = visible.saturating_add(1);
+            result.used.push(ctx.patches[i as usize].id);
+        }
+        if weight > heaviest.2 {
+            heaviest = (i, uv, weight);
+        }
+    }
+    rows.source[t] = ctx.patches[heaviest.0 as usize].id + 1;
+    rows.uv[t] = heaviest.1;
+    rows.layers[t] = visible;
 }

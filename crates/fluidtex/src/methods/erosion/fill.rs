@@ -15,8 +15,10 @@
 //!   triangle of the patch with the largest smallest barycentric wins, and a
 //!   small negative tolerance closes the slivers that curvature opens
 //!   between neighbouring chords.
-//! - Texels are processed band by band (rows), bands in parallel, each band
-//!   writing only its own rows: deterministic whatever the thread count.
+//! - Texels are visited by the band walk of [`crate::methods::lapped`]
+//!   (bands of rows in parallel, each writing only its own rows:
+//!   deterministic whatever the thread count); this file adds the per-span
+//!   candidate pruning and the per-texel decision.
 
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -25,9 +27,12 @@ use super::erode::ErosionTest;
 use super::exemplars::MultiFill;
 use super::feature_levels::FeatureLevelSampler;
 use super::patch::Patch;
-use crate::atlas::Atlas;
+use crate::atlas::{Atlas, Band};
 use crate::exemplar::Exemplar;
 use crate::mesh::TriMesh;
+pub(crate) use crate::methods::lapped::BandTexel;
+use crate::methods::lapped::bands::for_each_span;
+use crate::methods::lapped::{BandResult, TexelBuffers, TriangleLists, fill_bands};
 use crate::surface::SurfaceIndex;
 
 pub use crate::provenance::{SOURCE_OUTSIDE as OUTSIDE, SOURCE_UNCOVERED as UNCOVERED};
@@ -114,10 +119,16 @@ pub fn patch_frames(patches: &[Patch]) -> Vec<Vec<Option<TriFrame>>> {
 }
 
 /// Per fluid triangle, the (patch index, patch triangle) pairs that may
-/// cover its texels, sorted by patch index (= age) then triangle.
-pub struct Candidates {
-    offsets: Vec<u32>,
-    entries: Vec<(u32, u32)>,
+/// cover its texels, sorted by patch index (= age) then triangle
+/// ([`TriangleLists`]: `of`, `len`, `is_empty`).
+pub struct Candidates(TriangleLists<(u32, u32)>);
+
+impl std::ops::Deref for Candidates {
+    type Target = TriangleLists<(u32, u32)>;
+
+    fn deref(&self) -> &TriangleLists<(u32, u32)> {
+        &self.0
+    }
 }
 
 impl Candidates {
@@ -136,7 +147,7 @@ impl Candidates {
         tolerance: LocateTolerance,
     ) -> Candidates {
         let margin = Vec3::splat(tolerance.max_plane_distance);
-        let per_patch: Vec<Vec<(u32, u32, u32)>> = patches
+        let per_patch: Vec<Vec<(u32, (u32, u32))>> = patches
             .par_iter()
             .zip(frames.par_iter())
             .enumerate()
@@ -149,46 +160,16 @@ impl Candidates {
                     let hi = a.max(b).max(c) + margin;
                     index.triangles_in_box(lo, hi, |f| {
                         if frame.may_cover(mesh, f, tolerance) {
-                            out.push((f, i as u32, j as u32));
+                            out.push((f, (i as u32, j as u32)));
                         }
                     });
                 }
                 out
             })
             .collect();
-        let fluid_triangles = mesh.triangle_count();
-        let mut all: Vec<(u32, u32, u32)> = per_patch.into_iter().flatten().collect();
-        all.par_sort_unstable();
-        let mut offsets = vec![0u32; fluid_triangles + 1];
-        for &(f, _, _) in &all {
-            offsets[f as usize + 1] += 1;
-        }
-        for k in 0..fluid_triangles {
-            offsets[k + 1] += offsets[k];
-        }
-        Candidates {
-            offsets,
-            entries: all.into_iter().map(|(_, i, j)| (i, j)).collect(),
-        }
-    }
-
-    /// Candidate (patch index, patch triangle) pairs of fluid triangle `f`.
-    #[inline]
-    pub fn of(&self, f: u32) -> &[(u32, u32)] {
-        let f = f as usize;
-        if f + 1 >= self.offsets.len() {
-            return &[];
-        }
-        &self.entries[self.offsets[f] as usize..self.offsets[f + 1] as usize]
-    }
-
-    /// Total number of pairs (a cost indicator for the stats).
-    pub fn len(&self) -> usize {
-        self.entries.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.entries.is_empty()
+        // Pushed in (patch, triangle) order, so each list is in that order.
+        let all: Vec<(u32, (u32, u32))> = per_patch.into_iter().flatten().collect();
+        Candidates(TriangleLists::build(&all, mesh.triangle_count()))
     }
 }
 
@@ -307,47 +288,13 @@ impl FillContext<'_> {
 }
 
 /// A chart texel left uncovered by the fill.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Uncovered {
-    /// Row-major texel index.
-    pub texel: u32,
-    pub triangle: u32,
-    pub bary: [f32; 3],
-}
+pub use crate::methods::lapped::ChartTexel as Uncovered;
 
-/// The fill's per-texel results.
-pub struct FillBuffers {
-    pub width: u32,
-    pub height: u32,
-    /// Exemplar channels, interleaved (`channels` per texel).
-    pub channels: usize,
-    pub values: Vec<f32>,
-    /// [`OUTSIDE`], [`UNCOVERED`] or patch id + 1.
-    pub source: Vec<u32>,
-    /// Patch uv per texel (exemplar coordinates), NaN where no patch.
-    pub uv: Vec<Vec2>,
-    /// When set, the fill records only source and uv and leaves `values`
-    /// to a later pass that samples every covered texel once, at its
-    /// footprint's level ([`crate::methods::footprint`]): a level-0 read
-    /// that is overwritten anyway would cost most of the frame with a
-    /// large exemplar.
-    pub defer_values: bool,
-}
+/// The fill's per-texel results (the shared lapped buffers; the lapped
+/// fill keeps no layer count or level).
+pub type FillBuffers = TexelBuffers;
 
-impl FillBuffers {
-    pub fn new(width: u32, height: u32, channels: usize) -> FillBuffers {
-        let n = width as usize * height as usize;
-        FillBuffers {
-            width,
-            height,
-            channels,
-            values: vec![0.0; n * channels],
-            source: vec![OUTSIDE; n],
-            uv: vec![Vec2::NAN; n],
-            defer_values: false,
-        }
-    }
-
+impl TexelBuffers {
     /// Writes the result of a hit at texel `t`.
     #[inline]
     pub fn write(&mut self, t: usize, hit: Hit, id: u32, exemplar: &Exemplar) {
@@ -473,19 +420,6 @@ pub(crate) fn patch_groups(
     })
 }
 
-/// One chart texel as [`walk_band`] hands it over.
-pub(crate) struct BandTexel {
-    /// Texel index from the band's first texel.
-    pub(crate) t: usize,
-    /// Index of the texel in its span (for [`SpanCandidate`] intervals).
-    pub(crate) k: u32,
-    /// Surface point and unit normal of its fluid triangle.
-    pub(crate) p: Vec3,
-    pub(crate) n: Vec3,
-    pub(crate) triangle: u32,
-    pub(crate) bary: [f32; 3],
-}
-
 /// Visits every chart texel of `band` in texel order, with the span's
 /// candidates pruned by [`span_candidates`]: the walk the lapped and the
 /// blended fills share.
@@ -493,44 +427,18 @@ pub(crate) fn walk_band(
     ctx: &FillContext<'_>,
     atlas: &Atlas,
     candidates: &Candidates,
-    band: &crate::atlas::Band,
+    band: &Band,
     mut visit: impl FnMut(&BandTexel, &[SpanCandidate]),
 ) {
-    let w = atlas.width as usize;
-    let base = band.y0 as usize * w;
-    let mut texels: Vec<(u32, [f32; 3])> = Vec::new();
     let mut cands = Vec::new();
-    for span in &band.spans {
-        let f = span.triangle;
-        let [a, b, c] = ctx.mesh.corners(f as usize);
-        let n = (b - a).cross(c - a).normalize_or_zero();
-        let point = |bary: [f32; 3]| a * bary[0] + b * bary[1] + c * bary[2];
-        texels.clear();
-        texels.extend(atlas.span_barycentrics(span));
-        let (Some(&(_, b_first)), Some(&(_, b_last))) = (texels.first(), texels.last()) else {
-            continue;
-        };
-        span_candidates(
-            ctx,
-            candidates.of(f),
-            point(b_first),
-            point(b_last),
-            texels.len() as u32,
-            &mut cands,
-        );
-        let row = span.y as usize * w - base;
-        for (k, &(x, bary)) in texels.iter().enumerate() {
-            let texel = BandTexel {
-                t: row + x as usize,
-                k: k as u32,
-                p: point(bary),
-                n,
-                triangle: f,
-                bary,
-            };
+    for_each_span(ctx.mesh, atlas, band, |span| {
+        let (first, last) = span.ends();
+        let list = candidates.of(span.triangle);
+        span_candidates(ctx, list, first, last, span.len(), &mut cands);
+        for texel in span.texels() {
             visit(&texel, &cands);
         }
-    }
+    });
 }
 
 /// Fills every chart texel of `atlas` (parallel by bands) and returns the
@@ -541,50 +449,35 @@ pub fn fill(
     candidates: &Candidates,
     out: &mut FillBuffers,
 ) -> Vec<Uncovered> {
-    let bands = atlas.bands();
-    let Some(first) = bands.first() else {
-        return Vec::new();
-    };
-    let band_rows = (first.y1 - first.y0) as usize;
-    let w = atlas.width as usize;
-    let c = out.channels;
     let defer = out.defer_values;
-    let mut uncovered: Vec<Uncovered> = out
-        .values
-        .par_chunks_mut(band_rows * w * c)
-        .zip(out.source.par_chunks_mut(band_rows * w))
-        .zip(out.uv.par_chunks_mut(band_rows * w))
-        .zip(bands.par_iter())
-        .flat_map_iter(|(((values, source), uvs), band)| {
-            let mut missing = Vec::new();
-            let base = band.y0 as usize * w;
-            walk_band(ctx, atlas, candidates, band, |texel, cands| {
-                let t = texel.t;
-                match ctx.resolve_in_span(cands, texel.k, texel.p, texel.n) {
-                    Some(hit) => {
-                        if !defer {
-                            ctx.exemplar_of(hit.patch).sample_all(
-                                hit.uv.x,
-                                hit.uv.y,
-                                &mut values[t * c..(t + 1) * c],
-                            );
-                        }
-                        source[t] = ctx.patches[hit.patch as usize].id + 1;
-                        uvs[t] = hit.uv;
+    let merged = fill_bands(atlas, out.rows(), |band, mut rows| {
+        let mut uncovered = Vec::new();
+        walk_band(ctx, atlas, candidates, band, |texel, cands| {
+            let t = texel.t;
+            match ctx.resolve_in_span(cands, texel.k, texel.p, texel.n) {
+                Some(hit) => {
+                    if !defer {
+                        let values = rows.values_of(t);
+                        ctx.exemplar_of(hit.patch)
+                            .sample_all(hit.uv.x, hit.uv.y, values);
                     }
-                    None => {
-                        source[t] = UNCOVERED;
-                        missing.push(Uncovered {
-                            texel: (base + t) as u32,
-                            triangle: texel.triangle,
-                            bary: texel.bary,
-                        });
-                    }
+                    rows.source[t] = ctx.patches[hit.patch as usize].id + 1;
+                    rows.uv[t] = hit.uv;
                 }
-            });
-            missing
-        })
-        .collect();
-    uncovered.par_sort_unstable_by_key(|u| u.texel);
-    uncovered
+                None => {
+                    rows.source[t] = UNCOVERED;
+                    uncovered.push(Uncovered {
+                        texel: (rows.base + t) as u32,
+                        triangle: texel.triangle,
+                        bary: texel.bary,
+                    });
+                }
+            }
+        });
+        BandResult {
+            uncovered,
+            used: Vec::new(),
+        }
+    });
+    merged.uncovered
 }

@@ -21,11 +21,12 @@
 //! of [`crate::methods`]) and how many layers carry at least
 //! [`VISIBLE_LAYER_WEIGHT`] of the result (the ghost metric's input).
 //!
-//! Bands of rows are filled in parallel, each writing only its own rows:
-//! bit-identical whatever the thread count.
+//! Texels are visited by the shared band walk of [`crate::methods::lapped`]
+//! (bands of rows in parallel, each writing only its own rows:
+//! bit-identical whatever the thread count); this file is what one texel
+//! does with its layers.
 
 use glam::{Vec2, Vec3};
-use rayon::prelude::*;
 
 use super::falloff::{PatchMask, angle_between, falloff};
 use super::receivers::Receivers;
@@ -34,65 +35,27 @@ use crate::atlas::Atlas;
 use crate::exemplar::Exemplar;
 use crate::exemplar::feature::FeatureSampler;
 use crate::mesh::TriMesh;
-use crate::methods::{SOURCE_OUTSIDE, SOURCE_UNCOVERED};
+use crate::methods::SOURCE_UNCOVERED;
+use crate::methods::lapped::bands::for_each_span;
+use crate::methods::lapped::{
+    AtTexel, BandResult, BandTexel, TexelBuffers, TexelRows, TriangleLists, fill_bands,
+};
 
-/// Layers below this share of a texel's result are not counted as visible
-/// (docs/evaluation.md's ghost rule, the same as the blended baseline's).
-pub const VISIBLE_LAYER_WEIGHT: f32 = 0.05;
+pub use crate::methods::lapped::VISIBLE_LAYER_WEIGHT;
 
 /// Per fluid triangle, the patches (index in the tracker list = age order)
 /// whose receivers hold it.
-pub struct LayerLists {
-    offsets: Vec<u32>,
-    entries: Vec<u32>,
-}
+pub type LayerLists = TriangleLists<u32>;
 
-impl LayerLists {
-    /// Gathers the receivers of every patch, in patch order, so every
-    /// triangle's list is sorted by age.
-    pub fn build(receivers: &[Receivers], triangle_count: usize) -> LayerLists {
-        let mut offsets = vec![0u32; triangle_count + 1];
-        for r in receivers {
-            for &f in &r.triangles {
-                if let Some(o) = offsets.get_mut(f as usize + 1) {
-                    *o += 1;
-                }
-            }
-        }
-        for k in 0..triangle_count {
-            offsets[k + 1] += offsets[k];
-        }
-        let mut cursor = offsets.clone();
-        let mut entries = vec![0u32; offsets[triangle_count] as usize];
-        for (i, r) in receivers.iter().enumerate() {
-            for &f in &r.triangles {
-                if let Some(c) = cursor.get_mut(f as usize) {
-                    entries[*c as usize] = i as u32;
-                    *c += 1;
-                }
-            }
-        }
-        LayerLists { offsets, entries }
-    }
-
-    /// The layers of fluid triangle `f`, oldest first.
-    #[inline]
-    pub fn of(&self, f: u32) -> &[u32] {
-        let f = f as usize;
-        if f + 1 >= self.offsets.len() {
-            return &[];
-        }
-        &self.entries[self.offsets[f] as usize..self.offsets[f + 1] as usize]
-    }
-
-    /// Total (triangle, patch) pairs.
-    pub fn len(&self) -> usize {
-        self.entries.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.entries.is_empty()
-    }
+/// Gathers the receivers of every patch, in patch order, so every
+/// triangle's list is sorted by age.
+pub fn layer_lists(receivers: &[Receivers], triangle_count: usize) -> LayerLists {
+    let pairs: Vec<(u32, u32)> = receivers
+        .iter()
+        .enumerate()
+        .flat_map(|(i, r)| r.triangles.iter().map(move |&f| (f, i as u32)))
+        .collect();
+    TriangleLists::build(&pairs, triangle_count)
 }
 
 /// One patch as the compositing sees it.
@@ -167,34 +130,16 @@ pub struct Uncovered {
     pub sum: TexelSum,
 }
 
-/// Per-texel results.
-pub struct CompositeBuffers {
-    pub width: u32,
-    pub height: u32,
-    /// Exemplar channels, interleaved; unnormalised while a texel is open.
-    pub channels: usize,
-    pub values: Vec<f32>,
-    pub source: Vec<u32>,
-    pub uv: Vec<Vec2>,
-    pub layers: Vec<u8>,
-    pub lod: Vec<f32>,
-}
-
-impl CompositeBuffers {
-    pub fn new(width: u32, height: u32, channels: usize) -> CompositeBuffers {
-        let n = width as usize * height as usize;
-        CompositeBuffers {
-            width,
-            height,
-            channels,
-            values: vec![0.0; n * channels],
-            source: vec![SOURCE_OUTSIDE; n],
-            uv: vec![Vec2::NAN; n],
-            layers: vec![0; n],
-            lod: vec![f32::NAN; n],
-        }
+impl AtTexel for Uncovered {
+    fn texel(&self) -> u32 {
+        self.texel
     }
 }
+
+/// Per-texel results, with a layer count and an exemplar level per texel
+/// (`TexelBuffers::new(..).with_layers()`); values stay unnormalised while
+/// a texel is open.
+pub type CompositeBuffers = TexelBuffers;
 
 /// Where one texel writes.
 pub struct TexelOut<'b> {
@@ -205,7 +150,16 @@ pub struct TexelOut<'b> {
     pub lod: &'b mut f32,
 }
 
-impl CompositeContext<'_> {
+impl<'a> CompositeContext<'a> {
+    /// The same context over other layers (the distribution update
+    /// composites each new patch alone).
+    pub fn with_layers<'b>(&self, layers: &'b [Layer]) -> CompositeContext<'b>
+    where
+        'a: 'b,
+    {
+        CompositeContext { layers, ..*self }
+    }
+
     /// The smooth surface normal at a texel: its fluid triangle's vertex
     /// normals interpolated at `bary`, normalised (the triangle's own
     /// normal `n` where they cancel).
@@ -351,95 +305,79 @@ pub fn fill(
     lists: &LayerLists,
     out: &mut CompositeBuffers,
 ) -> FillOutcome {
-    let bands = atlas.bands();
-    let Some(first) = bands.first() else {
-        return FillOutcome {
-            uncovered: Vec::new(),
-            used: Vec::new(),
-        };
-    };
-    let band_rows = (first.y1 - first.y0) as usize;
-    let w = atlas.width as usize;
-    let c = out.channels;
-    let chunk = band_rows * w;
-    let results: Vec<(Vec<Uncovered>, Vec<u32>)> = out
-        .values
-        .par_chunks_mut(chunk * c)
-        .zip(out.source.par_chunks_mut(chunk))
-        .zip(out.uv.par_chunks_mut(chunk))
-        .zip(out.layers.par_chunks_mut(chunk))
-        .zip(out.lod.par_chunks_mut(chunk))
-        .zip(bands.par_iter())
-        .map(|(((((values, source), uvs), layers), lods), band)| {
-            let mut missing = Vec::new();
-            let mut used = Vec::new();
-            let mut sample = vec![0.0f32; c];
-            let mut sum = TexelSum::default();
-            let base = band.y0 as usize * w;
-            for span in &band.spans {
-                let f = span.triangle;
-                let [a, b, cc] = ctx.mesh.corners(f as usize);
-                let n = (b - a).cross(cc - a).normalize_or_zero();
-                let list = lists.of(f);
-                let row = span.y as usize * w - base;
-                for (x, bary) in atlas.span_barycentrics(span) {
-                    let t = row + x as usize;
-                    let p = a * bary[0] + b * bary[1] + cc * bary[2];
-                    sum.alpha = 0.0;
-                    sum.heaviest = None;
-                    sum.contributions.clear();
-                    let texel_values = &mut values[t * c..(t + 1) * c];
-                    texel_values.fill(0.0);
-                    let shading = ctx.texel_normal(f, bary, n);
-                    for &i in list {
-                        // A texel is complete once it reaches coverage: a
-                        // patch the update adds below it later in this
-                        // frame never reaches it next frame either, so a
-                        // fluid at rest gives identical frames.
-                        if sum.alpha >= ctx.coverage {
-                            break;
-                        }
-                        let wgt =
-                            ctx.add_layer(i, shading, p, n, &mut sum, texel_values, &mut sample);
-                        if wgt > 0.0 {
-                            used.push(i);
-                        }
-                    }
-                    if sum.alpha >= ctx.coverage {
-                        ctx.finish(
-                            &sum,
-                            TexelOut {
-                                values: texel_values,
-                                source: &mut source[t],
-                                uv: &mut uvs[t],
-                                layers: &mut layers[t],
-                                lod: &mut lods[t],
-                            },
-                        );
-                    } else {
-                        source[t] = SOURCE_UNCOVERED;
-                        missing.push(Uncovered {
-                            texel: (base + t) as u32,
-                            triangle: f,
-                            bary,
-                            sum: sum.clone(),
-                        });
-                    }
-                }
-                used.sort_unstable();
-                used.dedup();
+    let merged = fill_bands(atlas, out.rows(), |band, mut rows| {
+        let mut result = BandResult::default();
+        let mut sample = vec![0.0f32; rows.channels];
+        let mut sum = TexelSum::default();
+        for_each_span(ctx.mesh, atlas, band, |span| {
+            let list = lists.of(span.triangle);
+            for texel in span.texels() {
+                ctx.composite_texel(&texel, list, &mut rows, &mut sum, &mut sample, &mut result);
             }
-            (missing, used)
-        })
-        .collect();
-    let mut uncovered = Vec::new();
-    let mut used = Vec::new();
-    for (m, u) in results {
-        uncovered.extend(m);
-        used.extend(u);
+            // Keeps the list short on large bands; the merge sorts again.
+            result.used.sort_unstable();
+            result.used.dedup();
+        });
+        result
+    });
+    FillOutcome {
+        uncovered: merged.uncovered,
+        used: merged.used,
     }
-    uncovered.sort_unstable_by_key(|u| u.texel);
-    used.sort_unstable();
-    used.dedup();
-    FillOutcome { uncovered, used }
+}
+
+impl CompositeContext<'_> {
+    /// Composites the layers of `list` at one texel, oldest first, until it
+    /// reaches coverage; finishes it, or records it as uncovered with its
+    /// partial sum. `sum` is scratch space, reset here.
+    fn composite_texel(
+        &self,
+        texel: &BandTexel,
+        list: &[u32],
+        rows: &mut TexelRows<'_>,
+        sum: &mut TexelSum,
+        sample: &mut [f32],
+        result: &mut BandResult<Uncovered>,
+    ) {
+        let t = texel.t;
+        sum.alpha = 0.0;
+        sum.heaviest = None;
+        sum.contributions.clear();
+        let c = rows.channels;
+        let values = &mut rows.values[t * c..(t + 1) * c];
+        values.fill(0.0);
+        let shading = self.texel_normal(texel.triangle, texel.bary, texel.n);
+        for &i in list {
+            // A texel is complete once it reaches coverage: a patch the
+            // update adds below it later in this frame never reaches it
+            // next frame either, so a fluid at rest gives identical frames.
+            if sum.alpha >= self.coverage {
+                break;
+            }
+            let wgt = self.add_layer(i, shading, texel.p, texel.n, sum, values, sample);
+            if wgt > 0.0 {
+                result.used.push(i);
+            }
+        }
+        if sum.alpha >= self.coverage {
+            self.finish(
+                sum,
+                TexelOut {
+                    values,
+                    source: &mut rows.source[t],
+                    uv: &mut rows.uv[t],
+                    layers: &mut rows.layers[t],
+                    lod: &mut rows.lod[t],
+                },
+            );
+        } else {
+            rows.source[t] = SOURCE_UNCOVERED;
+            result.uncovered.push(Uncovered {
+                texel: (rows.base + t) as u32,
+                triangle: texel.triangle,
+                bary: texel.bary,
+                sum: sum.clone(),
+            });
+        }
+    }
 }

@@ -22,12 +22,11 @@
 //! once it can no longer be seen. A sink stays marked; it fades while the
 //! flow still converges on it and holds where the flow stops.
 
-use std::collections::HashMap;
-
-use super::composite::{CompositeBuffers, CompositeContext, Layer, TexelOut, Uncovered};
+use super::composite::{CompositeBuffers, CompositeContext, Heaviest, Layer, TexelOut, Uncovered};
 use super::receivers::ReceiverContext;
 use super::trackers::Tracker;
 use crate::exemplar::set::Chooser;
+use crate::methods::lapped::Pending;
 use crate::surface::SurfacePoint;
 use crate::surface::velocity::FlowFrame;
 
@@ -60,110 +59,28 @@ pub fn cover(
     mut chooser: Option<&mut Chooser<'_>>,
 ) -> CoverStats {
     let mut stats = CoverStats::default();
-    if uncovered.is_empty() {
-        return stats;
-    }
     let rc = inputs.receivers;
-    let mesh = rc.mesh;
-    let c = out.channels;
-    let mut sample = vec![0.0f32; c];
-    let mut closed = vec![false; uncovered.len()];
-    let mut by_triangle: HashMap<u32, Vec<u32>> = HashMap::new();
-    for (k, u) in uncovered.iter().enumerate() {
-        by_triangle.entry(u.triangle).or_default().push(k as u32);
-    }
-    let mut cursor = 0usize;
-    loop {
-        while cursor < uncovered.len() && closed[cursor] {
-            cursor += 1;
-        }
-        if cursor == uncovered.len() {
-            break;
-        }
-        let seed = cursor;
+    let mut pending = Pending::new(uncovered.iter().map(|u| u.triangle));
+    while let Some(seed) = pending.next_open() {
         let at = SurfacePoint::new(uncovered[seed].triangle, uncovered[seed].bary);
         let id = *next_id;
         *next_id += 1;
-        let mut tracker = Tracker::create(
-            id,
-            mesh,
-            rc.vertex_normals,
-            at,
-            rc.radius,
-            (inputs.rotation)(at),
-        );
+        let angle = (inputs.rotation)(at);
+        let mut tracker = Tracker::create(id, rc.mesh, rc.vertex_normals, at, rc.radius, angle);
         if let Some(c) = chooser.as_deref_mut() {
             tracker.exemplar = c.choose(at, super::location_key(at));
         }
-        let mut shown = 0.0f32;
-        let frame = tracker.frame(inputs.exemplar_size);
-        let receivers = rc.receivers(&frame);
         let layer = [Layer {
             id,
-            frame,
+            frame: tracker.frame(inputs.exemplar_size),
             fade: tracker.fade,
             exemplar: tracker.exemplar,
         }];
-        let ctx = CompositeContext {
-            mesh,
-            vertex_normals: template.vertex_normals,
-            opaque: template.opaque,
-            transparent: template.transparent,
-            layers: &layer,
-            exemplar: template.exemplar,
-            mask: template.mask,
-            feature: template.feature,
-            base_lod: template.base_lod,
-            coverage: template.coverage,
-            keep_weight: template.keep_weight,
-            multi: template.multi,
-        };
-        for &f in &receivers.triangles {
-            let Some(texels) = by_triangle.get(&f) else {
-                continue;
-            };
-            let [a, b, cc] = mesh.corners(f as usize);
-            let n = (b - a).cross(cc - a).normalize_or_zero();
-            for &k in texels {
-                let k = k as usize;
-                if closed[k] {
-                    continue;
-                }
-                let u = &mut uncovered[k];
-                let t = u.texel as usize;
-                let x = a * u.bary[0] + b * u.bary[1] + cc * u.bary[2];
-                let values = &mut out.values[t * c..(t + 1) * c];
-                let shading = ctx.texel_normal(f, u.bary, n);
-                shown += ctx.add_layer(0, shading, x, n, &mut u.sum, values, &mut sample);
-                if u.sum.alpha >= ctx.coverage {
-                    close(&ctx, u, out);
-                    closed[k] = true;
-                }
-            }
-        }
-        if !closed[seed] {
-            let u = &mut uncovered[seed];
-            if u.sum.alpha <= 0.0 {
-                // Nothing at all here: the new patch's centre, opaque.
-                let t = u.texel as usize;
-                let values = &mut out.values[t * c..(t + 1) * c];
-                let exemplar = template
-                    .multi
-                    .and_then(|m| m.exemplars.get(tracker.exemplar as usize))
-                    .map_or(ctx.exemplar, |e| &**e);
-                exemplar.sample_all(0.5, 0.5, values);
-                shown += 1.0;
-                u.sum.alpha = 1.0;
-                u.sum.contributions.push(1.0);
-                u.sum.heaviest = Some(super::composite::Heaviest {
-                    id,
-                    uv: glam::Vec2::splat(0.5),
-                    weight: 1.0,
-                    lod: 0.0,
-                });
-            }
-            close(&ctx, u, out);
-            closed[seed] = true;
+        let ctx = template.with_layers(&layer);
+        let mut shown = composite_below(&ctx, rc, &mut pending, &mut uncovered, out);
+        if !pending.is_closed(seed) {
+            shown += force_seed(&ctx, &tracker, &mut uncovered[seed], out);
+            pending.close(seed);
             stats.forced += 1;
         }
         stats.created += 1;
@@ -173,6 +90,73 @@ pub fn cover(
         trackers.push(tracker);
     }
     stats
+}
+
+/// Composites the one new layer of `ctx` under every open texel of its
+/// receivers, closing those it completes; returns what it showed.
+fn composite_below(
+    ctx: &CompositeContext<'_>,
+    rc: &ReceiverContext<'_>,
+    pending: &mut Pending,
+    uncovered: &mut [Uncovered],
+    out: &mut CompositeBuffers,
+) -> f32 {
+    let mesh = rc.mesh;
+    let c = out.channels;
+    let mut sample = vec![0.0f32; c];
+    let mut shown = 0.0f32;
+    let receivers = rc.receivers(&ctx.layers[0].frame);
+    for &f in &receivers.triangles {
+        let [a, b, cc] = mesh.corners(f as usize);
+        let n = (b - a).cross(cc - a).normalize_or_zero();
+        pending.visit_open(f, |k| {
+            let u = &mut uncovered[k];
+            let t = u.texel as usize;
+            let x = a * u.bary[0] + b * u.bary[1] + cc * u.bary[2];
+            let values = &mut out.values[t * c..(t + 1) * c];
+            let shading = ctx.texel_normal(f, u.bary, n);
+            shown += ctx.add_layer(0, shading, x, n, &mut u.sum, values, &mut sample);
+            let complete = u.sum.alpha >= ctx.coverage;
+            if complete {
+                close(ctx, u, out);
+            }
+            complete
+        });
+    }
+    shown
+}
+
+/// Closes a seed texel its own patch left short (module doc): with what
+/// it has, or, where nothing showed at all, with the new patch's centre,
+/// opaque. Returns what the patch showed there.
+fn force_seed(
+    ctx: &CompositeContext<'_>,
+    tracker: &Tracker,
+    u: &mut Uncovered,
+    out: &mut CompositeBuffers,
+) -> f32 {
+    let mut shown = 0.0;
+    if u.sum.alpha <= 0.0 {
+        let c = out.channels;
+        let t = u.texel as usize;
+        let values = &mut out.values[t * c..(t + 1) * c];
+        let exemplar = ctx
+            .multi
+            .and_then(|m| m.exemplars.get(tracker.exemplar as usize))
+            .map_or(ctx.exemplar, |e| &**e);
+        exemplar.sample_all(0.5, 0.5, values);
+        shown = 1.0;
+        u.sum.alpha = 1.0;
+        u.sum.contributions.push(1.0);
+        u.sum.heaviest = Some(Heaviest {
+            id: tracker.id,
+            uv: glam::Vec2::splat(0.5),
+            weight: 1.0,
+            lod: 0.0,
+        });
+    }
+    close(ctx, u, out);
+    shown
 }
 
 fn close(ctx: &CompositeContext<'_>, u: &Uncovered, out: &mut CompositeBuffers) {

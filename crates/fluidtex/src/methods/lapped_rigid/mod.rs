@@ -45,18 +45,20 @@ use rand::SeedableRng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use self::composite::{CompositeBuffers, CompositeContext, Layer, LayerLists, MultiComposite};
+use self::composite::{CompositeBuffers, CompositeContext, Layer, MultiComposite};
 use self::distribution::{CoverInputs, SinkRule};
 use self::falloff::PatchMask;
 use self::receivers::{ReceiverContext, Receivers};
 use self::trackers::Tracker;
-use super::{ChannelSpec, FrameContext, FrameResult, Method, MethodError, StageClock, check_range};
+use super::lapped::{PatchScale, ScaleKeys};
+use super::{
+    ChannelSpec, FrameContext, FrameResult, Method, MethodError, StageClock, check_ranges,
+};
 use crate::exemplar::set::{Chooser, Coverage, RegionBox};
 use crate::exemplar::{Exemplar, ExemplarFilter, ExemplarSelect, ExemplarSet};
-use crate::mesh::Topology;
 use crate::surface::SurfacePoint;
 use crate::surface::poisson::sample_mesh;
-use crate::surface::velocity::{FlowFrame, FlowInterval};
+use crate::surface::velocity::FlowFrame;
 use crate::texture::Texture;
 
 /// Parameters of the 2016 method. Every field is also a config key
@@ -158,60 +160,106 @@ impl Default for LappedRigidParams {
 impl LappedRigidParams {
     /// Checks every field's range and ψ_{α=1} < ψ_{α=0} < φ_max.
     pub fn validate(&self) -> Result<(), MethodError> {
-        if let Some(r) = self.radius {
-            check_range("lapped_rigid.radius", r, f32::MIN_POSITIVE, f32::MAX, "> 0")?;
+        self.scale().validate(&ScaleKeys {
+            radius: "lapped_rigid.radius",
+            radius_fraction: "lapped_rigid.radius_fraction",
+            radius_edges: "lapped_rigid.radius_edges",
+            exemplar_size: "lapped_rigid.exemplar_size",
+            exemplar_scale: "lapped_rigid.exemplar_scale",
+        })?;
+        self.validate_angles()?;
+        check_ranges(&[
+            (
+                "lapped_rigid.far_fraction",
+                self.far_fraction,
+                1e-3,
+                10.0,
+                "[0.001, 10]",
+            ),
+            (
+                "lapped_rigid.substeps",
+                self.substeps as f32,
+                1.0,
+                64.0,
+                "1..=64",
+            ),
+            (
+                "lapped_rigid.normal_dot",
+                self.normal_dot,
+                -1.0,
+                1.0,
+                "[-1, 1]",
+            ),
+            (
+                "lapped_rigid.coverage",
+                self.coverage,
+                0.01,
+                1.0,
+                "[0.01, 1]",
+            ),
+            (
+                "lapped_rigid.keep_weight",
+                self.keep_weight,
+                0.0,
+                1.0,
+                "[0, 1]",
+            ),
+        ])?;
+        self.validate_mask()?;
+        check_ranges(&[
+            (
+                "lapped_rigid.sink_speed",
+                self.sink_speed,
+                0.0,
+                1e6,
+                "[0, 1e6] r per second",
+            ),
+            (
+                "lapped_rigid.sink_fade_rate",
+                self.sink_fade_rate,
+                1e-3,
+                1e6,
+                "[0.001, 1e6]",
+            ),
+        ])
+    }
+
+    /// The scale settings r, S and the rules that default them.
+    pub fn scale(&self) -> PatchScale {
+        PatchScale {
+            radius: self.radius,
+            radius_fraction: self.radius_fraction,
+            radius_edges: self.radius_edges,
+            exemplar_size: self.exemplar_size,
+            exemplar_scale: self.exemplar_scale,
         }
-        check_range(
-            "lapped_rigid.radius_fraction",
-            self.radius_fraction,
-            1e-4,
-            1.0,
-            "[0.0001, 1]",
-        )?;
-        check_range(
-            "lapped_rigid.radius_edges",
-            self.radius_edges,
-            0.0,
-            1000.0,
-            "[0, 1000]",
-        )?;
-        if let Some(s) = self.exemplar_size {
-            check_range(
-                "lapped_rigid.exemplar_size",
-                s,
-                f32::MIN_POSITIVE,
-                f32::MAX,
-                "> 0",
-            )?;
-        }
-        check_range(
-            "lapped_rigid.exemplar_scale",
-            self.exemplar_scale,
-            0.1,
-            100.0,
-            "[0.1, 100]",
-        )?;
-        check_range(
-            "lapped_rigid.phi_max",
-            self.phi_max,
-            1.0,
-            180.0,
-            "[1, 180] degrees",
-        )?;
-        check_range(
-            "lapped_rigid.alpha_opaque",
-            self.alpha_opaque,
-            0.0,
-            180.0,
-            "[0, 180] degrees",
-        )?;
-        check_range(
-            "lapped_rigid.alpha_transparent",
-            self.alpha_transparent,
-            0.0,
-            180.0,
-            "[0, 180] degrees",
-        )?;
+    }
+
+    /// φ_max, ψ_{α=1}, ψ_{α=0} and their order.
+    fn validate_angles(&self) -> Result<(), MethodError> {
+        check_ranges(&[
+            (
+                "lapped_rigid.phi_max",
+                self.phi_max,
+                1.0,
+                180.0,
+                "[1, 180] degrees",
+            ),
+            (
+                "lapped_rigid.alpha_opaque",
+                self.alpha_opaque,
+                0.0,
+                180.0,
+                "[0, 180] degrees",
+            ),
+            (
+                "lapped_rigid.alpha_transparent",
+                self.alpha_transparent,
+                0.0,
+                180.0,
+                "[0, 180] degrees",
+            ),
+        ])?;
         if !(self.alpha_opaque < self.alpha_transparent && self.alpha_transparent < self.phi_max) {
             return Err(MethodError::InvalidParameter {
                 name: "lapped_rigid.alpha_opaque/alpha_transparent/phi_max",
@@ -222,55 +270,27 @@ impl LappedRigidParams {
                 allowed: "alpha_opaque < alpha_transparent < phi_max",
             });
         }
-        check_range(
-            "lapped_rigid.far_fraction",
-            self.far_fraction,
-            1e-3,
-            10.0,
-            "[0.001, 10]",
-        )?;
-        check_range(
-            "lapped_rigid.substeps",
-            self.substeps as f32,
-            1.0,
-            64.0,
-            "1..=64",
-        )?;
-        check_range(
-            "lapped_rigid.normal_dot",
-            self.normal_dot,
-            -1.0,
-            1.0,
-            "[-1, 1]",
-        )?;
-        check_range(
-            "lapped_rigid.coverage",
-            self.coverage,
-            0.01,
-            1.0,
-            "[0.01, 1]",
-        )?;
-        check_range(
-            "lapped_rigid.keep_weight",
-            self.keep_weight,
-            0.0,
-            1.0,
-            "[0, 1]",
-        )?;
-        check_range(
-            "lapped_rigid.mask_feature_weight",
-            self.mask_feature_weight,
-            0.0,
-            1.0,
-            "[0, 1]",
-        )?;
-        check_range(
-            "lapped_rigid.mask_softness",
-            self.mask_softness,
-            0.0,
-            1.0,
-            "[0, 1]",
-        )?;
+        Ok(())
+    }
+
+    /// The derived mask's weights, which must leave its centre opaque.
+    fn validate_mask(&self) -> Result<(), MethodError> {
+        check_ranges(&[
+            (
+                "lapped_rigid.mask_feature_weight",
+                self.mask_feature_weight,
+                0.0,
+                1.0,
+                "[0, 1]",
+            ),
+            (
+                "lapped_rigid.mask_softness",
+                self.mask_softness,
+                0.0,
+                1.0,
+                "[0, 1]",
+            ),
+        ])?;
         if self.mask.is_none() && self.mask_feature_weight + self.mask_softness >= 1.0 {
             return Err(MethodError::InvalidParameter {
                 name: "lapped_rigid.mask_feature_weight + mask_softness",
@@ -278,20 +298,6 @@ impl LappedRigidParams {
                 allowed: "< 1, so the derived mask is opaque at the patch centre",
             });
         }
-        check_range(
-            "lapped_rigid.sink_speed",
-            self.sink_speed,
-            0.0,
-            1e6,
-            "[0, 1e6] r per second",
-        )?;
-        check_range(
-            "lapped_rigid.sink_fade_rate",
-            self.sink_fade_rate,
-            1e-3,
-            1e6,
-            "[0.001, 1e6]",
-        )?;
         Ok(())
     }
 }
@@ -421,296 +427,305 @@ fn location_key(at: SurfacePoint) -> u64 {
     super::erosion::mix(at.triangle as u64, a as u64, b as u64)
 }
 
-impl Method for LappedRigid {
-    fn name(&self) -> &'static str {
-        "lapped-rigid"
-    }
+/// What a frame did, for `stats.F.json`.
+#[derive(Default)]
+struct FrameCounts {
+    deleted_left: usize,
+    deleted_sink: usize,
+    sinking: usize,
+    created: usize,
+    forced: usize,
+    unused: usize,
+    /// (triangle, patch) receiver pairs.
+    pairs: usize,
+    /// How r was chosen, on the frame that chose it.
+    radius_rule: Option<String>,
+}
 
-    fn channel_specs(&self) -> Vec<ChannelSpec> {
-        crate::pipeline::exemplar_channels(&self.exemplar)
-    }
+/// What the stages of a frame with a surface share.
+struct Surface<'a> {
+    radius: f32,
+    exemplar_size: f32,
+    /// The surface with its velocity (the sink test's flow).
+    here: FlowFrame<'a>,
+}
 
-    fn step(&mut self, ctx: &FrameContext<'_>) -> Result<FrameResult, MethodError> {
-        let mut clock = StageClock::default();
+impl LappedRigid {
+    /// Stages 1–5 of the module doc on a frame with a surface; returns the
+    /// ids of the patches the composite showed.
+    fn step_surface(
+        &mut self,
+        ctx: &FrameContext<'_>,
+        out: &mut CompositeBuffers,
+        counts: &mut FrameCounts,
+        clock: &mut StageClock,
+    ) -> Result<Vec<u32>, MethodError> {
         let mesh = ctx.mesh;
-        let atlas = ctx.atlas;
-        let channels = self.exemplar.total_channels();
-        let mut out = CompositeBuffers::new(atlas.width, atlas.height, channels);
-        let deleted_left;
-        let mut deleted_sink = 0usize;
-        let mut sinking = 0usize;
-        let mut created = 0usize;
-        let mut forced = 0usize;
-        let mut pairs = 0usize;
-        let mut used_ids: Vec<u32> = Vec::new();
-        let mut radius_rule: Option<String> = None;
-
-        if mesh.is_empty() {
-            deleted_left = self.state.trackers.len();
-            self.state.trackers.clear();
-            clock.lap("advection");
-        } else {
-            let cv = mesh.velocity().ok_or(MethodError::MissingVelocity {
-                frame: ctx.number,
-                method: self.name(),
-            })?;
-            let radius = match self.state.radius {
-                Some(r) => r,
-                None => {
-                    let (r, rule) = match self.params.radius {
-                        Some(r) => (r, "given".to_string()),
-                        None => {
-                            let like = super::erosion::ErosionParams {
-                                radius_fraction: self.params.radius_fraction,
-                                radius_edges: self.params.radius_edges,
-                                ..Default::default()
-                            };
-                            super::erosion::default_radius(mesh, &like)
-                        }
-                    };
-                    radius_rule = Some(rule);
-                    self.state.radius = Some(r);
-                    r
-                }
-            };
-            let exemplar_size = *self.state.exemplar_size.get_or_insert(
-                self.params
-                    .exemplar_size
-                    .unwrap_or(self.params.exemplar_scale * radius),
-            );
-            let normals = mesh.vertex_normals();
-            if let Some(m) = &mut self.multi {
-                m.set
-                    .check_mesh(mesh, ctx.number)
-                    .map_err(MethodError::Input)?;
-                if m.region.is_none() {
-                    m.region = RegionBox::of(mesh);
-                }
+        let velocity = mesh.velocity().ok_or(MethodError::MissingVelocity {
+            frame: ctx.number,
+            method: self.name(),
+        })?;
+        let scale = self.params.scale().resolve(
+            mesh,
+            &mut self.state.radius,
+            &mut self.state.exemplar_size,
+        );
+        counts.radius_rule = scale.radius_rule;
+        let (radius, exemplar_size) = (scale.radius, scale.exemplar_size);
+        if let Some(m) = &mut self.multi {
+            m.set
+                .check_mesh(mesh, ctx.number)
+                .map_err(MethodError::Input)?;
+            if m.region.is_none() {
+                m.region = RegionBox::of(mesh);
             }
+        }
+        let surface = Surface {
+            radius,
+            exemplar_size,
+            here: FlowFrame {
+                mesh,
+                index: ctx.index,
+                velocity,
+            },
+        };
+        counts.deleted_left = self.advect(ctx, radius)?;
+        clock.lap("advection");
+        (counts.sinking, counts.deleted_sink) = self.sinks(&surface.here, radius, ctx.dt);
+        clock.lap("sinks");
+        if self.state.trackers.is_empty() {
+            counts.created += self.initial_distribution(ctx, radius);
+        }
+        clock.lap("creation");
+        self.composite_and_cover(ctx, &surface, out, counts, clock)
+    }
 
-            // 1. Tracker advection and frames (Sec. 3.1.1-3.1.2).
-            let before = self.state.trackers.len();
-            if let Some(prev) = ctx.previous
-                && !self.state.trackers.is_empty()
-                && !prev.mesh.is_empty()
-            {
-                let pv = prev.mesh.velocity().ok_or(MethodError::MissingVelocity {
+    /// Stage 1 (Sec. 3.1.1–3.1.2): carries the trackers to this frame and
+    /// deletes those that left the surface; returns how many did. A fresh
+    /// surface (first frame, or after an empty one) drops them all.
+    fn advect(&mut self, ctx: &FrameContext<'_>, radius: f32) -> Result<usize, MethodError> {
+        let before = self.state.trackers.len();
+        if let Some(prev) = ctx.previous
+            && !self.state.trackers.is_empty()
+            && !prev.mesh.is_empty()
+        {
+            if prev.mesh.velocity().is_none() {
+                return Err(MethodError::MissingVelocity {
                     frame: ctx.number - 1,
                     method: self.name(),
-                })?;
-                let flow = FlowInterval {
-                    from: FlowFrame {
-                        mesh: prev.mesh,
-                        index: prev.index,
-                        velocity: pv,
-                    },
-                    to: Some(FlowFrame {
-                        mesh,
-                        index: ctx.index,
-                        velocity: cv,
-                    }),
-                    dt: ctx.dt,
-                    substeps: self.params.substeps,
-                    search_hint: 0.25 * radius,
-                };
+                });
+            }
+            if let Some(flow) = ctx.flow(self.params.substeps, 0.25 * radius) {
                 let far = self.params.far_fraction * radius;
+                let (mesh, index, normals) = (ctx.mesh, ctx.index, ctx.normals);
                 let keep: Vec<bool> = self
                     .state
                     .trackers
                     .par_iter_mut()
-                    .map(|t| t.advect(&flow, mesh, ctx.index, &normals, radius, far))
+                    .map(|t| t.advect(&flow, mesh, index, normals, radius, far))
                     .collect();
                 let mut k = 0;
                 self.state.trackers.retain(|_| {
                     k += 1;
                     keep[k - 1]
                 });
-            } else if ctx.previous.is_none() || ctx.previous.is_some_and(|p| p.mesh.is_empty()) {
-                // A fresh start of the surface: trackers of an older surface cannot be carried.
-                self.state.trackers.clear();
             }
-            deleted_left = before - self.state.trackers.len();
-            clock.lap("advection");
-
-            // 2. Sinks (Sec. 3.1.3).
-            let here = FlowFrame {
-                mesh,
-                index: ctx.index,
-                velocity: cv,
-            };
-            let rule = SinkRule {
-                radius,
-                min_speed: self.params.sink_speed * radius,
-                fade_rate: self.params.sink_fade_rate,
-                dt: ctx.dt,
-            };
-            sinking = self
-                .state
-                .trackers
-                .par_iter_mut()
-                .map(|t| distribution::apply_sink(t, &here, &rule) as usize)
-                .sum();
-            let alive = self.state.trackers.len();
-            // Below keep_weight a patch can no longer count as used: it is gone.
-            let keep = self.params.keep_weight.max(f32::MIN_POSITIVE);
-            self.state.trackers.retain(|t| t.fade >= keep);
-            deleted_sink = alive - self.state.trackers.len();
-            clock.lap("sinks");
-
-            // Initial distribution (frame 0, or a surface that reappears).
-            if self.state.trackers.is_empty() {
-                let mut rng = rand_pcg::Pcg64::seed_from_u64(super::erosion::mix(
-                    self.seed,
-                    2,
-                    ctx.number as u64,
-                ));
-                let samples = sample_mesh(mesh, radius, self.params.normal_dot, 30.0, &mut rng);
-                let first = self.state.next_id;
-                let (seed, random) = (self.seed, self.params.random_rotation);
-                let mut new: Vec<Tracker> = samples
-                    .par_iter()
-                    .enumerate()
-                    .map(|(k, s)| {
-                        let id = first + k as u32;
-                        let angle = LappedRigid::rotation(seed, random, id as u64);
-                        Tracker::create(id, mesh, &normals, s.location, radius, angle)
-                    })
-                    .collect();
-                if let Some(m) = &self.multi {
-                    // In id order, each an equal share for histogram steering.
-                    let mut c = Chooser::new(&m.set, seed, mesh, m.region, radius);
-                    for (t, s) in new.iter_mut().zip(&samples) {
-                        t.exemplar = c.choose(s.location, t.id as u64);
-                        c.coverage.push(t.position, t.exemplar, 1.0);
-                    }
-                }
-                self.state.next_id += new.len() as u32;
-                created += new.len();
-                self.state.trackers.extend(new);
-            }
-            clock.lap("creation");
-
-            // 3. Receivers (Sec. 3.2).
-            let topology = Topology::new(mesh.vertex_count(), &mesh.triangles);
-            let rc = ReceiverContext {
-                mesh,
-                topology: &topology,
-                index: ctx.index,
-                vertex_normals: &normals,
-                radius,
-                phi_max: self.params.phi_max.to_radians(),
-            };
-            let layers: Vec<Layer> = self
-                .state
-                .trackers
-                .iter()
-                .map(|t| Layer {
-                    id: t.id,
-                    frame: t.frame(exemplar_size),
-                    fade: t.fade,
-                    exemplar: t.exemplar,
-                })
-                .collect();
-            let receivers: Vec<Receivers> =
-                layers.par_iter().map(|l| rc.receivers(&l.frame)).collect();
-            let lists = LayerLists::build(&receivers, mesh.triangle_count());
-            pairs = lists.len();
-            drop(receivers);
-            clock.lap("receivers");
-
-            // 4. Algorithm 1.
-            let mask = self.mask(radius, exemplar_size);
-            let base_lod_of = |e: &Exemplar| {
-                (e.filter == ExemplarFilter::Trilinear && atlas.scale > 0.0).then(|| {
-                    let (ew, eh) = e.size();
-                    let texels_per_world = ew.max(eh) as f32 / exemplar_size;
-                    (texels_per_world / atlas.scale as f32).log2()
-                })
-            };
-            let base_lod = base_lod_of(&self.exemplar);
-            let multi_composite = self.multi.as_ref().map(|m| MultiComposite {
-                exemplars: m.set.exemplars(),
-                features: m
-                    .set
-                    .exemplars()
-                    .iter()
-                    .map(|e| e.feature.sampler())
-                    .collect(),
-                base_lods: m.set.exemplars().iter().map(|e| base_lod_of(e)).collect(),
-            });
-            let composite = CompositeContext {
-                mesh,
-                vertex_normals: &normals,
-                opaque: self.params.alpha_opaque.to_radians(),
-                transparent: self.params.alpha_transparent.to_radians(),
-                layers: &layers,
-                exemplar: &self.exemplar,
-                mask: &mask,
-                feature: self.exemplar.feature.sampler(),
-                base_lod,
-                coverage: self.params.coverage,
-                keep_weight: self.params.keep_weight,
-                multi: multi_composite.as_ref(),
-            };
-            let outcome = composite::fill(&composite, atlas, &lists, &mut out);
-            used_ids.extend(outcome.used.iter().map(|&i| layers[i as usize].id));
-            drop(lists);
-            clock.lap("fill");
-
-            // 5. Distribution update (Sec. 3.1.3).
-            let (seed, random) = (self.seed, self.params.random_rotation);
-            let rotation =
-                move |at: SurfacePoint| LappedRigid::rotation(seed, random, location_key(at));
-            let inputs = CoverInputs {
-                receivers: &rc,
-                exemplar_size,
-                rotation: &rotation,
-            };
-            let first_new = self.state.next_id;
-            let mut chooser = self.multi.as_ref().map(|m| {
-                let mut c = Chooser::new(&m.set, seed, mesh, m.region, radius);
-                if m.set.select == ExemplarSelect::Histogram {
-                    c.coverage = coverage(&self.state.trackers, &out.source);
-                }
-                c
-            });
-            let stats = distribution::cover(
-                &composite,
-                &inputs,
-                &mut self.state.trackers,
-                &mut self.state.next_id,
-                outcome.uncovered,
-                &mut out,
-                chooser.as_mut(),
-            );
-            created += stats.created;
-            forced = stats.forced;
-            // Trackers of the update were created for a texel they now cover.
-            used_ids.extend(first_new..self.state.next_id);
-            clock.lap("update");
+        } else if ctx.previous.is_none() || ctx.previous.is_some_and(|p| p.mesh.is_empty()) {
+            // A fresh start of the surface: trackers of an older surface cannot be carried.
+            self.state.trackers.clear();
         }
+        Ok(before - self.state.trackers.len())
+    }
 
-        // Delete the patches no texel showed (Sec. 3.1.3).
+    /// Stage 2 (Sec. 3.1.3): fades the sinks and deletes the invisible
+    /// ones; returns (sinking, deleted).
+    fn sinks(&mut self, here: &FlowFrame<'_>, radius: f32, dt: f32) -> (usize, usize) {
+        let rule = SinkRule {
+            radius,
+            min_speed: self.params.sink_speed * radius,
+            fade_rate: self.params.sink_fade_rate,
+            dt,
+        };
+        let sinking = self
+            .state
+            .trackers
+            .par_iter_mut()
+            .map(|t| distribution::apply_sink(t, here, &rule) as usize)
+            .sum();
+        let alive = self.state.trackers.len();
+        // Below keep_weight a patch can no longer count as used: it is gone.
+        let keep = self.params.keep_weight.max(f32::MIN_POSITIVE);
+        self.state.trackers.retain(|t| t.fade >= keep);
+        (sinking, alive - self.state.trackers.len())
+    }
+
+    /// Poisson-disk trackers over the whole surface (frame 0, or a surface
+    /// that reappears); returns how many.
+    fn initial_distribution(&mut self, ctx: &FrameContext<'_>, radius: f32) -> usize {
+        let mesh = ctx.mesh;
+        let mut rng =
+            rand_pcg::Pcg64::seed_from_u64(super::erosion::mix(self.seed, 2, ctx.number as u64));
+        let samples = sample_mesh(mesh, radius, self.params.normal_dot, 30.0, &mut rng);
+        let first = self.state.next_id;
+        let (seed, random) = (self.seed, self.params.random_rotation);
+        let normals = ctx.normals;
+        let mut new: Vec<Tracker> = samples
+            .par_iter()
+            .enumerate()
+            .map(|(k, s)| {
+                let id = first + k as u32;
+                let angle = LappedRigid::rotation(seed, random, id as u64);
+                Tracker::create(id, mesh, normals, s.location, radius, angle)
+            })
+            .collect();
+        if let Some(m) = &self.multi {
+            // In id order, each an equal share for histogram steering.
+            let mut c = Chooser::new(&m.set, seed, mesh, m.region, radius);
+            for (t, s) in new.iter_mut().zip(&samples) {
+                t.exemplar = c.choose(s.location, t.id as u64);
+                c.coverage.push(t.position, t.exemplar, 1.0);
+            }
+        }
+        self.state.next_id += new.len() as u32;
+        let created = new.len();
+        self.state.trackers.extend(new);
+        created
+    }
+
+    /// Stages 3–5: receivers (Sec. 3.2), Algorithm 1, and the distribution
+    /// update (Sec. 3.1.3); returns the ids of the patches shown.
+    fn composite_and_cover(
+        &mut self,
+        ctx: &FrameContext<'_>,
+        surface: &Surface<'_>,
+        out: &mut CompositeBuffers,
+        counts: &mut FrameCounts,
+        clock: &mut StageClock,
+    ) -> Result<Vec<u32>, MethodError> {
+        let mesh = ctx.mesh;
+        let (radius, exemplar_size) = (surface.radius, surface.exemplar_size);
+        let rc = ReceiverContext {
+            mesh,
+            topology: ctx.topology,
+            index: ctx.index,
+            vertex_normals: ctx.normals,
+            radius,
+            phi_max: self.params.phi_max.to_radians(),
+        };
+        let layers: Vec<Layer> = self
+            .state
+            .trackers
+            .iter()
+            .map(|t| Layer {
+                id: t.id,
+                frame: t.frame(exemplar_size),
+                fade: t.fade,
+                exemplar: t.exemplar,
+            })
+            .collect();
+        let receivers: Vec<Receivers> = layers.par_iter().map(|l| rc.receivers(&l.frame)).collect();
+        let lists = composite::layer_lists(&receivers, mesh.triangle_count());
+        counts.pairs = lists.len();
+        drop(receivers);
+        clock.lap("receivers");
+
+        let mask = self.mask(radius, exemplar_size);
+        let base_lod_of = |e: &Exemplar| base_lod(e, ctx.atlas, exemplar_size);
+        // Held here, so the update below may change the tracker state.
+        let exemplar = Arc::clone(&self.exemplar);
+        let set = self.multi.as_ref().map(|m| Arc::clone(&m.set));
+        let multi_composite = set.as_ref().map(|set| MultiComposite {
+            exemplars: set.exemplars(),
+            features: set
+                .exemplars()
+                .iter()
+                .map(|e| e.feature.sampler())
+                .collect(),
+            base_lods: set.exemplars().iter().map(|e| base_lod_of(e)).collect(),
+        });
+        let composite = CompositeContext {
+            mesh,
+            vertex_normals: ctx.normals,
+            opaque: self.params.alpha_opaque.to_radians(),
+            transparent: self.params.alpha_transparent.to_radians(),
+            layers: &layers,
+            exemplar: &exemplar,
+            mask: &mask,
+            feature: exemplar.feature.sampler(),
+            base_lod: base_lod_of(&exemplar),
+            coverage: self.params.coverage,
+            keep_weight: self.params.keep_weight,
+            multi: multi_composite.as_ref(),
+        };
+        let outcome = composite::fill(&composite, ctx.atlas, &lists, out);
+        let mut used_ids: Vec<u32> = outcome
+            .used
+            .iter()
+            .map(|&i| layers[i as usize].id)
+            .collect();
+        drop(lists);
+        clock.lap("fill");
+
+        let first_new = self.state.next_id;
+        let stats = self.cover(&composite, &rc, exemplar_size, outcome.uncovered, out);
+        counts.created += stats.created;
+        counts.forced = stats.forced;
+        // Trackers of the update were created for a texel they now cover.
+        used_ids.extend(first_new..self.state.next_id);
+        clock.lap("update");
+        Ok(used_ids)
+    }
+
+    /// Stage 5 (Sec. 3.1.3): new trackers below the others until every
+    /// texel is covered.
+    fn cover(
+        &mut self,
+        composite: &CompositeContext<'_>,
+        rc: &ReceiverContext<'_>,
+        exemplar_size: f32,
+        uncovered: Vec<composite::Uncovered>,
+        out: &mut CompositeBuffers,
+    ) -> distribution::CoverStats {
+        let (seed, random) = (self.seed, self.params.random_rotation);
+        let rotation =
+            move |at: SurfacePoint| LappedRigid::rotation(seed, random, location_key(at));
+        let inputs = CoverInputs {
+            receivers: rc,
+            exemplar_size,
+            rotation: &rotation,
+        };
+        let mut chooser = self.multi.as_ref().map(|m| {
+            let mut c = Chooser::new(&m.set, seed, rc.mesh, m.region, rc.radius);
+            if m.set.select == ExemplarSelect::Histogram {
+                c.coverage = coverage(&self.state.trackers, &out.source);
+            }
+            c
+        });
+        distribution::cover(
+            composite,
+            &inputs,
+            &mut self.state.trackers,
+            &mut self.state.next_id,
+            uncovered,
+            out,
+            chooser.as_mut(),
+        )
+    }
+
+    /// Deletes the patches no texel showed (Sec. 3.1.3); returns how many.
+    fn delete_unused(&mut self, mut used_ids: Vec<u32>) -> usize {
         used_ids.sort_unstable();
         used_ids.dedup();
         let alive_before = self.state.trackers.len();
         self.state
             .trackers
             .retain(|t| used_ids.binary_search(&t.id).is_ok());
-        let unused = alive_before - self.state.trackers.len();
-        clock.lap("delete");
+        alive_before - self.state.trackers.len()
+    }
 
-        let texels_in_charts = out
-            .source
-            .iter()
-            .filter(|&&s| s != super::SOURCE_OUTSIDE)
-            .count();
-        let uncovered_after = out
-            .source
-            .iter()
-            .filter(|&&s| s == super::SOURCE_UNCOVERED)
-            .count();
-        let blended = out.layers.iter().filter(|&&l| l >= 2).count();
+    /// The frame's textures, provenance and statistics.
+    fn frame_result(&self, out: CompositeBuffers, counts: &FrameCounts) -> FrameResult {
+        let stats = self.frame_stats(&out, counts);
         let filtered = self.exemplar.filter == ExemplarFilter::Trilinear;
         let CompositeBuffers {
             width,
@@ -722,43 +737,93 @@ impl Method for LappedRigid {
             lod,
             ..
         } = out;
-        let mut result = FrameResult {
+        FrameResult {
             channels: split_channels(width, height, &values, &self.exemplar),
             exemplar_lod: filtered.then_some(lod),
+            stats,
+            source: Some(source),
+            uv: Some(uv),
+            layers: Some(layers),
             ..Default::default()
-        };
-        let stats = &mut result.stats;
+        }
+    }
+
+    fn frame_stats(&self, out: &CompositeBuffers, counts: &FrameCounts) -> super::MethodStats {
+        let count = |keep: &dyn Fn(u32) -> bool| out.source.iter().filter(|&&s| keep(s)).count();
+        let texels_in_charts = count(&|s| s != super::SOURCE_OUTSIDE);
+        let uncovered_after = count(&|s| s == super::SOURCE_UNCOVERED);
+        let blended = out.layers.iter().filter(|&&l| l >= 2).count();
+        let deleted = counts.deleted_left + counts.deleted_sink + counts.unused;
+        let mut stats = super::MethodStats::new();
         stats.insert("patches_alive".into(), self.state.trackers.len().into());
-        stats.insert("patches_created".into(), created.into());
+        stats.insert("patches_created".into(), counts.created.into());
+        stats.insert("patches_deleted".into(), deleted.into());
+        stats.insert("patches_deleted_unused".into(), counts.unused.into());
         stats.insert(
-            "patches_deleted".into(),
-            (deleted_left + deleted_sink + unused).into(),
+            "patches_deleted_advection".into(),
+            counts.deleted_left.into(),
         );
-        stats.insert("patches_deleted_unused".into(), unused.into());
-        stats.insert("patches_deleted_advection".into(), deleted_left.into());
-        stats.insert("patches_deleted_sink".into(), deleted_sink.into());
-        stats.insert("patches_sinking".into(), sinking.into());
+        stats.insert("patches_deleted_sink".into(), counts.deleted_sink.into());
+        stats.insert("patches_sinking".into(), counts.sinking.into());
         stats.insert("texels_in_charts".into(), texels_in_charts.into());
         stats.insert("uncovered_texels".into(), uncovered_after.into());
-        stats.insert("forced_texels".into(), forced.into());
+        stats.insert("forced_texels".into(), counts.forced.into());
         stats.insert("blended_texels".into(), blended.into());
-        stats.insert("receiver_pairs".into(), pairs.into());
+        stats.insert("receiver_pairs".into(), counts.pairs.into());
         if let Some(r) = self.state.radius {
             stats.insert("radius".into(), serde_json::json!(r));
         }
-        if let Some(rule) = radius_rule {
+        if let Some(rule) = &counts.radius_rule {
             stats.insert("radius_rule".into(), serde_json::json!(rule));
         }
         if let Some(s) = self.state.exemplar_size {
             stats.insert("exemplar_size".into(), serde_json::json!(s));
         }
         if let Some(m) = &self.multi {
-            let texels = texels_per_exemplar(&source, &self.state.trackers, m.set.len());
+            let texels = texels_per_exemplar(&out.source, &self.state.trackers, m.set.len());
             stats.insert("exemplar_texels".into(), texels.into());
         }
-        result.source = Some(source);
-        result.uv = Some(uv);
-        result.layers = Some(layers);
+        stats
+    }
+}
+
+/// Mip level of an atlas texel seen head-on (log2 of exemplar texels per
+/// atlas texel) for exemplar `e` shown at world size `exemplar_size`;
+/// `None` when the exemplar is read at level 0.
+fn base_lod(e: &Exemplar, atlas: &crate::atlas::Atlas, exemplar_size: f32) -> Option<f32> {
+    (e.filter == ExemplarFilter::Trilinear && atlas.scale > 0.0).then(|| {
+        let (ew, eh) = e.size();
+        let texels_per_world = ew.max(eh) as f32 / exemplar_size;
+        (texels_per_world / atlas.scale as f32).log2()
+    })
+}
+
+impl Method for LappedRigid {
+    fn name(&self) -> &'static str {
+        "lapped-rigid"
+    }
+
+    fn channel_specs(&self) -> Vec<ChannelSpec> {
+        crate::pipeline::exemplar_channels(&self.exemplar)
+    }
+
+    fn step(&mut self, ctx: &FrameContext<'_>) -> Result<FrameResult, MethodError> {
+        let mut clock = StageClock::default();
+        let atlas = ctx.atlas;
+        let channels = self.exemplar.total_channels();
+        let mut out = CompositeBuffers::new(atlas.width, atlas.height, channels).with_layers();
+        let mut counts = FrameCounts::default();
+        let mut used_ids: Vec<u32> = Vec::new();
+        if ctx.mesh.is_empty() {
+            counts.deleted_left = self.state.trackers.len();
+            self.state.trackers.clear();
+            clock.lap("advection");
+        } else {
+            used_ids = self.step_surface(ctx, &mut out, &mut counts, &mut clock)?;
+        }
+        counts.unused = self.delete_unused(used_ids);
+        clock.lap("delete");
+        let mut result = self.frame_result(out, &counts);
         result.timings = clock.stages;
         Ok(result)
     }
