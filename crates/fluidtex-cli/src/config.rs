@@ -351,6 +351,9 @@ pub struct RunFlags {
     /// Do not write patches.F.png / source.F.exr
     #[arg(long)]
     pub no_debug: bool,
+    /// With debug outputs: also write switch.F.png, the per-texel switch map (slow at large atlases)
+    #[arg(long)]
+    pub switch_map: bool,
     /// Write preview.F.png every N frames (0: never)
     #[arg(long)]
     pub preview_every: Option<u32>,
@@ -528,6 +531,9 @@ impl RunFlags {
         }
         if self.no_debug {
             o.debug = false;
+        }
+        if self.switch_map {
+            o.switch_map = true;
         }
         if let Some(n) = self.preview_every {
             o.preview_every = n;
