@@ -39,9 +39,9 @@ use crate::mesh::{TriMesh, ValidationReport};
 use crate::methods::{Method, MethodError, SOURCE_OUTSIDE, SOURCE_UNCOVERED};
 use crate::render::{self, Camera};
 use crate::surface::SurfacePoint;
-use rayon::prelude::*;
 use crate::texture::Texture;
 use glam::Vec3;
+use rayon::prelude::*;
 
 pub use crate::exemplar::channels::{ChannelFormat, ChannelSpec, exemplar_channels};
 
@@ -700,9 +700,8 @@ impl crate::coherence::Texels for WrittenTexels<'_> {
 
 /// [`written_grey`] of one texel (`channels` values): the same arithmetic.
 fn written_grey_texel(texel: &[f32], channels: usize, format: ChannelFormat) -> f32 {
-    let quantize = |levels: f32, x: f32| {
-        (((x.clamp(0.0, 1.0) * levels) as f64 + 0.5) as u32) as f32 / levels
-    };
+    let quantize =
+        |levels: f32, x: f32| (((x.clamp(0.0, 1.0) * levels) as f64 + 0.5) as u32) as f32 / levels;
     let data: Vec<f32> = match format {
         ChannelFormat::Png8 => texel.iter().map(|&x| quantize(255.0, x)).collect(),
         ChannelFormat::Png16 => texel.iter().map(|&x| quantize(65535.0, x)).collect(),
@@ -1344,7 +1343,11 @@ mod tests {
                 channels,
                 data,
             };
-            for format in [ChannelFormat::Png8, ChannelFormat::Png16, ChannelFormat::Exr] {
+            for format in [
+                ChannelFormat::Png8,
+                ChannelFormat::Png16,
+                ChannelFormat::Exr,
+            ] {
                 let whole = written_grey(&colour, format);
                 let texels = WrittenTexels {
                     atlas: &atlas,
