@@ -878,6 +878,76 @@ fn write_file(files: &mut Staging<'_>, path: &Path, bytes: &[u8]) -> Result<(), 
     Ok(())
 }
 
+/// The patch colours of every texel, dilated into the gutter.
+fn patch_colours(
+    atlas: &crate::atlas::Atlas,
+    source: &[u32],
+    radius: u32,
+) -> Result<Texture, AtlasError> {
+    let mut colours = Texture::filled(atlas.width, atlas.height, 3, 0.0);
+    colours
+        .data
+        .par_chunks_mut(3)
+        .zip(source.par_iter())
+        .with_min_len(1 << 14)
+        .for_each(|(c, &s)| c.copy_from_slice(&patch_colour(s)));
+    atlas.dilate(&mut colours, radius)?;
+    Ok(colours)
+}
+
+/// `patches.F.png` without a float colour atlas: the ids are dilated (as
+/// exact small floats: dilation copies the nearest chart texel's value, so
+/// dilating ids and then colouring them is dilating the colours), coloured
+/// and quantized straight to 8 bits. The same bytes as encoding
+/// [`patch_colours`], in a third of the memory. `None` when an id is too
+/// large to be exact as a float (then the caller takes the float path).
+fn patch_png(
+    atlas: &crate::atlas::Atlas,
+    source: &[u32],
+    radius: u32,
+) -> Result<Option<Vec<u8>>, AtlasError> {
+    const EXACT: u32 = 1 << 24;
+    let encode = |s: u32| match s {
+        SOURCE_OUTSIDE => Some(-1.0),
+        SOURCE_UNCOVERED => Some(-2.0),
+        s if s < EXACT => Some(s as f32),
+        _ => None,
+    };
+    let data: Option<Vec<f32>> = source
+        .par_iter()
+        .with_min_len(1 << 16)
+        .map(|&s| encode(s))
+        .collect();
+    let Some(data) = data else {
+        return Ok(None);
+    };
+    let mut ids = Texture {
+        width: atlas.width,
+        height: atlas.height,
+        channels: 1,
+        data,
+    };
+    atlas.dilate(&mut ids, radius)?;
+    let decode = |v: f32| {
+        if v == -1.0 {
+            SOURCE_OUTSIDE
+        } else if v == -2.0 {
+            SOURCE_UNCOVERED
+        } else {
+            v as u32
+        }
+    };
+    let samples: Vec<u8> = ids
+        .data
+        .par_iter()
+        .with_min_len(1 << 16)
+        .flat_map_iter(|&v| patch_colour(decode(v)).map(crate::io::image::quantize_8))
+        .collect();
+    drop(ids);
+    let level = PngOptions::default().level;
+    Ok(crate::io::image::encode_png_8(atlas.width, atlas.height, 3, &samples, level).ok())
+}
+
 /// A colour per patch id for `patches.F.png` (the paper's Fig. 1, left):
 /// outside charts black, uncovered magenta, patches hashed to bright colours.
 pub fn patch_colour(source: u32) -> [f32; 3] {
@@ -964,20 +1034,16 @@ impl FileSink<'_, '_> {
         }
         let preview = job.outputs.preview_every > 0
             && (number - first_frame).rem_euclid(job.outputs.preview_every as i32) == 0;
-        // The patch colours serve the debug files and the preview only.
+        // The patch colours as floats serve the preview only; the debug
+        // file is made in 8 bits from the dilated ids (`patch_png`).
+        let radius = job.atlas.gutter.max(1) * 2;
+        let atlas_error = |source| PipelineError::Atlas {
+            frame: number,
+            source,
+        };
         let patches = match &result.source {
-            Some(source) if job.outputs.debug || preview => {
-                let mut colours = Texture::filled(atlas.width, atlas.height, 3, 0.0);
-                for (t, &s) in source.iter().enumerate() {
-                    colours.data[t * 3..t * 3 + 3].copy_from_slice(&patch_colour(s));
-                }
-                atlas
-                    .dilate(&mut colours, job.atlas.gutter.max(1) * 2)
-                    .map_err(|source| PipelineError::Atlas {
-                        frame: number,
-                        source,
-                    })?;
-                Some(colours)
+            Some(source) if preview => {
+                Some(patch_colours(atlas, source, radius).map_err(atlas_error)?)
             }
             _ => None,
         };
@@ -985,16 +1051,24 @@ impl FileSink<'_, '_> {
             self.write_preview(files, g, colour, patches.as_ref(), &normals)?;
         }
         if job.outputs.debug
-            && let (Some(source), Some(colours)) = (&result.source, &patches)
+            && let Some(source) = &result.source
         {
-            write_channel(
-                files,
-                &dir.join(format!("patches.{tag}.png")),
-                colours,
-                ChannelFormat::Png8,
-            )?;
+            let path = dir.join(format!("patches.{tag}.png"));
+            match &patches {
+                Some(colours) => {
+                    write_channel(files, &path, colours, ChannelFormat::Png8)?;
+                }
+                None => match patch_png(atlas, source, radius).map_err(atlas_error)? {
+                    Some(bytes) => write_file(files, &path, &bytes)?,
+                    None => {
+                        let colours = patch_colours(atlas, source, radius).map_err(atlas_error)?;
+                        write_channel(files, &path, &colours, ChannelFormat::Png8)?;
+                    }
+                },
+            }
             let ids: Vec<f32> = source
-                .iter()
+                .par_iter()
+                .with_min_len(1 << 16)
                 .map(|&s| if s == SOURCE_OUTSIDE { -1.0 } else { s as f32 })
                 .collect();
             let ids = Texture {
@@ -1371,5 +1445,38 @@ mod tests {
         assert_eq!(texels.source(2), 1 << 24, "as source.F.exr stores it");
         assert_eq!(texels.source(n), SOURCE_OUTSIDE);
         assert_eq!(texels.source(7), source[7]);
+    }
+
+    /// `patches.F.png` made in 8 bits from the dilated ids is byte for byte
+    /// the float colour atlas encoded as before (ids dilate as colours do),
+    /// with outside, uncovered and large ids; ids past 2^24 fall back.
+    #[test]
+    fn patch_png_from_ids_is_the_colour_atlas_encoded() {
+        let atlas = Atlas::build(&icosphere(2), &AtlasParams::square(96)).expect("atlas");
+        let n = (atlas.width * atlas.height) as usize;
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(9);
+        let mut source: Vec<u32> = (0..n).map(|_| rng.random_range(0..500)).collect();
+        // The chart texels keep their ids; the rest are outside.
+        let inside = atlas.triangle_map();
+        for (s, &t) in source.iter_mut().zip(&inside) {
+            if t == u32::MAX {
+                *s = SOURCE_OUTSIDE;
+            }
+        }
+        let chart: Vec<usize> = (0..n).filter(|&i| inside[i] != u32::MAX).collect();
+        assert!(chart.len() > 100, "{} chart texels", chart.len());
+        source[chart[0]] = SOURCE_UNCOVERED;
+        source[chart[1]] = (1 << 24) - 1;
+        for radius in [1, 4] {
+            let want = crate::io::image::encode_png(
+                &patch_colours(&atlas, &source, radius).expect("dilate"),
+                &PngOptions::default(),
+            )
+            .expect("encode");
+            let got = patch_png(&atlas, &source, radius).expect("dilate");
+            assert!(got == Some(want), "radius {radius}: the bytes differ");
+        }
+        source[chart[2]] = 1 << 24;
+        assert_eq!(patch_png(&atlas, &source, 2).expect("dilate"), None);
     }
 }
