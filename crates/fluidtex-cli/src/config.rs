@@ -354,6 +354,9 @@ pub struct RunFlags {
     /// Do not write patches.F.png / source.F.exr
     #[arg(long)]
     pub no_debug: bool,
+    /// With debug outputs: also write switch.F.png, the per-texel switch map (slow at large atlases)
+    #[arg(long)]
+    pub switch_map: bool,
     /// Write preview.F.png every N frames (0: never)
     #[arg(long)]
     pub preview_every: Option<u32>,
@@ -406,7 +409,8 @@ pub struct RunFlags {
 /// The flags that copy their value to one config key, one row each:
 /// `flag field => config key: how`, where how is `some` (the key is an
 /// option), `value` (the key takes the value), `off` (a `--no-...` switch
-/// clears the key) or `on` (a switch sets it). The same table gives
+/// clears the key), `on` (a switch sets an optional key) or `set` (a
+/// switch sets a plain one). The same table gives
 /// [`FLAG_KEYS`], which the tests hold against clap's flags and serde's
 /// keys, so a flag or key added to one side only fails a test. Flags whose
 /// value is parsed first (several exemplars, channels, three-part values)
@@ -430,6 +434,7 @@ macro_rules! flag_keys {
     (@value $src:expr, $dst:expr) => { if let Some(v) = &$src { $dst = v.to_owned(); } };
     (@off $src:expr, $dst:expr) => { if $src { $dst = false; } };
     (@on $src:expr, $dst:expr) => { if $src { $dst = Some(true); } };
+    (@set $src:expr, $dst:expr) => { if $src { $dst = true; } };
     (@path $first:ident $(. $rest:ident)*) => {
         concat!(stringify!($first) $(, ".", stringify!($rest))*)
     };
@@ -471,6 +476,7 @@ flag_keys! {
     no_obj => outputs.obj: off,
     no_glb => outputs.glb: off,
     no_debug => outputs.debug: off,
+    switch_map => outputs.switch_map: set,
     preview_every => outputs.preview_every: value,
     exemplar_size => optimization.exemplar_size: some,
     substeps => optimization.substeps: value,

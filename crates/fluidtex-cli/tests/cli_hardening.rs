@@ -20,6 +20,8 @@ fn args(pattern: &Path, out: &Path, extra: &[&str]) -> Vec<std::ffi::OsString> {
         "--out".as_ref(),
         out.as_os_str(),
         "--quiet".as_ref(),
+        // The per-texel switch map too: its write is in the counted order.
+        "--switch-map".as_ref(),
     ]
     .map(std::ffi::OsString::from)
     .to_vec();

@@ -314,8 +314,8 @@ fn atlas_check_writes_every_output_of_the_interop_sequences() {
         names.sort();
         assert_eq!(
             names.len(),
-            3 * 7 + 2 + 1,
-            "7 files per frame, a switch map from the second frame on, and state.bin: {names:?}"
+            3 * 7 + 1,
+            "7 files per frame and state.bin (no switch map unless asked): {names:?}"
         );
     }
     // Both files hold the same numbers, so the textures and meshes are the
@@ -408,6 +408,7 @@ fn scene_then_run_with_erosion_covers_every_texel() {
         "128".as_ref(),
         "--out".as_ref(),
         out.as_os_str(),
+        "--switch-map".as_ref(),
     ]);
     for (row, f) in info_rows(&listing).iter().zip(0..=2) {
         let tag = format!("{f:04}");
@@ -584,6 +585,8 @@ fn erosion_args(pattern: &Path, out: &Path) -> Vec<std::ffi::OsString> {
         "--out".as_ref(),
         out.as_os_str(),
         "--quiet".as_ref(),
+        // The per-texel switch map too, so resume is checked on it.
+        "--switch-map".as_ref(),
     ]
     .map(std::ffi::OsString::from)
     .to_vec()
@@ -622,8 +625,8 @@ fn thread_count_does_not_change_the_outputs() {
     assert_same_outputs(&dir.path().join("t1"), &dir.path().join("t2"));
 }
 
-/// The files of frame `f` a default erosion run of a sequence starting at
-/// frame 0 writes (the switch map from the second frame on).
+/// The files of frame `f` an erosion run with `--switch-map` of a sequence
+/// starting at frame 0 writes (the switch map from the second frame on).
 fn frame_files(f: i32) -> Vec<String> {
     let mut names = vec![
         "color.F.png",

@@ -68,9 +68,11 @@ fn demo_sphere() {
     );
 }
 
+/// With the per-texel switch map (`--switch-map`), which no other case
+/// writes.
 #[test]
 fn erosion_on_the_vortex() {
-    scene_case("erosion", "erosion", "vortex", &[], &[]);
+    scene_case("erosion", "erosion", "vortex", &[], &["--switch-map"]);
 }
 
 /// Erosion again, with a file exemplar (derived feature map), an extra

@@ -182,7 +182,24 @@ pub fn carry_by_velocity(
     Carried::locate(prev, from, &carried, next.index)
 }
 
-/// One frame's output as the coherence metrics read it.
+/// One frame's output as the coherence metrics read it: per texel (row-major
+/// index) its source and grey value. [`TexelFrame`] holds both as arrays;
+/// the frame job reads them straight from the method's result
+/// (`pipeline`), without atlas-sized copies.
+pub trait Texels: Sync {
+    /// The frame's atlas (size, uv mesh, texel scale).
+    fn atlas(&self) -> &Atlas;
+    /// Provenance of texel `i` (the values of [`crate::metrics`]),
+    /// [`SOURCE_OUTSIDE`] out of range.
+    fn source(&self, i: usize) -> u32;
+    /// Grey value of texel `i` (luminance of the gutter-dilated colour
+    /// atlas, [`metrics::luminance`]), NaN out of range.
+    fn grey(&self, i: usize) -> f32;
+    /// Both per-texel arrays fit the atlas.
+    fn validate(&self) -> Result<(), MetricsError>;
+}
+
+/// One frame's output as arrays.
 #[derive(Clone, Copy)]
 pub struct TexelFrame<'a> {
     pub atlas: &'a Atlas,
@@ -193,56 +210,95 @@ pub struct TexelFrame<'a> {
     pub grey: &'a [f32],
 }
 
-impl TexelFrame<'_> {
+impl Texels for TexelFrame<'_> {
+    fn atlas(&self) -> &Atlas {
+        self.atlas
+    }
+
+    fn source(&self, i: usize) -> u32 {
+        self.source.get(i).copied().unwrap_or(SOURCE_OUTSIDE)
+    }
+
+    fn grey(&self, i: usize) -> f32 {
+        self.grey.get(i).copied().unwrap_or(f32::NAN)
+    }
+
     fn validate(&self) -> Result<(), MetricsError> {
         metrics::check_len("source", self.source, self.atlas.width, self.atlas.height)?;
         metrics::check_len("grey", self.grey, self.atlas.width, self.atlas.height)
     }
+}
 
-    /// The position of `sp` in the atlas, in texels.
-    fn atlas_position(&self, sp: &SurfacePoint) -> Option<Vec2> {
-        let uv = &self.atlas.uv_mesh;
-        let tri = uv.triangles.get(sp.triangle as usize)?;
-        let mut p = Vec2::ZERO;
-        for (k, &v) in tri.iter().enumerate() {
-            p += *uv.uvs.get(v as usize)? * sp.bary[k];
+/// The position of `sp` in `frame`'s atlas, in texels.
+fn atlas_position(frame: &impl Texels, sp: &SurfacePoint) -> Option<Vec2> {
+    let atlas = frame.atlas();
+    let uv = &atlas.uv_mesh;
+    let tri = uv.triangles.get(sp.triangle as usize)?;
+    let mut p = Vec2::ZERO;
+    for (k, &v) in tri.iter().enumerate() {
+        p += *uv.uvs.get(v as usize)? * sp.bary[k];
+    }
+    let p = p * Vec2::new(atlas.width as f32, atlas.height as f32);
+    p.is_finite().then_some(p)
+}
+
+/// The source at `sp` (the texel containing it), [`SOURCE_OUTSIDE`]
+/// where there is none.
+fn source_at(frame: &impl Texels, sp: &SurfacePoint) -> u32 {
+    let atlas = frame.atlas();
+    let (w, h) = (atlas.width as f32, atlas.height as f32);
+    match atlas_position(frame, sp) {
+        Some(p) if p.x >= 0.0 && p.y >= 0.0 && p.x < w && p.y < h => {
+            frame.source(p.y as usize * atlas.width as usize + p.x as usize)
         }
-        let p = p * Vec2::new(self.atlas.width as f32, self.atlas.height as f32);
-        p.is_finite().then_some(p)
+        _ => SOURCE_OUTSIDE,
     }
+}
 
-    /// The source at `sp` (the texel containing it), [`SOURCE_OUTSIDE`]
-    /// where there is none.
-    fn source_at(&self, sp: &SurfacePoint) -> u32 {
-        let (w, h) = (self.atlas.width as f32, self.atlas.height as f32);
-        match self.atlas_position(sp) {
-            Some(p) if p.x >= 0.0 && p.y >= 0.0 && p.x < w && p.y < h => {
-                let i = p.y as usize * self.atlas.width as usize + p.x as usize;
-                self.source.get(i).copied().unwrap_or(SOURCE_OUTSIDE)
-            }
-            _ => SOURCE_OUTSIDE,
-        }
-    }
+/// The grey value at `sp`, bilinear and clamped at the atlas border;
+/// NaN where the point has no atlas position.
+fn grey_at(frame: &impl Texels, sp: &SurfacePoint) -> f32 {
+    let Some(p) = atlas_position(frame, sp) else {
+        return f32::NAN;
+    };
+    let atlas = frame.atlas();
+    let (w, h) = (atlas.width as i64, atlas.height as i64);
+    let (x, y) = (p.x - 0.5, p.y - 0.5);
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = (x - x0, y - y0);
+    let at = |xi: i64, yi: i64| {
+        let i = yi.clamp(0, h - 1) * w + xi.clamp(0, w - 1);
+        frame.grey(i as usize)
+    };
+    let (x0, y0) = (x0 as i64, y0 as i64);
+    let top = at(x0, y0) * (1.0 - fx) + at(x0 + 1, y0) * fx;
+    let bottom = at(x0, y0 + 1) * (1.0 - fx) + at(x0 + 1, y0 + 1) * fx;
+    top * (1.0 - fy) + bottom * fy
+}
 
-    /// The grey value at `sp`, bilinear and clamped at the atlas border;
-    /// NaN where the point has no atlas position.
-    fn grey_at(&self, sp: &SurfacePoint) -> f32 {
-        let Some(p) = self.atlas_position(sp) else {
-            return f32::NAN;
-        };
-        let (w, h) = (self.atlas.width as i64, self.atlas.height as i64);
-        let (x, y) = (p.x - 0.5, p.y - 0.5);
-        let (x0, y0) = (x.floor(), y.floor());
-        let (fx, fy) = (x - x0, y - y0);
-        let at = |xi: i64, yi: i64| {
-            let i = yi.clamp(0, h - 1) * w + xi.clamp(0, w - 1);
-            self.grey.get(i as usize).copied().unwrap_or(f32::NAN)
-        };
-        let (x0, y0) = (x0 as i64, y0 as i64);
-        let top = at(x0, y0) * (1.0 - fx) + at(x0 + 1, y0) * fx;
-        let bottom = at(x0, y0 + 1) * (1.0 - fx) + at(x0 + 1, y0 + 1) * fx;
-        top * (1.0 - fy) + bottom * fy
-    }
+/// What frame t's output holds at one sample point: its source and grey
+/// value (the `before` end of [`measure`]). The frame job keeps these for
+/// the 20 000 points of the next pair instead of frame t's whole atlas.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PointValue {
+    pub source: u32,
+    pub grey: f32,
+}
+
+/// The source and grey value of `frame` at each of `points`, in order
+/// (parallel; the same for any thread count).
+pub fn point_values(
+    points: &[SurfacePoint],
+    frame: &impl Texels,
+) -> Result<Vec<PointValue>, MetricsError> {
+    frame.validate()?;
+    Ok(points
+        .par_iter()
+        .map(|sp| PointValue {
+            source: source_at(frame, sp),
+            grey: grey_at(frame, sp),
+        })
+        .collect())
 }
 
 /// Both coherence metrics of one frame pair.
@@ -268,14 +324,32 @@ impl Coherence {
 /// (`after`) and measures both metrics.
 pub fn measure(
     carried: &Carried,
-    before: &TexelFrame<'_>,
-    after: &TexelFrame<'_>,
+    before: &impl Texels,
+    after: &impl Texels,
     settings: &CoherenceSettings,
 ) -> Result<Coherence, MetricsError> {
     before.validate()?;
     after.validate()?;
+    let values = point_values(&carried.from, before)?;
+    measure_from(carried, &values, after, settings)
+}
+
+/// [`measure`] with frame t's output already looked up at the carried
+/// points ([`point_values`] of `carried.from`): the same result.
+pub fn measure_from(
+    carried: &Carried,
+    before: &[PointValue],
+    after: &impl Texels,
+    settings: &CoherenceSettings,
+) -> Result<Coherence, MetricsError> {
+    after.validate()?;
     let n = carried.from.len();
-    for len in [carried.to.len(), carried.still.len(), carried.moved.len()] {
+    for len in [
+        carried.to.len(),
+        carried.still.len(),
+        carried.moved.len(),
+        before.len(),
+    ] {
         if len != n {
             return Err(MetricsError::Length {
                 what: "carried points",
@@ -284,22 +358,21 @@ pub fn measure(
             });
         }
     }
-    let texels_per_unit = after.atlas.scale as f32;
+    let texels_per_unit = after.atlas().scale as f32;
     let per_point: Vec<(u32, u32, f32, f32, f32, f32)> = (0..n)
         .into_par_iter()
         .map(|i| {
-            let from = &carried.from[i];
             let (s1, c1) = match &carried.to[i] {
-                Some(to) => (after.source_at(to), after.grey_at(to)),
+                Some(to) => (source_at(after, to), grey_at(after, to)),
                 None => (SOURCE_OUTSIDE, f32::NAN),
             };
             let c2 = carried.still[i]
                 .as_ref()
-                .map_or(f32::NAN, |s| after.grey_at(s));
+                .map_or(f32::NAN, |s| grey_at(after, s));
             (
-                before.source_at(from),
+                before[i].source,
                 s1,
-                before.grey_at(from),
+                before[i].grey,
                 c1,
                 c2,
                 carried.moved[i] * texels_per_unit,
@@ -355,15 +428,15 @@ impl SwitchTexel {
 /// compares the sources. Row-major, atlas-sized; parallel over bands, the
 /// same for any thread count.
 pub fn switch_map(
-    before: &TexelFrame<'_>,
+    before: &impl Texels,
     before_flow: FlowFrame<'_>,
-    after: &TexelFrame<'_>,
+    after: &impl Texels,
     after_flow: FlowFrame<'_>,
     dt: f32,
 ) -> Result<Vec<SwitchTexel>, MetricsError> {
     before.validate()?;
     after.validate()?;
-    let atlas = after.atlas;
+    let atlas = after.atlas();
     let w = atlas.width as usize;
     let hint = search_hint(after_flow.mesh);
     let mut map = vec![SwitchTexel::Outside; w * atlas.height as usize];
@@ -375,12 +448,13 @@ pub fn switch_map(
                 for (x, bary) in atlas.span_barycentrics(span) {
                     let i = span.y as usize * w + x as usize;
                     let sp = SurfacePoint::new(span.triangle, bary);
-                    let state = if !is_patch(after.source[i]) {
+                    let here = after.source(i);
+                    let state = if !is_patch(here) {
                         SwitchTexel::Unmeasured
                     } else {
                         let back = carry_back(&sp, before_flow, after_flow, dt, hint);
-                        match back.map(|b| before.source_at(&b)) {
-                            Some(s) if is_patch(s) && s == after.source[i] => SwitchTexel::Same,
+                        match back.map(|b| source_at(before, &b)) {
+                            Some(s) if is_patch(s) && s == here => SwitchTexel::Same,
                             Some(s) if is_patch(s) => SwitchTexel::Switched,
                             _ => SwitchTexel::Unmeasured,
                         }

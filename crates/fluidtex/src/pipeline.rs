@@ -38,8 +38,10 @@ use crate::io::{InputGuard, IoError, Staging, WriteHook};
 use crate::mesh::{TriMesh, ValidationReport};
 use crate::methods::{Method, MethodError, SOURCE_OUTSIDE, SOURCE_UNCOVERED};
 use crate::render::{self, Camera};
+use crate::surface::SurfacePoint;
 use crate::texture::Texture;
 use glam::Vec3;
+use rayon::prelude::*;
 
 pub use crate::exemplar::channels::{ChannelFormat, ChannelSpec, exemplar_channels};
 
@@ -51,13 +53,25 @@ pub struct OutputOptions {
     pub obj: bool,
     /// `mesh.F.glb` [true].
     pub glb: bool,
-    /// `patches.F.png`, `source.F.exr`, `switch.F.png` and the coherence
-    /// numbers of `stats.F.json` [true].
+    /// `patches.F.png`, `source.F.exr` and the coherence numbers of
+    /// `stats.F.json` [true].
     pub debug: bool,
     /// Write `preview.F.png` every this many frames (0: never) \[0].
     pub preview_every: u32,
     /// Preview width in pixels \[512].
     pub preview_size: u32,
+    /// With `debug`: also `switch.F.png`, the per-texel switch map \[false].
+    /// It carries every covered texel back to the frame before (two
+    /// closest-point queries each: about 48 s per frame at 6144² on two
+    /// cores), so it is written only when asked; the share in
+    /// `stats.F.json` comes from 20 000 sampled points either way. Left out
+    /// of the settings' fingerprint when off, so older runs resume.
+    #[serde(skip_serializing_if = "is_false")]
+    pub switch_map: bool,
+}
+
+fn is_false(b: &bool) -> bool {
+    !*b
 }
 
 impl Default for OutputOptions {
@@ -68,6 +82,7 @@ impl Default for OutputOptions {
             debug: true,
             preview_every: 0,
             preview_size: 512,
+            switch_map: false,
         }
     }
 }
@@ -411,11 +426,18 @@ impl FrameSink for FileSink<'_, '_> {
             && let Some(ids) = &result.source
         {
             if self.coherence_prev.is_none()
-                && let (Some(last), Some(_)) = (self.resumed_after, previous)
+                && let (Some(last), Some(prev)) = (self.resumed_after, previous)
             {
-                self.coherence_prev = reload_coherence(job, method, last, self.observer);
+                self.coherence_prev = reload_coherence(
+                    job,
+                    method,
+                    prev,
+                    last,
+                    &self.coherence_settings,
+                    self.observer,
+                );
             }
-            let current = CoherencePrevious::of(method, number, ids, &result.channels);
+            let current = WrittenTexels::of(method, &g.atlas, ids, &result.channels);
             if let (Some(before), Some(prev)) = (&self.coherence_prev, previous)
                 && before.number == prev.number
                 && let Some(c) = self.measure_coherence(&mut files, prev, before, g, &current)?
@@ -423,7 +445,12 @@ impl FrameSink for FileSink<'_, '_> {
                 stats.source_switch_share = Some(c.switch_share());
                 stats.colour_follow_ratio = Some(c.follow_ratio());
             }
-            self.coherence_prev = Some(current);
+            self.coherence_prev = Some(CoherencePrevious::of(
+                &current,
+                g,
+                &self.coherence_settings,
+                job.outputs.switch_map,
+            ));
             clock.lap("coherence");
         }
         stats.stage_order = clock.stages.iter().map(|(n, _)| n.to_string()).collect();
@@ -537,47 +564,159 @@ fn save_state(
     Ok(files.commit()?)
 }
 
-/// What the coherence measurement of the next frame needs of this one: its
-/// sources and grey values *as written to the files* (`source.F.exr`
-/// stores ids as f32; the grey values are read back from the colour atlas
-/// file), so that a resumed run, which reloads them from those files,
-/// measures exactly what an uninterrupted one does. The atlas is the
-/// driver's previous frame's.
+/// What the coherence measurement of the next frame needs of this one:
+/// its sample points (drawn on its mesh, seeded by its number) and its
+/// source and grey value at each, *as written to the files*
+/// (`source.F.exr` stores ids as f32; the grey values are those of the
+/// colour atlas file), so that a resumed run, which reloads them from
+/// those files, measures exactly what an uninterrupted one does. 20 000
+/// points instead of the whole atlas: the frame job keeps no atlas-sized
+/// copy for the measurement. With the switch map, also the whole written
+/// source and grey (the atlas is the driver's previous frame's).
 struct CoherencePrevious {
     number: i32,
-    source: Vec<u32>,
-    grey: Vec<f32>,
+    /// The sample points and the values there; `None` when the frame has
+    /// no velocity or its data does not fit its atlas (no measurement).
+    points: Option<(Vec<SurfacePoint>, Vec<crate::coherence::PointValue>)>,
+    /// Written source and grey per texel, for `switch.F.png` only.
+    full: Option<(Vec<u32>, Vec<f32>)>,
+}
+
+/// The sample points of the pair (frame `number`, the next): one set per
+/// frame pair, seeded by the frame, so a resumed run draws the same points.
+fn coherence_points(
+    mesh: &TriMesh,
+    number: i32,
+    settings: &crate::coherence::CoherenceSettings,
+) -> Vec<SurfacePoint> {
+    let seed = crate::seed::mix(settings.seed, 7, number as u64);
+    crate::coherence::sample_surface(mesh, settings.samples, seed)
 }
 
 impl CoherencePrevious {
     /// This frame's data as its files hold it (computed in memory: the
     /// files are committed together with the stats that carry the result).
     fn of(
-        method: &dyn Method,
-        number: i32,
-        source: &[u32],
-        channels: &[Texture],
+        current: &WrittenTexels<'_>,
+        g: &FrameGeometry,
+        settings: &crate::coherence::CoherenceSettings,
+        switch_map: bool,
     ) -> CoherencePrevious {
-        let grey = match (method.channel_specs().first(), channels.first()) {
-            (Some(spec), Some(colour)) => written_grey(colour, spec.format),
-            _ => Vec::new(),
-        };
-        let source = source
-            .iter()
-            .map(|&s| {
-                if s == SOURCE_OUTSIDE {
-                    s
-                } else {
-                    s as f32 as u32
-                }
-            })
-            .collect();
+        use crate::coherence::Texels;
+        let points = g.mesh.velocity().and_then(|_| {
+            let points = coherence_points(&g.mesh, g.number, settings);
+            let values = crate::coherence::point_values(&points, current).ok()?;
+            Some((points, values))
+        });
+        let full = switch_map.then(|| {
+            let n = current.source.len();
+            let source = (0..n).into_par_iter().map(|i| current.source(i)).collect();
+            let grey = match current.colour {
+                Some((colour, format)) => written_grey(colour, format),
+                None => Vec::new(),
+            };
+            (source, grey)
+        });
         CoherencePrevious {
-            number,
-            source,
-            grey,
+            number: g.number,
+            points,
+            full,
         }
     }
+}
+
+/// A frame's output as its files will hold it, read texel by texel from
+/// the method's result (no atlas-sized copy): ids as `source.F.exr` stores
+/// them (f32), grey values as the colour atlas file stores them (the same
+/// per-texel arithmetic as [`written_grey`]).
+struct WrittenTexels<'a> {
+    atlas: &'a crate::atlas::Atlas,
+    source: &'a [u32],
+    /// The colour atlas and its file format; `None` without channels.
+    colour: Option<(&'a Texture, ChannelFormat)>,
+}
+
+impl<'a> WrittenTexels<'a> {
+    fn of(
+        method: &dyn Method,
+        atlas: &'a crate::atlas::Atlas,
+        source: &'a [u32],
+        channels: &'a [Texture],
+    ) -> WrittenTexels<'a> {
+        let colour = match (method.channel_specs().first(), channels.first()) {
+            (Some(spec), Some(colour)) => Some((colour, spec.format)),
+            _ => None,
+        };
+        WrittenTexels {
+            atlas,
+            source,
+            colour,
+        }
+    }
+}
+
+impl crate::coherence::Texels for WrittenTexels<'_> {
+    fn atlas(&self) -> &crate::atlas::Atlas {
+        self.atlas
+    }
+
+    fn source(&self, i: usize) -> u32 {
+        match self.source.get(i) {
+            Some(&s) if s != SOURCE_OUTSIDE => s as f32 as u32,
+            _ => SOURCE_OUTSIDE,
+        }
+    }
+
+    fn grey(&self, i: usize) -> f32 {
+        let Some((colour, format)) = self.colour else {
+            return f32::NAN;
+        };
+        let c = colour.channels.max(1);
+        match colour.data.get(i * c..(i + 1) * c) {
+            Some(texel) => written_grey_texel(texel, colour.channels, format),
+            None => f32::NAN,
+        }
+    }
+
+    fn validate(&self) -> Result<(), crate::metrics::MetricsError> {
+        let (w, h) = (self.atlas.width, self.atlas.height);
+        crate::metrics::check_len("source", self.source, w, h)?;
+        // As many grey values as `written_grey` would give.
+        let greys = self
+            .colour
+            .map_or(0, |(t, _)| t.data.len() / t.channels.max(1));
+        let expected = w as usize * h as usize;
+        if greys == expected {
+            Ok(())
+        } else {
+            Err(crate::metrics::MetricsError::Length {
+                what: "grey",
+                expected,
+                got: greys,
+            })
+        }
+    }
+}
+
+/// [`written_grey`] of one texel (`channels` values): the same arithmetic.
+fn written_grey_texel(texel: &[f32], channels: usize, format: ChannelFormat) -> f32 {
+    let quantize =
+        |levels: f32, x: f32| (((x.clamp(0.0, 1.0) * levels) as f64 + 0.5) as u32) as f32 / levels;
+    let data: Vec<f32> = match format {
+        ChannelFormat::Png8 => texel.iter().map(|&x| quantize(255.0, x)).collect(),
+        ChannelFormat::Png16 => texel.iter().map(|&x| quantize(65535.0, x)).collect(),
+        ChannelFormat::Exr => texel.to_vec(),
+    };
+    let one = Texture {
+        width: 1,
+        height: 1,
+        channels,
+        data,
+    };
+    crate::metrics::luminance(&one)
+        .first()
+        .copied()
+        .unwrap_or(f32::NAN)
 }
 
 /// The luminance of a colour atlas as the file written in `format` stores
@@ -619,14 +758,16 @@ fn read_grey(job: &Job, method: &dyn Method, number: i32) -> Result<Vec<f32>, Pi
     Ok(crate::metrics::luminance(&decoded.texture))
 }
 
-/// After `--resume`: the coherence data of the last finished frame, from its
-/// files (`source.F.exr`, the colour atlas). `None`, with a warning, when
-/// they cannot be read (then the first resumed frame has no coherence
-/// numbers).
+/// After `--resume`: the coherence data of the last finished frame
+/// (`prev`, re-read), from its files (`source.F.exr`, the colour atlas).
+/// `None`, with a warning, when they cannot be read (then the first resumed
+/// frame has no coherence numbers).
 fn reload_coherence(
     job: &Job,
     method: &dyn Method,
+    prev: &FrameGeometry,
     last: i32,
+    settings: &crate::coherence::CoherenceSettings,
     observer: &mut dyn FnMut(Event<'_>),
 ) -> Option<CoherencePrevious> {
     let load = || -> Result<CoherencePrevious, String> {
@@ -639,11 +780,23 @@ fn reload_coherence(
             .step_by(ids.texture.channels.max(1))
             .map(|&v| if v < 0.0 { SOURCE_OUTSIDE } else { v as u32 })
             .collect();
+        drop(ids);
         let grey = read_grey(job, method, last).map_err(|e| e.to_string())?;
+        let texels = crate::coherence::TexelFrame {
+            atlas: &prev.atlas,
+            source: &source,
+            grey: &grey,
+        };
+        let points = prev.mesh.velocity().and_then(|_| {
+            let points = coherence_points(&prev.mesh, last, settings);
+            let values = crate::coherence::point_values(&points, &texels).ok()?;
+            Some((points, values))
+        });
+        let full = job.outputs.switch_map.then_some((source, grey));
         Ok(CoherencePrevious {
             number: last,
-            source,
-            grey,
+            points,
+            full,
         })
     };
     match load() {
@@ -660,45 +813,34 @@ fn reload_coherence(
 
 impl FileSink<'_, '_> {
     /// Source switch share and colour follow ratio from the frame before
-    /// to this one (carried by the meshes' velocity), and `switch.F.png`.
-    /// `None` when a frame has no velocity or the data does not fit its
-    /// atlas.
+    /// to this one (carried by the meshes' velocity), and, when asked,
+    /// `switch.F.png`. `None` when a frame has no velocity or the data does
+    /// not fit its atlas.
     fn measure_coherence(
         &self,
         files: &mut Staging<'_>,
         prev: &FrameGeometry,
         before: &CoherencePrevious,
         frame: &FrameGeometry,
-        current: &CoherencePrevious,
+        current: &WrittenTexels<'_>,
     ) -> Result<Option<crate::coherence::Coherence>, PipelineError> {
-        use crate::coherence::{self, TexelFrame, carry_by_velocity, sample_surface, switch_map};
+        use crate::coherence::{self, TexelFrame, carry_by_velocity, switch_map};
         use crate::surface::velocity::FlowFrame;
         let (Some(v0), Some(v1)) = (prev.mesh.velocity(), frame.mesh.velocity()) else {
             return Ok(None);
         };
+        let Some((points, values)) = &before.points else {
+            return Ok(None);
+        };
         let settings = &self.coherence_settings;
         let dt = 1.0 / self.job.fps;
-        let from_texels = TexelFrame {
-            atlas: &prev.atlas,
-            source: &before.source,
-            grey: &before.grey,
-        };
-        let to_texels = TexelFrame {
-            atlas: &frame.atlas,
-            source: &current.source,
-            grey: &current.grey,
-        };
         let next = FlowFrame {
             mesh: &frame.mesh,
             index: &frame.index,
             velocity: v1,
         };
-        // One sample set per frame pair, seeded by the frame so a resumed run
-        // draws the same points.
-        let seed = crate::seed::mix(settings.seed, 7, before.number as u64);
-        let points = sample_surface(&prev.mesh, settings.samples, seed);
-        let carried = carry_by_velocity(&prev.mesh, v0, next, dt, points);
-        let Ok(found) = coherence::measure(&carried, &from_texels, &to_texels, settings) else {
+        let carried = carry_by_velocity(&prev.mesh, v0, next, dt, points.clone());
+        let Ok(found) = coherence::measure_from(&carried, values, current, settings) else {
             return Ok(None);
         };
         let from = FlowFrame {
@@ -706,17 +848,26 @@ impl FileSink<'_, '_> {
             index: &prev.index,
             velocity: v0,
         };
-        if let Ok(map) = switch_map(&from_texels, from, &to_texels, next, dt) {
-            let image = coherence::switch_image(&map, frame.atlas.width, frame.atlas.height);
-            write_channel(
-                files,
-                &self
-                    .job
-                    .out_dir
-                    .join(format!("switch.{}.png", frame_tag(frame.number))),
-                &image,
-                ChannelFormat::Png8,
-            )?;
+        if self.job.outputs.switch_map
+            && let Some((source, grey)) = &before.full
+        {
+            let from_texels = TexelFrame {
+                atlas: &prev.atlas,
+                source,
+                grey,
+            };
+            if let Ok(map) = switch_map(&from_texels, from, current, next, dt) {
+                let image = coherence::switch_image(&map, frame.atlas.width, frame.atlas.height);
+                write_channel(
+                    files,
+                    &self
+                        .job
+                        .out_dir
+                        .join(format!("switch.{}.png", frame_tag(frame.number))),
+                    &image,
+                    ChannelFormat::Png8,
+                )?;
+            }
         }
         Ok(Some(found))
     }
@@ -725,6 +876,76 @@ impl FileSink<'_, '_> {
 fn write_file(files: &mut Staging<'_>, path: &Path, bytes: &[u8]) -> Result<(), PipelineError> {
     files.write(path, |w| w.write_all(bytes))?;
     Ok(())
+}
+
+/// The patch colours of every texel, dilated into the gutter.
+fn patch_colours(
+    atlas: &crate::atlas::Atlas,
+    source: &[u32],
+    radius: u32,
+) -> Result<Texture, AtlasError> {
+    let mut colours = Texture::filled(atlas.width, atlas.height, 3, 0.0);
+    colours
+        .data
+        .par_chunks_mut(3)
+        .zip(source.par_iter())
+        .with_min_len(1 << 14)
+        .for_each(|(c, &s)| c.copy_from_slice(&patch_colour(s)));
+    atlas.dilate(&mut colours, radius)?;
+    Ok(colours)
+}
+
+/// `patches.F.png` without a float colour atlas: the ids are dilated (as
+/// exact small floats: dilation copies the nearest chart texel's value, so
+/// dilating ids and then colouring them is dilating the colours), coloured
+/// and quantized straight to 8 bits. The same bytes as encoding
+/// [`patch_colours`], in a third of the memory. `None` when an id is too
+/// large to be exact as a float (then the caller takes the float path).
+fn patch_png(
+    atlas: &crate::atlas::Atlas,
+    source: &[u32],
+    radius: u32,
+) -> Result<Option<Vec<u8>>, AtlasError> {
+    const EXACT: u32 = 1 << 24;
+    let encode = |s: u32| match s {
+        SOURCE_OUTSIDE => Some(-1.0),
+        SOURCE_UNCOVERED => Some(-2.0),
+        s if s < EXACT => Some(s as f32),
+        _ => None,
+    };
+    let data: Option<Vec<f32>> = source
+        .par_iter()
+        .with_min_len(1 << 16)
+        .map(|&s| encode(s))
+        .collect();
+    let Some(data) = data else {
+        return Ok(None);
+    };
+    let mut ids = Texture {
+        width: atlas.width,
+        height: atlas.height,
+        channels: 1,
+        data,
+    };
+    atlas.dilate(&mut ids, radius)?;
+    let decode = |v: f32| {
+        if v == -1.0 {
+            SOURCE_OUTSIDE
+        } else if v == -2.0 {
+            SOURCE_UNCOVERED
+        } else {
+            v as u32
+        }
+    };
+    let samples: Vec<u8> = ids
+        .data
+        .par_iter()
+        .with_min_len(1 << 16)
+        .flat_map_iter(|&v| patch_colour(decode(v)).map(crate::io::image::quantize_8))
+        .collect();
+    drop(ids);
+    let level = PngOptions::default().level;
+    Ok(crate::io::image::encode_png_8(atlas.width, atlas.height, 3, &samples, level).ok())
 }
 
 /// A colour per patch id for `patches.F.png` (the paper's Fig. 1, left):
@@ -813,20 +1034,16 @@ impl FileSink<'_, '_> {
         }
         let preview = job.outputs.preview_every > 0
             && (number - first_frame).rem_euclid(job.outputs.preview_every as i32) == 0;
-        // The patch colours serve the debug files and the preview only.
+        // The patch colours as floats serve the preview only; the debug
+        // file is made in 8 bits from the dilated ids (`patch_png`).
+        let radius = job.atlas.gutter.max(1) * 2;
+        let atlas_error = |source| PipelineError::Atlas {
+            frame: number,
+            source,
+        };
         let patches = match &result.source {
-            Some(source) if job.outputs.debug || preview => {
-                let mut colours = Texture::filled(atlas.width, atlas.height, 3, 0.0);
-                for (t, &s) in source.iter().enumerate() {
-                    colours.data[t * 3..t * 3 + 3].copy_from_slice(&patch_colour(s));
-                }
-                atlas
-                    .dilate(&mut colours, job.atlas.gutter.max(1) * 2)
-                    .map_err(|source| PipelineError::Atlas {
-                        frame: number,
-                        source,
-                    })?;
-                Some(colours)
+            Some(source) if preview => {
+                Some(patch_colours(atlas, source, radius).map_err(atlas_error)?)
             }
             _ => None,
         };
@@ -834,16 +1051,24 @@ impl FileSink<'_, '_> {
             self.write_preview(files, g, colour, patches.as_ref(), &normals)?;
         }
         if job.outputs.debug
-            && let (Some(source), Some(colours)) = (&result.source, &patches)
+            && let Some(source) = &result.source
         {
-            write_channel(
-                files,
-                &dir.join(format!("patches.{tag}.png")),
-                colours,
-                ChannelFormat::Png8,
-            )?;
+            let path = dir.join(format!("patches.{tag}.png"));
+            match &patches {
+                Some(colours) => {
+                    write_channel(files, &path, colours, ChannelFormat::Png8)?;
+                }
+                None => match patch_png(atlas, source, radius).map_err(atlas_error)? {
+                    Some(bytes) => write_file(files, &path, &bytes)?,
+                    None => {
+                        let colours = patch_colours(atlas, source, radius).map_err(atlas_error)?;
+                        write_channel(files, &path, &colours, ChannelFormat::Png8)?;
+                    }
+                },
+            }
             let ids: Vec<f32> = source
-                .iter()
+                .par_iter()
+                .with_min_len(1 << 16)
                 .map(|&s| if s == SOURCE_OUTSIDE { -1.0 } else { s as f32 })
                 .collect();
             let ids = Texture {
@@ -1159,5 +1384,99 @@ impl FrameSource for SceneSource {
         let report = crate::mesh::validate(&mut mesh)
             .map_err(|e| PipelineError::Source(format!("scene frame {f}: {e}")))?;
         Ok((mesh, report))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::atlas::{Atlas, AtlasParams, fixtures::icosphere};
+    use crate::coherence::Texels;
+    use rand::{Rng, SeedableRng};
+
+    /// The coherence measurement reads the written values texel by texel:
+    /// each must be bit for bit what the whole-atlas conversion (the one a
+    /// resumed run's file read-back matches) gives, for every format,
+    /// including values outside [0, 1] and ids that f32 rounds.
+    #[test]
+    fn written_texels_match_the_whole_atlas_conversion() {
+        let atlas = Atlas::build(&icosphere(2), &AtlasParams::square(16)).expect("atlas");
+        let n = (atlas.width * atlas.height) as usize;
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
+        let mut source: Vec<u32> = (0..n).map(|_| rng.random_range(0..40)).collect();
+        source[0] = SOURCE_OUTSIDE;
+        source[1] = SOURCE_UNCOVERED;
+        source[2] = (1 << 24) + 1;
+        for channels in [1usize, 3, 4] {
+            let data = (0..n * channels)
+                .map(|_| rng.random_range(-0.2f32..1.2))
+                .collect();
+            let colour = Texture {
+                width: atlas.width,
+                height: atlas.height,
+                channels,
+                data,
+            };
+            for format in [
+                ChannelFormat::Png8,
+                ChannelFormat::Png16,
+                ChannelFormat::Exr,
+            ] {
+                let whole = written_grey(&colour, format);
+                let texels = WrittenTexels {
+                    atlas: &atlas,
+                    source: &source,
+                    colour: Some((&colour, format)),
+                };
+                texels.validate().expect("fits");
+                for (i, g) in whole.iter().enumerate() {
+                    assert_eq!(texels.grey(i).to_bits(), g.to_bits(), "{format:?} {i}");
+                }
+            }
+        }
+        let texels = WrittenTexels {
+            atlas: &atlas,
+            source: &source,
+            colour: None,
+        };
+        assert!(texels.validate().is_err(), "no colour: nothing to measure");
+        assert_eq!(texels.source(0), SOURCE_OUTSIDE);
+        assert_eq!(texels.source(1), SOURCE_UNCOVERED);
+        assert_eq!(texels.source(2), 1 << 24, "as source.F.exr stores it");
+        assert_eq!(texels.source(n), SOURCE_OUTSIDE);
+        assert_eq!(texels.source(7), source[7]);
+    }
+
+    /// `patches.F.png` made in 8 bits from the dilated ids is byte for byte
+    /// the float colour atlas encoded as before (ids dilate as colours do),
+    /// with outside, uncovered and large ids; ids past 2^24 fall back.
+    #[test]
+    fn patch_png_from_ids_is_the_colour_atlas_encoded() {
+        let atlas = Atlas::build(&icosphere(2), &AtlasParams::square(96)).expect("atlas");
+        let n = (atlas.width * atlas.height) as usize;
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(9);
+        let mut source: Vec<u32> = (0..n).map(|_| rng.random_range(0..500)).collect();
+        // The chart texels keep their ids; the rest are outside.
+        let inside = atlas.triangle_map();
+        for (s, &t) in source.iter_mut().zip(&inside) {
+            if t == u32::MAX {
+                *s = SOURCE_OUTSIDE;
+            }
+        }
+        let chart: Vec<usize> = (0..n).filter(|&i| inside[i] != u32::MAX).collect();
+        assert!(chart.len() > 100, "{} chart texels", chart.len());
+        source[chart[0]] = SOURCE_UNCOVERED;
+        source[chart[1]] = (1 << 24) - 1;
+        for radius in [1, 4] {
+            let want = crate::io::image::encode_png(
+                &patch_colours(&atlas, &source, radius).expect("dilate"),
+                &PngOptions::default(),
+            )
+            .expect("encode");
+            let got = patch_png(&atlas, &source, radius).expect("dilate");
+            assert!(got == Some(want), "radius {radius}: the bytes differ");
+        }
+        source[chart[2]] = 1 << 24;
+        assert_eq!(patch_png(&atlas, &source, 2).expect("dilate"), None);
     }
 }

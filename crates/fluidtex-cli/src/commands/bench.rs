@@ -1,7 +1,12 @@
 //! `fluidtex bench`: per-stage timings of the whole frame job on a generated
-//! surface of a chosen size. Meshes are generated before timing starts, so
-//! the figures cover what a production run does per frame: BVH, atlas
-//! unwrap, the method's stages, dilation and writing.
+//! surface of a chosen size, or on the user's own sequence (`--mesh`, as
+//! `fluidtex run --mesh`). Generated meshes are made before timing starts,
+//! so the figures cover what a production run does per frame: BVH, atlas
+//! unwrap, the method's stages, dilation and writing (a user's sequence is
+//! read from disk as in a run: `read` is then real work). Besides the
+//! per-stage table it prints the wall-clock seconds per frame, the thread
+//! count, the CPU use (on a shared machine, CPU seconds say more than wall
+//! clock) and the peak memory.
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -48,6 +53,25 @@ pub struct BenchArgs {
     /// Folder for the written frames (default: a temporary folder)
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Time your own sequence instead of a generated one:
+    /// fluid.$F4.ply, fluid.####.ply, fluid.%04d.ply or a USD stage
+    #[arg(long)]
+    pub mesh: Option<String>,
+    /// With --mesh: frame range A-B (default: every frame found; --frames then does not apply)
+    #[arg(long = "range")]
+    pub range: Option<String>,
+    /// With --mesh: PLY velocity property names, e.g. --velocity vel_x,vel_y,vel_z
+    #[arg(long, value_delimiter = ',', num_args = 1)]
+    pub velocity: Option<Vec<String>>,
+    /// With --mesh and a USD stage: the Mesh prim to read
+    #[arg(long)]
+    pub prim: Option<String>,
+    /// Colour exemplar (default: the built-in pebbles)
+    #[arg(long)]
+    pub exemplar: Option<PathBuf>,
+    /// Also write the debug outputs (patches.F.png, source.F.exr, the coherence numbers), as `run` does by default
+    #[arg(long)]
+    pub debug: bool,
 }
 
 struct Memory {
@@ -77,7 +101,7 @@ type BenchRow = (
 );
 
 pub fn bench(a: &BenchArgs) -> Result<()> {
-    if a.frames < 2 {
+    if a.mesh.is_none() && a.frames < 2 {
         bail!("--frames {}: need at least 2", a.frames);
     }
     if let Some(n) = a.threads {
@@ -85,6 +109,9 @@ pub fn bench(a: &BenchArgs) -> Result<()> {
             .num_threads(n)
             .build_global()
             .context("cannot size the thread pool")?;
+    }
+    if let Some(pattern) = &a.mesh {
+        return bench_sequence(a, pattern);
     }
     // Calibrate the scene resolution to the requested triangle count: the
     // count grows with the square of the resolution for surface meshes.
@@ -115,20 +142,62 @@ pub fn bench(a: &BenchArgs) -> Result<()> {
         frames.push((f, mesh));
     }
     let tris = frames[0].1.triangle_count();
-    let mut config = Config {
-        method: Some(a.method),
-        atlas: Some(a.atlas),
-        fps: Some(params.fps as f32),
-        ..Default::default()
-    };
-    config.outputs.obj = true;
-    config.outputs.glb = true;
-    config.outputs.debug = false;
-    config.erosion.placement = a.placement;
+    let mut config = bench_config(a);
+    config.fps = Some(params.fps as f32);
     if let Some(n) = a.patches {
         let area = frames[0].1.area();
         // Dart throwing reaches about 0.7 A / r² disks.
         config.erosion.radius = Some((0.7 * area / n.max(1) as f64).sqrt() as f32);
+    }
+    let mut source = Memory { frames };
+    let title = format!("{} ({tris} triangles)", a.scene);
+    time_run(a, &config, &mut source, &title, false)
+}
+
+/// The settings every bench run shares: method, atlas, outputs.
+fn bench_config(a: &BenchArgs) -> Config {
+    let mut config = Config {
+        method: Some(a.method),
+        atlas: Some(a.atlas),
+        exemplar: a.exemplar.clone(),
+        ..Default::default()
+    };
+    config.outputs.obj = true;
+    config.outputs.glb = true;
+    config.outputs.debug = a.debug;
+    config.erosion.placement = a.placement;
+    config
+}
+
+/// `--mesh`: the user's own sequence, read from disk frame by frame.
+fn bench_sequence(a: &BenchArgs, pattern: &str) -> Result<()> {
+    let config = bench_config(a);
+    if let Some(n) = a.patches {
+        bail!("--patches {n}: only for generated scenes (give a config radius instead)");
+    }
+    let options = super::run::read_options(a.velocity.as_deref())?;
+    if crate::usd::is_usd(pattern) {
+        let mut source =
+            crate::usd::UsdSource::open(pattern, a.prim.as_deref(), a.range.as_deref())?;
+        return time_run(a, &config, &mut source, pattern, true);
+    }
+    let mut source = pipeline::SequenceSource::open(pattern, a.range.as_deref(), options)?;
+    time_run(a, &config, &mut source, pattern, true)
+}
+
+/// Runs the frame job over `source` and prints the per-stage table, the
+/// wall-clock time per frame, the thread count, CPU use and peak memory.
+fn time_run(
+    a: &BenchArgs,
+    config: &Config,
+    source: &mut dyn FrameSource,
+    title: &str,
+    count_read: bool,
+) -> Result<()> {
+    // The mean leaves out the first frame (it places the initial patches).
+    let n = source.frames().len();
+    if n < 2 {
+        bail!("{title}: {n} frame(s) to time, need at least 2");
     }
     let tmp;
     let out = match &a.out {
@@ -138,11 +207,15 @@ pub fn bench(a: &BenchArgs) -> Result<()> {
             tmp.path().to_path_buf()
         }
     };
-    let mut method = build_method(&config)?;
-    let job = build_job(&config, out, false)?;
+    let mut method = build_method(config)?;
+    let job = build_job(config, out, false)?;
     let mut rows: Vec<BenchRow> = Vec::new();
+    let mut done_at: Vec<std::time::Instant> = Vec::new();
+    let start = std::time::Instant::now();
+    let cpu_start = cpu_seconds();
     let mut observer = |e: Event<'_>| {
         if let Event::Done { stats } = e {
+            done_at.push(std::time::Instant::now());
             rows.push((
                 stats.frame,
                 stats.seconds.clone(),
@@ -151,21 +224,25 @@ pub fn bench(a: &BenchArgs) -> Result<()> {
             ));
         }
     };
-    let mut source = Memory { frames };
-    pipeline::run(&job, &mut source, method.as_mut(), &mut observer)?;
+    pipeline::run(&job, source, method.as_mut(), &mut observer)?;
+    let wall = start.elapsed().as_secs_f64();
+    let cpu = cpu_seconds().zip(cpu_start).map(|(b, a)| b - a);
 
     let threads = rayon::current_num_threads();
+    let frames = rows.len();
     println!(
-        "{} on {} ({tris} triangles), atlas {}², {} frames, {threads} threads",
-        a.method, a.scene, a.atlas, a.frames
+        "{} on {title}, atlas {}², {frames} frames, {threads} threads",
+        a.method, a.atlas
     );
     let Some((_, _, order, _)) = rows.last() else {
         bail!("no frame was processed")
     };
     let order = order.clone();
     print!("{:<8}", "frame");
+    // A column per stage, wide enough for its name ("exemplar filter").
+    let width = |s: &str| s.len().max(9) + 1;
     for s in &order {
-        print!("{s:>10}");
+        print!("{s:>w$}", w = width(s));
     }
     println!("{:>10}{:>9}{:>9}", "total", "patches", "created");
     let mut sums: BTreeMap<String, f64> = BTreeMap::new();
@@ -174,8 +251,8 @@ pub fn bench(a: &BenchArgs) -> Result<()> {
         let mut total = 0.0;
         for s in &order {
             let v = secs.get(s).copied().unwrap_or(0.0);
-            total += if s == "read" { 0.0 } else { v };
-            print!("{v:>10.3}");
+            total += if s == "read" && !count_read { 0.0 } else { v };
+            print!("{v:>w$.3}", w = width(s));
             if k > 0 {
                 *sums.entry(s.clone()).or_default() += v;
             }
@@ -196,12 +273,65 @@ pub fn bench(a: &BenchArgs) -> Result<()> {
     let mut total = 0.0;
     for s in &order {
         let v = sums.get(s).copied().unwrap_or(0.0) / n;
-        total += if s == "read" { 0.0 } else { v };
-        print!("{v:>10.3}");
+        total += if s == "read" && !count_read { 0.0 } else { v };
+        print!("{v:>w$.3}", w = width(s));
     }
     println!("{total:>10.3}");
-    println!(
-        "(* frames after the first; 'read' copies pre-generated meshes and is left out of the total)"
-    );
+    if count_read {
+        println!("(* frames after the first; total = sum of the stages)");
+    } else {
+        println!(
+            "(* frames after the first; 'read' copies pre-generated meshes and is left out of the total)"
+        );
+    }
+    // Wall clock between consecutive finished frames, after the first.
+    let gaps: Vec<f64> = done_at
+        .windows(2)
+        .map(|w| w[1].duration_since(w[0]).as_secs_f64())
+        .collect();
+    if !gaps.is_empty() {
+        let mean = gaps.iter().sum::<f64>() / gaps.len() as f64;
+        println!("wall clock: {mean:.3} s/frame after the first, {wall:.1} s in all");
+    }
+    if let Some(cpu) = cpu {
+        println!(
+            "cpu use: {:.0} % of {} % ({cpu:.1} s user+sys over {wall:.1} s)",
+            100.0 * cpu / wall.max(1e-9),
+            100 * std::thread::available_parallelism().map_or(1, |n| n.get()),
+        );
+    }
+    match peak_memory() {
+        Some(bytes) => println!(
+            "peak memory: {:.2} GiB (VmHWM)",
+            bytes as f64 / (1u64 << 30) as f64
+        ),
+        None => println!("peak memory: unknown on this system"),
+    }
     Ok(())
+}
+
+/// The process's peak resident memory (Linux `VmHWM`), in bytes.
+fn peak_memory() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: u64 = line
+        .trim_start_matches("VmHWM:")
+        .trim()
+        .trim_end_matches("kB")
+        .trim()
+        .parse()
+        .ok()?;
+    kib.checked_mul(1024)
+}
+
+/// User + system CPU seconds of the process so far (Linux `/proc/self/stat`,
+/// fields 14 and 15, in clock ticks of 1/100 s, the kernel's USER_HZ).
+fn cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // The command name (field 2) may hold spaces; fields after it follow ')'.
+    let rest = stat.rsplit_once(')')?.1;
+    let fields: Vec<&str> = rest.split_whitespace().collect();
+    let utime: f64 = fields.get(11)?.parse().ok()?;
+    let stime: f64 = fields.get(12)?.parse().ok()?;
+    Some((utime + stime) / 100.0)
 }

@@ -358,3 +358,18 @@ fn mismatched_inputs_are_errors() {
     assert_eq!(m.switch.covered, 0);
     assert!(m.switch_share().is_nan());
 }
+
+/// The frame job's path (frame t looked up at its sample points when it is
+/// written, frame t+1 a frame later) gives exactly what [`measure`] gives.
+#[test]
+fn values_kept_from_frame_t_measure_the_same() {
+    let (a, b) = pair(true);
+    let c = carry(&a, &b);
+    let whole = measure(&c, &a.texels(), &b.texels(), &settings()).expect("valid");
+    let values = point_values(&c.from, &a.texels()).expect("valid");
+    let kept = measure_from(&c, &values, &b.texels(), &settings()).expect("valid");
+    assert_eq!(whole, kept);
+    assert!(whole.switch_share() < 0.05, "{}", whole.switch_share());
+    // Values for other points are refused.
+    assert!(measure_from(&c, &values[1..], &b.texels(), &settings()).is_err());
+}

@@ -161,6 +161,44 @@ pub fn encode_png(tex: &Texture, options: &PngOptions) -> Result<Vec<u8>, String
     }
 }
 
+/// Encodes 8-bit samples already quantized as [`quantize_8`] does
+/// (`channels` interleaved per pixel, rows top to bottom) with the
+/// default parallel encoder at `level`: the same bytes [`encode_png`] gives
+/// for the texture they were quantized from. For images made directly in
+/// 8 bits (debug colours), without a float copy of the atlas.
+pub fn encode_png_8(
+    width: u32,
+    height: u32,
+    channels: usize,
+    samples: &[u8],
+    level: u8,
+) -> Result<Vec<u8>, String> {
+    if !(1..=4).contains(&channels) || width == 0 || height == 0 {
+        return Err(format!(
+            "cannot encode a {width}x{height} image with {channels} channels"
+        ));
+    }
+    if samples.len() != width as usize * height as usize * channels {
+        return Err(format!(
+            "{} samples for a {width}x{height}x{channels} image",
+            samples.len()
+        ));
+    }
+    if !(1..=9).contains(&level) {
+        return Err(format!("PNG deflate level {level} is outside 1..=9"));
+    }
+    Ok(encode_png_parallel(
+        width, height, channels, 1, samples, level,
+    ))
+}
+
+/// One 8-bit PNG sample from a value: clamped to [0, 1], scaled and
+/// rounded half up (NaN gives 0), as [`encode_png`] quantizes.
+#[inline]
+pub fn quantize_8(x: f32) -> u8 {
+    round_half_up(x.clamp(0.0, 1.0) * 255.0) as u8
+}
+
 /// Writes a texture as a PNG file, atomically.
 pub fn write_png(path: &Path, tex: &Texture, options: &PngOptions) -> Result<(), IoError> {
     let bytes = encode_png(tex, options).map_err(|reason| IoError::Unwritable {
@@ -177,7 +215,7 @@ fn quantize(tex: &Texture, depth: PngDepth) -> Vec<u8> {
             .data
             .par_iter()
             .with_min_len(1 << 16)
-            .map(|&x| round_half_up(x.clamp(0.0, 1.0) * 255.0) as u8)
+            .map(|&x| quantize_8(x))
             .collect(),
         PngDepth::Sixteen => tex
             .data
@@ -490,6 +528,23 @@ mod tests {
 
     fn decode(bytes: &[u8]) -> image::DynamicImage {
         image::load_from_memory_with_format(bytes, image::ImageFormat::Png).unwrap()
+    }
+
+    #[test]
+    fn pre_quantized_samples_encode_to_the_same_bytes() {
+        for (w, h, c) in [
+            (1u32, 1u32, 3usize),
+            (517, 300, 3),
+            (64, 700, 1),
+            (33, 9, 4),
+        ] {
+            let tex = random_texture(u64::from(w), w, h, c);
+            let samples: Vec<u8> = tex.data.iter().map(|&x| quantize_8(x)).collect();
+            let want = encode_png(&tex, &PngOptions::default()).unwrap();
+            assert_eq!(encode_png_8(w, h, c, &samples, 1).unwrap(), want);
+        }
+        assert!(encode_png_8(2, 2, 3, &[0; 11], 1).is_err());
+        assert!(encode_png_8(2, 2, 5, &[0; 20], 1).is_err());
     }
 
     #[test]

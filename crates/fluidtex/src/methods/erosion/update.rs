@@ -23,11 +23,13 @@
 
 use std::collections::HashMap;
 
-use glam::Vec2;
+use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::fill::{Candidates, FillBuffers, FillContext, Hit, Uncovered, patch_frames};
+use super::fill::{
+    FillBuffers, FillContext, Hit, LocateTolerance, TriFrame, Uncovered, patch_frames,
+};
 use super::patch::{FrameSurface, Patch, PatchShape};
 use crate::exemplar::set::Chooser;
 use crate::surface::SurfaceIndex;
@@ -168,19 +170,20 @@ pub fn cover(
                 tolerance: template.tolerance,
                 multi: template.multi,
             };
-            let candidates =
-                Candidates::build(mesh, inputs.index, one, &frames, template.tolerance);
-            let mut touched: Vec<u32> = by_triangle
-                .keys()
-                .copied()
-                .filter(|&f| !candidates.of(f).is_empty())
-                .collect();
-            touched.sort_unstable();
-            for f in touched {
-                let list = candidates.of(f);
+            let candidates = PatchCandidates::build(
+                mesh,
+                inputs.index,
+                &patch,
+                frames.first().map_or(&[][..], Vec::as_slice),
+                template.tolerance,
+            );
+            for (f, list) in candidates.groups() {
+                let Some(texels) = by_triangle.get(&f) else {
+                    continue;
+                };
                 let [a, b, c] = mesh.corners(f as usize);
                 let n = (b - a).cross(c - a).normalize_or_zero();
-                for &k in &by_triangle[&f] {
+                for &k in texels {
                     let k = k as usize;
                     if covered[k] {
                         continue;
@@ -218,4 +221,127 @@ pub fn cover(
         }
     }
     stats
+}
+
+/// The fluid triangles one new patch may cover, each with its candidate
+/// (patch index 0, patch triangle) pairs: exactly what
+/// [`super::fill::Candidates::build`] gives for the patch alone (the same
+/// BVH query and prism test, the same order: by fluid triangle, then patch
+/// triangle), but sparse. `Candidates` holds an offset per fluid triangle
+/// of the whole mesh; built once per new patch, that array (and a scan of
+/// every uncovered triangle against it) made the update's cost grow with
+/// the mesh size times the number of new patches. Here the cost is the
+/// patch's own candidates.
+struct PatchCandidates {
+    /// (fluid triangle, patch triangle), sorted.
+    pairs: Vec<(u32, u32)>,
+    /// `pairs` as `resolve` takes them: (patch index 0, patch triangle).
+    entries: Vec<(u32, u32)>,
+}
+
+impl PatchCandidates {
+    fn build(
+        mesh: &crate::mesh::TriMesh,
+        index: &SurfaceIndex,
+        patch: &Patch,
+        frames: &[Option<TriFrame>],
+        tolerance: LocateTolerance,
+    ) -> PatchCandidates {
+        let margin = Vec3::splat(tolerance.max_plane_distance);
+        let mut pairs = Vec::new();
+        for (j, (t, frame)) in patch.triangles.iter().zip(frames).enumerate() {
+            let Some(frame) = frame else { continue };
+            let [a, b, c] = t.map(|v| patch.positions[v as usize]);
+            let lo = a.min(b).min(c) - margin;
+            let hi = a.max(b).max(c) + margin;
+            index.triangles_in_box(lo, hi, |f| {
+                if frame.may_cover(mesh, f, tolerance) {
+                    pairs.push((f, j as u32));
+                }
+            });
+        }
+        pairs.sort_unstable();
+        let entries = pairs.iter().map(|&(_, j)| (0, j)).collect();
+        PatchCandidates { pairs, entries }
+    }
+
+    /// Each fluid triangle with candidates, in increasing order, with them.
+    fn groups(&self) -> impl Iterator<Item = (u32, &[(u32, u32)])> + '_ {
+        let mut start = 0;
+        std::iter::from_fn(move || {
+            let &(f, _) = self.pairs.get(start)?;
+            let end = start
+                + self.pairs[start..]
+                    .iter()
+                    .take_while(|&&(g, _)| g == f)
+                    .count();
+            let group = &self.entries[start..end];
+            start = end;
+            Some((f, group))
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::fill::Candidates;
+    use super::*;
+    use crate::methods::test_clip::scene;
+    use crate::surface::SurfacePoint;
+
+    /// The sparse candidates of a new patch are those of the whole-mesh
+    /// array, fluid triangle by fluid triangle and in the same order, for
+    /// patches all over a curved surface (so the update's results are
+    /// unchanged; the golden outputs check the same end to end).
+    #[test]
+    fn patch_candidates_are_those_of_the_whole_mesh_array() {
+        let c = scene("differential-rotation", 12, 1, 64);
+        let (mesh, index) = (&c.meshes[0], &c.indices[0]);
+        let surface = FrameSurface {
+            mesh,
+            topology: &c.topologies[0],
+            vertex_normals: &c.normals[0],
+        };
+        let (lo, hi) = mesh.bounding_box().expect("surface");
+        let radius = (hi - lo).length() / 8.0;
+        let shape = PatchShape {
+            radius,
+            exemplar_size: 2.6 * radius,
+            delta_max: 3.0,
+            far_distance: radius / 4.0,
+            centre_radius: radius / 4.0,
+            texel_size: 0.0,
+            feature_width: 1.0,
+            split_length: 0.0,
+        };
+        let tolerance = LocateTolerance {
+            min_bary: -0.05,
+            max_plane_distance: 0.125 * radius,
+        };
+        let mut checked = 0;
+        for t in (0..mesh.triangle_count() as u32).step_by(37) {
+            let at = SurfacePoint::new(t, [0.2, 0.3, 0.5]);
+            let Some(patch) = Patch::create(t, &surface, at, &shape, 0.3, None) else {
+                continue;
+            };
+            let one = std::slice::from_ref(&patch);
+            let frames = patch_frames(one);
+            let whole = Candidates::build(mesh, index, one, &frames, tolerance);
+            let local = PatchCandidates::build(mesh, index, &patch, &frames[0], tolerance);
+            let mut groups = local.groups();
+            let mut fluid = 0;
+            for f in 0..mesh.triangle_count() as u32 {
+                let want = whole.of(f);
+                if want.is_empty() {
+                    continue;
+                }
+                assert_eq!(groups.next(), Some((f, want)), "patch at {t}");
+                fluid += 1;
+            }
+            assert_eq!(groups.next(), None, "patch at {t}");
+            assert!(fluid > 10, "patch at {t}: {fluid} fluid triangles");
+            checked += 1;
+        }
+        assert!(checked > 5, "{checked} patches");
+    }
 }
