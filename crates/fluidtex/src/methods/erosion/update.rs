@@ -308,6 +308,7 @@ mod tests {
             radius,
             exemplar_size: 2.6 * radius,
             delta_max: 3.0,
+            delta_onset: 1.0,
             far_distance: radius / 4.0,
             centre_radius: radius / 4.0,
             texel_size: 0.0,
