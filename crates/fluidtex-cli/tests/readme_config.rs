@@ -363,6 +363,11 @@ fn disagreements(section: &str) -> Vec<String> {
     // are skipped when unset).
     let mut all = leaves(&Config::default());
     all.extend(leaves(&example));
+    // outputs.switch_map is left out of the serialized config while off
+    // (so older runs keep their settings fingerprint): ask for it on.
+    let mut switch_on = Config::default();
+    switch_on.outputs.switch_map = true;
+    all.extend(leaves(&switch_on));
     let mut keys: BTreeSet<String> = BTreeSet::new();
     for k in all.keys() {
         let parent = k.rsplit_once('.').map(|(p, _)| p.to_string());
