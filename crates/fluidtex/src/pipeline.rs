@@ -1275,10 +1275,16 @@ impl MemoryEstimate {
 /// `MemAvailable` of `/proc/meminfo` in bytes; `None` where there is no
 /// such file (other systems: the check is skipped).
 pub fn available_memory() -> Option<u64> {
-    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    proc_kib("/proc/meminfo", "MemAvailable:")
+}
+
+/// A `key: N kB` line of a Linux `/proc` file (`/proc/meminfo`,
+/// `/proc/self/status`) in bytes; `None` where the file or line is missing.
+pub fn proc_kib(path: &str, key: &str) -> Option<u64> {
+    let text = std::fs::read_to_string(path).ok()?;
+    let line = text.lines().find(|l| l.starts_with(key))?;
     let kib: u64 = line
-        .trim_start_matches("MemAvailable:")
+        .trim_start_matches(key)
         .trim()
         .trim_end_matches("kB")
         .trim()

@@ -312,16 +312,7 @@ fn time_run(
 
 /// The process's peak resident memory (Linux `VmHWM`), in bytes.
 fn peak_memory() -> Option<u64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kib: u64 = line
-        .trim_start_matches("VmHWM:")
-        .trim()
-        .trim_end_matches("kB")
-        .trim()
-        .parse()
-        .ok()?;
-    kib.checked_mul(1024)
+    fluidtex::pipeline::proc_kib("/proc/self/status", "VmHWM:")
 }
 
 /// User + system CPU seconds of the process so far (Linux `/proc/self/stat`,

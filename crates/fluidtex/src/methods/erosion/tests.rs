@@ -26,7 +26,9 @@ fn grid(n: usize, cell: f32) -> TriMesh {
     crate::methods::test_clip::grid(n, cell, |_| Vec3::ZERO)
 }
 
-fn shape(radius: f32) -> PatchShape {
+/// The paper's defaults at radius r (no texel scale, no refinement); the
+/// update stage's tests use it too.
+pub(super) fn shape(radius: f32) -> PatchShape {
     PatchShape {
         radius,
         exemplar_size: 2.6 * radius,

@@ -304,17 +304,7 @@ mod tests {
         };
         let (lo, hi) = mesh.bounding_box().expect("surface");
         let radius = (hi - lo).length() / 8.0;
-        let shape = PatchShape {
-            radius,
-            exemplar_size: 2.6 * radius,
-            delta_max: 3.0,
-            delta_onset: 1.0,
-            far_distance: radius / 4.0,
-            centre_radius: radius / 4.0,
-            texel_size: 0.0,
-            feature_width: 1.0,
-            split_length: 0.0,
-        };
+        let shape = super::super::tests::shape(radius);
         let tolerance = LocateTolerance {
             min_bary: -0.05,
             max_plane_distance: 0.125 * radius,
