@@ -336,7 +336,8 @@ pub fn refine_shift(
             best = e;
         }
         let det = a11 * a22 - a12 * a12;
-        if !(det > 1e-12 * (a11 * a22).max(1e-30)) {
+        // A flat patch (no gradient along some direction) or NaN: no step.
+        if det.is_nan() || det <= 1e-12 * (a11 * a22).max(1e-30) {
             break;
         }
         let d = Vec2::new(
