@@ -306,6 +306,26 @@ pub fn steps_for(mesh: &crate::mesh::TriMesh, h: f32) -> u32 {
     1 << k
 }
 
+/// Standard deviation of the luminance of `k`-float values whose first
+/// `colour` floats are the colour (Rec. 709 weights, as the metrics).
+fn luminance_sigma(values: &[f32], k: usize, colour: usize) -> f64 {
+    let lum = |t: &[f32]| -> f64 {
+        if colour >= 3 {
+            (0.2126 * t[0] + 0.7152 * t[1] + 0.0722 * t[2]) as f64
+        } else {
+            t[0] as f64
+        }
+    };
+    let n = (values.len() / k.max(1)).max(1) as f64;
+    let mean = values.chunks_exact(k.max(1)).map(lum).sum::<f64>() / n;
+    let var = values
+        .chunks_exact(k.max(1))
+        .map(|t| (lum(t) - mean).powi(2))
+        .sum::<f64>()
+        / n;
+    var.sqrt()
+}
+
 /// Values restricted from level 0 down the hierarchy: smoothed on each
 /// level, then read at the next level's points.
 fn restrict(levels: &[Level], fine: &[f32], k: usize) -> Vec<Vec<f32>> {
@@ -541,6 +561,7 @@ impl Method for Optimization {
                 spacing: self.params.centre_spacing,
                 iterations: self.params.iterations,
                 robust: self.params.robust,
+                refine: solve::REFINE_STEPS,
             };
             let reports = solve::optimise(&input, &mut s, &mut times);
             level_stats.push(serde_json::json!({
@@ -566,12 +587,15 @@ impl Method for Optimization {
             }
         }
         clock.lap("synthesis");
-        // Split synthesis into its search (neighbourhoods + nearest
-        // neighbours) and solve (averaging, energies, copying up) parts.
+        // Split synthesis into building the neighbourhoods (once per pass),
+        // the search (query vectors + nearest neighbours) and the solve
+        // (z reads, averaging, energies, copying up).
         if let Some((_, total)) = clock.stages.pop() {
-            let search = times.search.min(total);
+            let nb = times.neighbourhoods.min(total);
+            let search = times.search.min(total - nb);
+            clock.stages.push(("neighbourhoods", nb));
             clock.stages.push(("search", search));
-            clock.stages.push(("solve", total - search));
+            clock.stages.push(("solve", total - nb - search));
         }
 
         // 5. Atlas.
@@ -584,7 +608,23 @@ impl Method for Optimization {
         }
         clock.lap("output");
 
+        // Contrast of the point values (and of the transported texture)
+        // against the working exemplar: with the atlas contrast of the
+        // report, says which stage loses it (synthesis, transport, output).
+        let point_contrast = self.search.first().and_then(|x| x.as_ref()).map(|x| {
+            let sigma_ex = luminance_sigma(&x.exemplar.data, k, self.exemplar.colour.channels);
+            let of = |v: &[f32]| {
+                luminance_sigma(v, k, self.exemplar.colour.channels) / sigma_ex.max(1e-12)
+            };
+            (of(&s), transported.as_deref().map(of))
+        });
         let stats = &mut result.stats;
+        if let Some((points, carried)) = point_contrast {
+            stats.insert("point_contrast".into(), serde_json::json!(points));
+            if let Some(c) = carried {
+                stats.insert("transported_contrast".into(), serde_json::json!(c));
+            }
+        }
         stats.insert("points".into(), lattice.len().into());
         stats.insert("lattice_steps".into(), m.into());
         stats.insert("spacing".into(), serde_json::json!(h));

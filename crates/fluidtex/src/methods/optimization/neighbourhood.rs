@@ -32,7 +32,6 @@ pub struct Scratch {
     placed: Vec<u32>,
     layer: Vec<u32>,
     next: Vec<u32>,
-    filled: Vec<bool>,
 }
 
 impl Scratch {
@@ -46,7 +45,6 @@ impl Scratch {
             placed: Vec::new(),
             layer: Vec::new(),
             next: Vec::new(),
-            filled: Vec::new(),
         }
     }
 }
@@ -73,27 +71,43 @@ impl Window {
     }
 }
 
-/// One centre's neighbourhoods.
-pub struct Neighbourhood {
-    /// Members (level vertices) and their texel coordinates.
-    pub members: Vec<(u32, Vec2)>,
+/// Where one search-grid cell of a pixel neighbourhood reads its colour:
+/// the barycentric interpolation of three level vertices, or nothing (the
+/// cell fell outside every flattened triangle).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CellSample {
+    /// Corner level vertices; `u32::MAX` in the first slot: uncovered.
+    pub corners: [u32; 3],
+    pub weights: [f32; 3],
 }
 
-/// Builds the vertex neighbourhood of `centre` (with frame `d`) and writes
-/// its pixel-neighbourhood search vector (g × g × `k` colour values of the
-/// `k`-float `colours`, of which the first `k_search` are compared) into `vector`.
-#[allow(clippy::too_many_arguments)]
+impl CellSample {
+    pub const UNCOVERED: CellSample = CellSample {
+        corners: [u32::MAX; 3],
+        weights: [0.0; 3],
+    };
+
+    #[inline]
+    pub fn covered(&self) -> bool {
+        self.corners[0] != u32::MAX
+    }
+}
+
+/// Builds the vertex neighbourhood of `centre` (with frame `d`): appends
+/// its members (level vertices) and their texel coordinates to `members`,
+/// and writes into `cells` (g × g) where each search-grid sample of its
+/// pixel neighbourhood reads its colour. Both depend on the geometry and
+/// the orientation only, not on the colours, so a pass builds them once
+/// and re-reads the colours every iteration ([`fill_query`]).
 pub fn build(
     level: &Level,
     centre: u32,
     d: Vec3,
     window: Window,
-    colours: &[f32],
-    k: usize,
-    k_search: usize,
     scratch: &mut Scratch,
-    vector: &mut [f32],
-) -> Neighbourhood {
+    members: &mut Vec<(u32, Vec2)>,
+    cells: &mut [CellSample],
+) {
     scratch.generation = scratch.generation.wrapping_add(1);
     if scratch.generation == 0 {
         scratch.stamp.fill(0);
@@ -171,19 +185,19 @@ pub fn build(
             }
         }
     }
-    let members: Vec<(u32, Vec2)> = scratch
-        .placed
-        .iter()
-        .map(|&v| (v, scratch.coords[v as usize]))
-        .filter(|(_, x)| x.x.abs() < half && x.y.abs() < half)
-        .collect();
+    members.extend(
+        scratch
+            .placed
+            .iter()
+            .map(|&v| (v, scratch.coords[v as usize]))
+            .filter(|(_, x)| x.x.abs() < half && x.y.abs() < half),
+    );
 
     // Pixel neighbourhood: rasterise flattened triangles onto the search grid.
     let hg = window.half_grid();
     let side = window.grid as usize;
     let stride = window.stride() as f32;
-    scratch.filled.clear();
-    scratch.filled.resize(side * side, false);
+    cells.fill(CellSample::UNCOVERED);
     let placed_gen = g;
     for pi in 0..scratch.placed.len() {
         let v = scratch.placed[pi];
@@ -204,7 +218,7 @@ pub fn build(
             for y in y0..=y1 {
                 for x in x0..=x1 {
                     let cell = (y + hg) as usize * side + (x + hg) as usize;
-                    if scratch.filled[cell] {
+                    if cells[cell].covered() {
                         continue;
                     }
                     let Some(b) = crate::surface::barycentric_2d(
@@ -218,22 +232,44 @@ pub fn build(
                     if b.iter().any(|&w| w < -1e-4) {
                         continue;
                     }
-                    scratch.filled[cell] = true;
-                    let out = &mut vector[cell * k_search..cell * k_search + k_search];
-                    for (ch, o) in out.iter_mut().enumerate() {
-                        *o = b[0] * colours[tri[0] as usize * k + ch]
-                            + b[1] * colours[tri[1] as usize * k + ch]
-                            + b[2] * colours[tri[2] as usize * k + ch];
-                    }
+                    cells[cell] = CellSample {
+                        corners: tri,
+                        weights: b,
+                    };
                 }
             }
         }
     }
-    // Uncovered samples: the mean of the covered ones (or of the members).
-    let mut mean = vec![0.0f32; k_search];
+}
+
+/// The search vector of a pixel neighbourhood (g × g × `k_search` colour
+/// values of the `k`-float `colours`) from its `cells`; uncovered samples
+/// take the mean of the covered ones (or of the `members` when none is).
+pub fn fill_query(
+    cells: &[CellSample],
+    members: &[(u32, Vec2)],
+    colours: &[f32],
+    k: usize,
+    k_search: usize,
+    vector: &mut [f32],
+    mean: &mut [f32],
+) {
+    mean.fill(0.0);
     let mut count = 0usize;
-    for (cell, &f) in scratch.filled.iter().enumerate() {
-        if f {
+    for (cell, s) in cells.iter().enumerate() {
+        if !s.covered() {
+            continue;
+        }
+        let (tri, b) = (s.corners, s.weights);
+        let out = &mut vector[cell * k_search..cell * k_search + k_search];
+        for (ch, o) in out.iter_mut().enumerate() {
+            *o = b[0] * colours[tri[0] as usize * k + ch]
+                + b[1] * colours[tri[1] as usize * k + ch]
+                + b[2] * colours[tri[2] as usize * k + ch];
+        }
+    }
+    for (cell, s) in cells.iter().enumerate() {
+        if s.covered() {
             for ch in 0..k_search {
                 mean[ch] += vector[cell * k_search + ch];
             }
@@ -241,7 +277,7 @@ pub fn build(
         }
     }
     if count == 0 {
-        for &(v, _) in &members {
+        for &(v, _) in members {
             for ch in 0..k_search {
                 mean[ch] += colours[v as usize * k + ch];
             }
@@ -249,14 +285,13 @@ pub fn build(
         count = members.len();
     }
     if count > 0 {
-        for m in &mut mean {
+        for m in mean.iter_mut() {
             *m /= count as f32;
         }
     }
-    for (cell, &f) in scratch.filled.iter().enumerate() {
-        if !f {
-            vector[cell * k_search..cell * k_search + k_search].copy_from_slice(&mean);
+    for (cell, s) in cells.iter().enumerate() {
+        if !s.covered() {
+            vector[cell * k_search..cell * k_search + k_search].copy_from_slice(mean);
         }
     }
-    Neighbourhood { members }
 }

@@ -107,6 +107,29 @@ impl WorkingExemplar {
         }
     }
 
+    /// Bilinear read of the first `out.len()` channels and their x and y
+    /// derivatives at (x, y) (texel units, repeating).
+    #[inline]
+    pub fn bilinear_grad(&self, x: f32, y: f32, out: &mut [f32], gx: &mut [f32], gy: &mut [f32]) {
+        let (fx, fy) = (x.floor(), y.floor());
+        let (tx, ty) = (x - fx, y - fy);
+        let (ix, iy) = (fx as i32, fy as i32);
+        let t = [
+            self.texel(ix, iy),
+            self.texel(ix + 1, iy),
+            self.texel(ix, iy + 1),
+            self.texel(ix + 1, iy + 1),
+        ];
+        for c in 0..out.len() {
+            let (a, b, d, e) = (t[0][c], t[1][c], t[2][c], t[3][c]);
+            let top = a + tx * (b - a);
+            let bottom = d + tx * (e - d);
+            out[c] = top + ty * (bottom - top);
+            gx[c] = (1.0 - ty) * (b - a) + ty * (e - d);
+            gy[c] = bottom - top;
+        }
+    }
+
     /// Candidate count (one per texel).
     pub fn candidates(&self) -> usize {
         (self.width * self.height) as usize
@@ -129,8 +152,15 @@ pub struct SearchIndex {
     basis: Vec<f32>,
     tree: Option<ImmutableKdTree<f32, PCA_DIMS>>,
     reduced: Vec<[f32; PCA_DIMS]>,
+    /// Every candidate's full search vector (`dims` floats each), kept
+    /// when it fits in [`FULL_VECTORS_LIMIT`] floats so re-ranking reads
+    /// contiguous memory instead of gathering g² texels per candidate.
+    full: Vec<f32>,
     rerank: usize,
 }
+
+/// Most floats kept for the candidates' full search vectors (256 MiB).
+const FULL_VECTORS_LIMIT: usize = 64 << 20;
 
 impl SearchIndex {
     pub fn new(ex: &WorkingExemplar, window: Window, rerank: usize) -> SearchIndex {
@@ -182,18 +212,29 @@ impl SearchIndex {
             basis,
             tree: None,
             reduced: Vec::new(),
+            full: Vec::new(),
             rerank: rerank.max(1),
         };
-        let reduced: Vec<[f32; PCA_DIMS]> = (0..n as u32)
-            .into_par_iter()
-            .map_init(
-                || vec![0.0f32; dims],
-                |buf, i| {
-                    candidate_vector(ex, window, i, buf);
-                    index.project(buf)
-                },
-            )
-            .collect();
+        let reduced: Vec<[f32; PCA_DIMS]> = if n * dims <= FULL_VECTORS_LIMIT {
+            let mut full = vec![0.0f32; n * dims];
+            full.par_chunks_mut(dims)
+                .enumerate()
+                .for_each(|(i, v)| candidate_vector(ex, window, i as u32, v));
+            let reduced = full.par_chunks(dims).map(|v| index.project(v)).collect();
+            index.full = full;
+            reduced
+        } else {
+            (0..n as u32)
+                .into_par_iter()
+                .map_init(
+                    || vec![0.0f32; dims],
+                    |buf, i| {
+                        candidate_vector(ex, window, i, buf);
+                        index.project(buf)
+                    },
+                )
+                .collect()
+        };
         index.tree = ImmutableKdTree::new_from_slice(&reduced).ok();
         index.reduced = reduced;
         index
@@ -228,8 +269,13 @@ impl SearchIndex {
             .execute();
         let mut best = (u32::MAX, f32::INFINITY);
         for item in found {
-            candidate_vector(ex, self.window, item.item, buf);
-            let d = ssd(query, buf);
+            let d = if self.full.is_empty() {
+                candidate_vector(ex, self.window, item.item, buf);
+                ssd(query, buf)
+            } else {
+                let i = item.item as usize * self.dims;
+                ssd(query, &self.full[i..i + self.dims])
+            };
             if d < best.1 || (d == best.1 && item.item < best.0) {
                 best = (item.item, d);
             }

@@ -277,16 +277,21 @@ fn accelerated_search_matches_brute_force() {
 
 /// A flat square level with a uniform orientation, its working exemplar
 /// and passes, for synthesis tests.
+/// `texel_factor` scales the world size of an exemplar texel against the
+/// point spacing (1: members land on whole texels); `refine`: Gauss–Newton
+/// steps of the sub-texel registration.
 fn flat_synthesis(
     exemplar_texels: u32,
     sizes: &[u32],
     seed: u64,
+    texel_factor: f32,
+    refine: u32,
 ) -> (Vec<f32>, Vec<super::solve::PassReport>, WorkingExemplar) {
     let exemplar = pebbles(128);
     let mesh = plane(24, 1.0, |_| Vec3::ZERO);
     let lattice = Lattice::new(&mesh, 4);
     let level = lattice.level(1);
-    let texel = 2.0 / (24.0 * 4.0);
+    let texel = 2.0 / (24.0 * 4.0) * texel_factor;
     let ex = WorkingExemplar::new(&exemplar, exemplar_texels);
     let passes: Vec<SearchIndex> = sizes
         .iter()
@@ -320,6 +325,7 @@ fn flat_synthesis(
         spacing: 0.25,
         iterations: 4,
         robust: 0.8,
+        refine,
     };
     let mut times = SolveTimes::default();
     let reports = optimise(&input, &mut s, &mut times);
@@ -328,7 +334,16 @@ fn flat_synthesis(
 
 #[test]
 fn averaging_never_increases_energy_and_each_pass_ends_lower() {
-    let (_, reports, _) = flat_synthesis(48, &[17, 9], 5);
+    // Integer matches, and matches registered to sub-texel offsets on
+    // points that do not fall on exemplar texels: z is fixed during the
+    // averaging either way.
+    for (factor, refine) in [(1.0, 0), (0.77, super::solve::REFINE_STEPS.max(2))] {
+        check_energy_decrease(factor, refine);
+    }
+}
+
+fn check_energy_decrease(texel_factor: f32, refine: u32) {
+    let (_, reports, _) = flat_synthesis(48, &[17, 9], 5, texel_factor, refine);
     assert_eq!(reports.len(), 2);
     for r in &reports {
         assert!(r.iterations >= 1);
@@ -349,6 +364,135 @@ fn averaging_never_increases_energy_and_each_pass_ends_lower() {
     }
     // Control: the first averaging from random texels removes most energy.
     assert!(reports[0].energies[0].1 < 0.7 * reports[0].energies[0].0);
+}
+
+/// A 9 × 9 vertex neighbourhood turned by 0.4 rad with members 1.3 texels
+/// apart: real-valued texel coordinates, as members have on a surface.
+fn turned_members() -> Vec<(u32, Vec2)> {
+    let (c, s) = (0.4f32.cos(), 0.4f32.sin());
+    let mut out = Vec::new();
+    for j in -4..=4 {
+        for i in -4..=4 {
+            let p = Vec2::new(i as f32, j as f32) * 1.3;
+            out.push((
+                out.len() as u32,
+                Vec2::new(c * p.x - s * p.y, s * p.x + c * p.y),
+            ));
+        }
+    }
+    out
+}
+
+/// s at the members: the exemplar read at `origin` + `delta` + x.
+fn read_at(ex: &WorkingExemplar, origin: Vec2, delta: Vec2, members: &[(u32, Vec2)]) -> Vec<f32> {
+    let k = ex.channels;
+    let mut s = vec![0.0f32; members.len() * k];
+    for &(v, x) in members {
+        let p = origin + delta + x;
+        ex.bilinear(p.x, p.y, &mut s[v as usize * k..v as usize * k + k]);
+    }
+    s
+}
+
+/// ‖s − z(shift)‖² over the colour channels, z read at `origin` + `shift`.
+fn match_ssd(
+    ex: &WorkingExemplar,
+    origin: Vec2,
+    shift: Vec2,
+    members: &[(u32, Vec2)],
+    s: &[f32],
+) -> f64 {
+    let (k, kc) = (ex.channels, ex.colour);
+    let mut z = vec![0.0f32; k];
+    let mut e = 0.0f64;
+    for &(v, x) in members {
+        let p = origin + shift + x;
+        ex.bilinear(p.x, p.y, &mut z);
+        for ch in 0..kc {
+            let d = (s[v as usize * k + ch] - z[ch]) as f64;
+            e += d * d;
+        }
+    }
+    e
+}
+
+#[test]
+fn refinement_recovers_a_sub_texel_translation() {
+    let ex = WorkingExemplar::new(&pebbles(128), 48);
+    let members = turned_members();
+    let steps = super::solve::REFINE_STEPS.max(2);
+    let mut rng = rand::rngs::StdRng::seed_from_u64(11);
+    let mut worst = 0.0f32;
+    for _ in 0..40 {
+        let origin = Vec2::new(
+            rng.random_range(0..48) as f32,
+            rng.random_range(0..48) as f32,
+        );
+        let delta = Vec2::new(rng.random_range(-0.45..0.45), rng.random_range(-0.45..0.45));
+        let s = read_at(&ex, origin, delta, &members);
+        let shift =
+            super::solve::refine_shift(&ex, origin, &members, &s, ex.channels, ex.colour, steps);
+        worst = worst.max((shift - delta).abs().max_element());
+    }
+    eprintln!("worst sub-texel error {worst:.4} texel ({steps} steps)");
+    assert!(worst <= TOL_SHIFT, "worst error {worst} texel");
+    // Control: no steps, no shift (the integer match the search returns).
+    let s = read_at(&ex, Vec2::new(7.0, 9.0), Vec2::new(0.3, -0.2), &members);
+    let none = super::solve::refine_shift(
+        &ex,
+        Vec2::new(7.0, 9.0),
+        &members,
+        &s,
+        ex.channels,
+        ex.colour,
+        0,
+    );
+    assert_eq!(none, Vec2::ZERO);
+}
+
+/// Tolerance of the recovered sub-texel offset, in texels (measured: 0.004
+/// with 2 steps over 40 offsets up to 0.45 texel).
+const TOL_SHIFT: f32 = 0.05;
+
+#[test]
+fn refinement_never_increases_a_match_ssd() {
+    let ex = WorkingExemplar::new(&pebbles(128), 48);
+    let (k, kc) = (ex.channels, ex.colour);
+    let members = turned_members();
+    let mut rng = rand::rngs::StdRng::seed_from_u64(12);
+    let mut lowered = 0;
+    for trial in 0..60 {
+        let origin = Vec2::new(
+            rng.random_range(0..48) as f32,
+            rng.random_range(0..48) as f32,
+        );
+        // Targets the exemplar does not contain exactly: a shifted read
+        // plus noise, or (every third trial) another place entirely.
+        let mut s = if trial % 3 == 0 {
+            let other = Vec2::new(
+                rng.random_range(0..48) as f32,
+                rng.random_range(0..48) as f32,
+            );
+            read_at(&ex, other, Vec2::ZERO, &members)
+        } else {
+            let delta = Vec2::new(rng.random_range(-0.5..0.5), rng.random_range(-0.5..0.5));
+            read_at(&ex, origin, delta, &members)
+        };
+        for x in &mut s {
+            *x += rng.random_range(-0.1..0.1);
+        }
+        let shift = super::solve::refine_shift(&ex, origin, &members, &s, k, kc, 4);
+        assert!(shift.abs().max_element() <= 0.5, "{shift}");
+        let before = match_ssd(&ex, origin, Vec2::ZERO, &members, &s);
+        let after = match_ssd(&ex, origin, shift, &members, &s);
+        assert!(
+            after <= before * (1.0 + 1e-9),
+            "trial {trial}: {before} -> {after}"
+        );
+        lowered += usize::from(after < 0.9 * before);
+    }
+    // Control: on the shifted targets refinement does lower the SSD.
+    assert!(lowered >= 20, "lowered {lowered} of 60");
 }
 
 #[test]
@@ -541,6 +685,7 @@ fn frames_carry_texture_and_report_stats() {
             "points",
             "transport",
             "orientation",
+            "neighbourhoods",
             "search",
             "solve",
             "output"
