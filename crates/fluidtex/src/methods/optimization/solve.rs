@@ -195,12 +195,16 @@ struct PassGeometry {
     by_vertex: Vec<u32>,
 }
 
+/// One parallel chunk's part of a [`PassGeometry`]: members per centre,
+/// the members (vertex, neighbourhood coordinates), the grid cells.
+type ChunkGeometry = (Vec<usize>, Vec<(u32, Vec2)>, Vec<CellSample>);
+
 impl PassGeometry {
     fn build(input: &LevelInput<'_>, window: Window, centres: &[u32]) -> PassGeometry {
         let level = input.level;
         let g2 = (window.grid * window.grid) as usize;
         let chunk = (centres.len() / 64).max(8);
-        let parts: Vec<(Vec<usize>, Vec<(u32, Vec2)>, Vec<CellSample>)> = centres
+        let parts: Vec<ChunkGeometry> = centres
             .par_chunks(chunk)
             .map(|part| {
                 let mut scratch = Scratch::new(level);
@@ -402,43 +406,16 @@ pub fn optimise(input: &LevelInput<'_>, s: &mut [f32], times: &mut SolveTimes) -
         let cs = centres(level, cell);
         let geo = PassGeometry::build(input, window, &cs);
         times.neighbourhoods += t_geo.elapsed().as_secs_f64();
-        let g2 = (window.grid * window.grid) as usize;
         let mut report = PassReport {
             width: window.width,
             centres: cs.len(),
             ..Default::default()
         };
         let mut previous: Vec<u32> = Vec::new();
-        let chunk = (cs.len() / 64).max(16);
         let mut z = vec![0.0f32; geo.members.len() * k];
         for _ in 0..input.iterations.max(1) {
             let t0 = Instant::now();
-            let snapshot: &[f32] = s;
-            let matches: Vec<u32> = (0..cs.len())
-                .into_par_iter()
-                .with_min_len(chunk)
-                .map_init(
-                    || {
-                        (
-                            vec![0.0f32; index.dims],
-                            vec![0.0f32; index.dims],
-                            vec![0.0f32; kc],
-                        )
-                    },
-                    |(q, buf, mean), i| {
-                        fill_query(
-                            &geo.cells[i * g2..(i + 1) * g2],
-                            geo.centre_members(i),
-                            snapshot,
-                            k,
-                            kc,
-                            q,
-                            mean,
-                        );
-                        index.nearest(ex, q, buf).0
-                    },
-                )
-                .collect();
+            let matches = search_matches(index, ex, &geo, s, cs.len());
             times.search += t0.elapsed().as_secs_f64();
             let t1 = Instant::now();
             report.changed = if previous.is_empty() {
@@ -458,79 +435,10 @@ pub fn optimise(input: &LevelInput<'_>, s: &mut [f32], times: &mut SolveTimes) -
             // z_p at every member: the matched exemplar neighbourhood read
             // at the member's real-valued coordinates, shifted by the
             // sub-texel offset that best registers it to the current s.
-            {
-                let mut slices: Vec<&mut [f32]> = Vec::with_capacity(cs.len());
-                let mut rest: &mut [f32] = &mut z;
-                for i in 0..cs.len() {
-                    let (head, tail) = rest.split_at_mut((geo.offsets[i + 1] - geo.offsets[i]) * k);
-                    slices.push(head);
-                    rest = tail;
-                }
-                let snapshot: &[f32] = s;
-                slices
-                    .into_par_iter()
-                    .enumerate()
-                    .with_min_len(16)
-                    .for_each(|(i, out)| {
-                        let (mx, my) = ex.position(matches[i]);
-                        let members = geo.centre_members(i);
-                        let shift = refine_shift(
-                            ex,
-                            Vec2::new(mx as f32, my as f32),
-                            members,
-                            snapshot,
-                            k,
-                            kc,
-                            input.refine,
-                        );
-                        let origin = Vec2::new(mx as f32, my as f32) + shift;
-                        for (o, &(_, x)) in out.chunks_exact_mut(k).zip(members) {
-                            ex.bilinear(origin.x + x.x, origin.y + x.y, o);
-                        }
-                    });
-            }
+            predict(input, &geo, &matches, s, &mut z);
             previous = matches;
-            // Robust weight of each neighbourhood, fixed for this step.
-            let weights: Vec<f64> = (0..cs.len())
-                .into_par_iter()
-                .map(|i| {
-                    let (a, b) = (geo.offsets[i], geo.offsets[i + 1]);
-                    if input.robust >= 2.0 || a == b {
-                        return 1.0;
-                    }
-                    let mut e = 0.0f64;
-                    for j in a..b {
-                        let v = geo.members[j].0 as usize;
-                        for ch in 0..kc {
-                            let d = (s[v * k + ch] - z[j * k + ch]) as f64;
-                            e += d * d;
-                        }
-                    }
-                    let mean = e / (b - a) as f64;
-                    (mean + 1e-6).powf((input.robust as f64 - 2.0) / 2.0)
-                })
-                .collect();
-            // Per vertex: Σ w z, Σ w and the coverage, members in centre order.
-            let mut sum = vec![0.0f64; n * k];
-            let mut weight = vec![0.0f64; n];
-            let mut count = vec![0u32; n];
-            sum.par_chunks_mut(k)
-                .zip(weight.par_iter_mut())
-                .zip(count.par_iter_mut())
-                .enumerate()
-                .with_min_len(256)
-                .for_each(|(v, ((acc, wsum), cnt))| {
-                    let list = &geo.by_vertex[geo.vertex_offsets[v]..geo.vertex_offsets[v + 1]];
-                    for &j in list {
-                        let j = j as usize;
-                        let w = weights[geo.owner[j] as usize];
-                        *wsum += w;
-                        for ch in 0..k {
-                            acc[ch] += w * z[j * k + ch] as f64;
-                        }
-                    }
-                    *cnt = list.len() as u32;
-                });
+            let weights = robust_weights(input, &geo, &z, s, cs.len());
+            let (sum, weight, count) = accumulate(&geo, &z, &weights, n, k);
             let e_t = texture_energy(&geo, &z, s, &weights, k, kc);
             // λ_k relative to the (weighted) neighbourhoods covering k.
             let lambda: Option<Vec<f32>> = lambda0.as_ref().map(|l| {
@@ -578,4 +486,141 @@ pub fn optimise(input: &LevelInput<'_>, s: &mut [f32], times: &mut SolveTimes) -
         reports.push(report);
     }
     reports
+}
+
+/// The exemplar neighbourhood nearest to each centre's current pixel
+/// neighbourhood (the search half of the alternation).
+fn search_matches(
+    index: &SearchIndex,
+    ex: &WorkingExemplar,
+    geo: &PassGeometry,
+    s: &[f32],
+    centres: usize,
+) -> Vec<u32> {
+    let (k, kc) = (ex.channels, ex.colour);
+    let g2 = (index.window.grid * index.window.grid) as usize;
+    let chunk = (centres / 64).max(16);
+    (0..centres)
+        .into_par_iter()
+        .with_min_len(chunk)
+        .map_init(
+            || {
+                (
+                    vec![0.0f32; index.dims],
+                    vec![0.0f32; index.dims],
+                    vec![0.0f32; kc],
+                )
+            },
+            |(q, buf, mean), i| {
+                fill_query(
+                    &geo.cells[i * g2..(i + 1) * g2],
+                    geo.centre_members(i),
+                    s,
+                    k,
+                    kc,
+                    q,
+                    mean,
+                );
+                index.nearest(ex, q, buf).0
+            },
+        )
+        .collect()
+}
+
+/// z_p at every member: the matched exemplar neighbourhood read at the
+/// member's real-valued coordinates, shifted by the sub-texel offset that
+/// best registers it to the current `s`.
+fn predict(input: &LevelInput<'_>, geo: &PassGeometry, matches: &[u32], s: &[f32], z: &mut [f32]) {
+    let ex = input.exemplar;
+    let (k, kc) = (ex.channels, ex.colour);
+    let mut slices: Vec<&mut [f32]> = Vec::with_capacity(matches.len());
+    let mut rest: &mut [f32] = z;
+    for i in 0..matches.len() {
+        let (head, tail) = rest.split_at_mut((geo.offsets[i + 1] - geo.offsets[i]) * k);
+        slices.push(head);
+        rest = tail;
+    }
+    slices
+        .into_par_iter()
+        .enumerate()
+        .with_min_len(16)
+        .for_each(|(i, out)| {
+            let (mx, my) = ex.position(matches[i]);
+            let members = geo.centre_members(i);
+            let shift = refine_shift(
+                ex,
+                Vec2::new(mx as f32, my as f32),
+                members,
+                s,
+                k,
+                kc,
+                input.refine,
+            );
+            let origin = Vec2::new(mx as f32, my as f32) + shift;
+            for (o, &(_, x)) in out.chunks_exact_mut(k).zip(members) {
+                ex.bilinear(origin.x + x.x, origin.y + x.y, o);
+            }
+        });
+}
+
+/// Robust weight of each neighbourhood, fixed for one minimisation step.
+fn robust_weights(
+    input: &LevelInput<'_>,
+    geo: &PassGeometry,
+    z: &[f32],
+    s: &[f32],
+    centres: usize,
+) -> Vec<f64> {
+    let (k, kc) = (input.exemplar.channels, input.exemplar.colour);
+    (0..centres)
+        .into_par_iter()
+        .map(|i| {
+            let (a, b) = (geo.offsets[i], geo.offsets[i + 1]);
+            if input.robust >= 2.0 || a == b {
+                return 1.0;
+            }
+            let mut e = 0.0f64;
+            for j in a..b {
+                let v = geo.members[j].0 as usize;
+                for ch in 0..kc {
+                    let d = (s[v * k + ch] - z[j * k + ch]) as f64;
+                    e += d * d;
+                }
+            }
+            let mean = e / (b - a) as f64;
+            (mean + 1e-6).powf((input.robust as f64 - 2.0) / 2.0)
+        })
+        .collect()
+}
+
+/// Per vertex: Σ w z, Σ w and the number of neighbourhoods covering it,
+/// members in centre order.
+fn accumulate(
+    geo: &PassGeometry,
+    z: &[f32],
+    weights: &[f64],
+    n: usize,
+    k: usize,
+) -> (Vec<f64>, Vec<f64>, Vec<u32>) {
+    let mut sum = vec![0.0f64; n * k];
+    let mut weight = vec![0.0f64; n];
+    let mut count = vec![0u32; n];
+    sum.par_chunks_mut(k)
+        .zip(weight.par_iter_mut())
+        .zip(count.par_iter_mut())
+        .enumerate()
+        .with_min_len(256)
+        .for_each(|(v, ((acc, wsum), cnt))| {
+            let list = &geo.by_vertex[geo.vertex_offsets[v]..geo.vertex_offsets[v + 1]];
+            for &j in list {
+                let j = j as usize;
+                let w = weights[geo.owner[j] as usize];
+                *wsum += w;
+                for ch in 0..k {
+                    acc[ch] += w * z[j * k + ch] as f64;
+                }
+            }
+            *cnt = list.len() as u32;
+        });
+    (sum, weight, count)
 }
