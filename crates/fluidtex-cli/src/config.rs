@@ -321,7 +321,7 @@ pub struct RunFlags {
     /// Weights over time: progressive (monotone, rate-limited) or paper
     #[arg(long, value_parser = named::<WeightMode>())]
     pub weights: Option<WeightMode>,
-    /// Progressive weights: largest fall of w per second [2.4]
+    /// Progressive weights: largest fall of w per second [4.8]
     #[arg(long)]
     pub erosion_rate: Option<f32>,
     /// Where the erosion falloff D reaches 0: footprint (r/S) or paper (0.5)
@@ -339,7 +339,7 @@ pub struct RunFlags {
     /// Split patch edges longer than this many median edge lengths of the frame (0: never, the paper) [2]
     #[arg(long)]
     pub split_edges: Option<f32>,
-    /// Distortion at which erosion starts: Q_T = 1 below it, then falls linearly to 0 at δ_max [1: the paper's Eq. 1]
+    /// Distortion at which erosion starts: Q_T = 1 below it, then falls linearly to 0 at δ_max [1.5; 1: the paper's Eq. 1]
     #[arg(long)]
     pub delta_onset: Option<f32>,
     /// dual-rest: frames between two resets of a layer [24]

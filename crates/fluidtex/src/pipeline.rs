@@ -187,6 +187,12 @@ pub struct FrameStats {
     /// was covered.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub source_switch_share: Option<f64>,
+    /// Of the same points with a patch at the previous frame, the share
+    /// whose patch is gone, switched or over a hole
+    /// ([`crate::metrics::SourceSwitch::changed_share`]): what compares a
+    /// method that leaves holes with one that fills them.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub source_changed_share: Option<f64>,
     /// Colour follow ratio over the same points (see
     /// [`crate::metrics::colour_follow`]); `null` when too few points moved.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -443,6 +449,7 @@ impl FrameSink for FileSink<'_, '_> {
                 && let Some(c) = self.measure_coherence(&mut files, prev, before, g, &current)?
             {
                 stats.source_switch_share = Some(c.switch_share());
+                stats.source_changed_share = Some(c.switch.changed_share());
                 stats.colour_follow_ratio = Some(c.follow_ratio());
             }
             self.coherence_prev = Some(CoherencePrevious::of(

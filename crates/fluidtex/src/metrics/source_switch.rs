@@ -15,6 +15,13 @@
 //! percent from texel rounding at patch borders, which is why the pass
 //! rule compares against the `advect` baseline on the same frames
 //! ([`super::Thresholds::summarize_against_floor`]).
+//!
+//! A method that leaves holes (advect) and one that covers them with new
+//! patches differ in *where* a point can switch: where a patch stops
+//! covering, the first shows a hole (not counted) and the second a new
+//! patch (a switch). [`SourceSwitch::lost`] counts the points of the first
+//! kind, so the two can be compared on the same footing
+//! ([`SourceSwitch::changed_share`]).
 
 use super::{MetricsError, SOURCE_OUTSIDE, SOURCE_UNCOVERED};
 
@@ -25,6 +32,9 @@ pub struct SourceSwitch {
     pub covered: usize,
     /// Of those, points whose patch differs.
     pub switched: usize,
+    /// Points with a patch at t that land on an uncovered texel (a hole)
+    /// at t+1; not in `covered`.
+    pub lost: usize,
 }
 
 impl SourceSwitch {
@@ -34,6 +44,19 @@ impl SourceSwitch {
             f64::NAN
         } else {
             self.switched as f64 / self.covered as f64
+        }
+    }
+
+    /// Share of the points with a patch at t whose patch is gone at t+1,
+    /// switched or lost: (switched + lost) / (covered + lost) (NaN when no
+    /// such point). Equal to [`SourceSwitch::share`] for a method that
+    /// leaves no hole.
+    pub fn changed_share(&self) -> f64 {
+        let n = self.covered + self.lost;
+        if n == 0 {
+            f64::NAN
+        } else {
+            (self.switched + self.lost) as f64 / n as f64
         }
     }
 }
@@ -57,11 +80,14 @@ pub fn source_switch(before: &[u32], after: &[u32]) -> Result<SourceSwitch, Metr
     let mut out = SourceSwitch {
         covered: 0,
         switched: 0,
+        lost: 0,
     };
     for (&a, &b) in before.iter().zip(after) {
         if is_patch(a) && is_patch(b) {
             out.covered += 1;
             out.switched += usize::from(a != b);
+        } else if is_patch(a) && b == SOURCE_UNCOVERED {
+            out.lost += 1;
         }
     }
     Ok(out)
@@ -73,17 +99,22 @@ mod tests {
 
     #[test]
     fn only_points_covered_at_both_ends_count() {
-        let before = [1, 1, 2, 2, SOURCE_OUTSIDE, 3, SOURCE_UNCOVERED, 4];
-        let after = [1, 2, 2, 3, 1, SOURCE_UNCOVERED, 5, 4];
+        let before = [1, 1, 2, 2, SOURCE_OUTSIDE, 3, SOURCE_UNCOVERED, 4, 6];
+        let after = [1, 2, 2, 3, 1, SOURCE_UNCOVERED, 5, 4, SOURCE_OUTSIDE];
         let s = source_switch(&before, &after).expect("same lengths");
         assert_eq!(
             s,
             SourceSwitch {
                 covered: 5,
-                switched: 2
+                switched: 2,
+                lost: 1,
             }
         );
         assert_eq!(s.share(), 0.4);
+        // A point that leaves every chart is not lost: it has no texel.
+        assert_eq!(s.changed_share(), 0.5);
+        let no_holes = source_switch(&[1, 2], &[1, 3]).expect("same lengths");
+        assert_eq!(no_holes.changed_share(), no_holes.share());
         let none = source_switch(&[SOURCE_OUTSIDE], &[1]).expect("same lengths");
         assert!(none.share().is_nan());
         assert!(matches!(

@@ -62,11 +62,11 @@ pub struct ErosionParams {
     /// δ_max of Eq. 1 \[3]: triangles at or beyond this distortion have Q_T = 0.
     pub delta_max: f32,
     /// Distortion at which erosion starts: Q_T of Eq. 1 stays 1 up to δ_onset
-    /// and falls linearly to 0 at δ_max \[1: the paper's Eq. 1, where any
-    /// distortion lowers Q_T]. Above 1, a patch sheared by a slow flow keeps
-    /// every texel until its distortion is visible instead of shedding a
-    /// thin band of texels every frame from its first frame on; pair it with
-    /// a faster `erosion_rate` so patches are still gone by δ_max.
+    /// and falls linearly to 0 at δ_max \[1.5; 1 is the paper's Eq. 1, where
+    /// any distortion lowers Q_T]. Above 1, a patch sheared by a slow flow
+    /// keeps every texel until its distortion is visible instead of shedding
+    /// a thin band of texels every frame from its first frame on; it comes
+    /// with a faster `erosion_rate` so patches are still gone by δ_max.
     pub delta_onset: f32,
     /// ε of the erosion test, Sec. 5.2 [0.1], in (0, 1).
     pub epsilon: f32,
@@ -86,7 +86,7 @@ pub struct ErosionParams {
     /// How vertex weights w_V evolve over time \[progressive] (see [`WeightMode`]).
     pub weights: WeightMode,
     /// Progressive weights: the largest decrease of w_V per second of
-    /// animation [2.4, i.e. 0.1 per frame at 24 fps], so a patch takes at
+    /// animation [4.8, i.e. 0.2 per frame at 24 fps], so a patch takes at
     /// least 1/rate seconds to erode from whole to nothing.
     pub erosion_rate: f32,
     /// Reach of the centre falloff D(u, v) of the erosion test (Sec. 5.2)
@@ -159,7 +159,7 @@ impl Default for ErosionParams {
             exemplar_size: None,
             exemplar_scale: 2.6,
             delta_max: 3.0,
-            delta_onset: 1.0,
+            delta_onset: 1.5,
             epsilon: 0.1,
             far_fraction: 0.25,
             centre_fraction: 0.25,
@@ -168,7 +168,7 @@ impl Default for ErosionParams {
             random_rotation: true,
             placement: Placement::Local,
             weights: WeightMode::Progressive,
-            erosion_rate: 2.4,
+            erosion_rate: 4.8,
             falloff: Falloff::Footprint,
             orientation: Orientation::Random,
             up_axis: [0.0, 1.0, 0.0],
@@ -421,6 +421,7 @@ impl Erosion {
             delta_onset: self.params.delta_onset,
             far_distance: self.params.far_fraction * radius,
             centre_radius: self.params.centre_fraction * radius,
+            whole_centre: self.params.weights == WeightMode::Progressive,
         }
     }
 }

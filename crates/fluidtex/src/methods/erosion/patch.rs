@@ -42,6 +42,15 @@ pub struct PatchShape {
     /// as the fluid mesh it rides on; 0 disables it (the paper). See
     /// [`Patch::refine`].
     pub split_length: f32,
+    /// A new patch starts with w = 1 on its pinned vertices, whatever Q_V
+    /// (progressive weights; the paper's w_V = Q_V·B_V from the first frame
+    /// when false). Flattening a curved region can leave the centre's Q_V so
+    /// low that the patch erodes the very texel it was made for; the patch
+    /// then shows nothing, is deleted the next frame, and an identical patch
+    /// with a new id replaces it, frame after frame, even on a fluid at rest.
+    /// Progressive weights then lower the centre towards Q_V at the erosion
+    /// rate, like any other vertex.
+    pub whole_centre: bool,
 }
 
 /// Rounds of [`Patch::refine`] per call: each round halves the longest
@@ -134,52 +143,8 @@ impl Patch {
         taken.sort_unstable();
         let (sub, _) = mesh.submesh(&taken);
         let seed_local = taken.binary_search(&seed).unwrap_or(0);
-        let flat = flatten(&sub.positions, &sub.triangles, n_p);
-        // Orientation: seen from the side the normal points to, the exemplar
-        // must not be mirrored. Our uv has v pointing down (texture.rs), so an
-        // unmirrored map has negative signed uv area for CCW triangles.
-        let signed: f64 = sub
-            .triangles
-            .iter()
-            .map(|t| {
-                let (a, b, c) = (
-                    flat[t[0] as usize],
-                    flat[t[1] as usize],
-                    flat[t[2] as usize],
-                );
-                (b - a).perp_dot(c - a) as f64
-            })
-            .sum();
-        let flip = if signed > 0.0 { -1.0 } else { 1.0 };
-        let flat: Vec<Vec2> = flat.iter().map(|q| Vec2::new(q.x, q.y * flip)).collect();
-        let uv_area = signed.abs() * 0.5;
-        let area_3d = sub.area();
-        let scale = if uv_area > 0.0 {
-            ((area_3d / (shape.exemplar_size as f64).powi(2)) / uv_area).sqrt() as f32
-        } else {
-            1.0 / shape.exemplar_size
-        };
         let [ia, ib, ic] = sub.triangles[seed_local];
-        let p_flat = flat[ia as usize] * at.bary[0]
-            + flat[ib as usize] * at.bary[1]
-            + flat[ic as usize] * at.bary[2];
-        let rotation = match align {
-            Some(axis) => {
-                let [a, b, c] = sub.triangles[seed_local].map(|v| v as usize);
-                let corners = [sub.positions[a], sub.positions[b], sub.positions[c]];
-                let flat_corners = [flat[a], flat[b], flat[c]];
-                aligned_rotation(corners, flat_corners, n_p, axis).unwrap_or(rotation)
-            }
-            None => rotation,
-        };
-        let (sin, cos) = rotation.sin_cos();
-        let rest: Vec<Vec2> = flat
-            .iter()
-            .map(|&q| {
-                let d = (q - p_flat) * scale;
-                Vec2::new(cos * d.x - sin * d.y, sin * d.x + cos * d.y) + Vec2::splat(0.5)
-            })
-            .collect();
+        let rest = rest_coordinates(&sub, seed_local, at.bary, n_p, shape, rotation, align);
         let centre = Vec2::splat(0.5);
         let mut pinned: Vec<bool> = rest
             .iter()
@@ -202,6 +167,13 @@ impl Patch {
         // The copied fluid triangles lie on the surface, so do their edge midpoints.
         patch.refine(shape.split_length, Some);
         patch.update_weights(shape, None);
+        if shape.whole_centre {
+            for (w, &pinned) in patch.weight.iter_mut().zip(&patch.pinned) {
+                if pinned {
+                    *w = 1.0;
+                }
+            }
+        }
         Some(patch)
     }
 
@@ -450,6 +422,65 @@ impl Patch {
         }
         self.weight = target;
     }
+}
+
+/// The rest coordinates (exemplar uv) of a new patch's vertices: `sub`
+/// flattened by LSCM, unmirrored seen from `n_p`, scaled so that uv area
+/// equals 3-D area / S², the point at `bary` of triangle `seed_local` at
+/// (0.5, 0.5), turned by `rotation` (or aligned to `align`).
+fn rest_coordinates(
+    sub: &TriMesh,
+    seed_local: usize,
+    bary: [f32; 3],
+    n_p: Vec3,
+    shape: &PatchShape,
+    rotation: f32,
+    align: Option<Vec3>,
+) -> Vec<Vec2> {
+    let flat = flatten(&sub.positions, &sub.triangles, n_p);
+    // Orientation: seen from the side the normal points to, the exemplar
+    // must not be mirrored. Our uv has v pointing down (texture.rs), so an
+    // unmirrored map has negative signed uv area for CCW triangles.
+    let signed: f64 = sub
+        .triangles
+        .iter()
+        .map(|t| {
+            let (a, b, c) = (
+                flat[t[0] as usize],
+                flat[t[1] as usize],
+                flat[t[2] as usize],
+            );
+            (b - a).perp_dot(c - a) as f64
+        })
+        .sum();
+    let flip = if signed > 0.0 { -1.0 } else { 1.0 };
+    let flat: Vec<Vec2> = flat.iter().map(|q| Vec2::new(q.x, q.y * flip)).collect();
+    let uv_area = signed.abs() * 0.5;
+    let area_3d = sub.area();
+    let scale = if uv_area > 0.0 {
+        ((area_3d / (shape.exemplar_size as f64).powi(2)) / uv_area).sqrt() as f32
+    } else {
+        1.0 / shape.exemplar_size
+    };
+    let [ia, ib, ic] = sub.triangles[seed_local];
+    let p_flat =
+        flat[ia as usize] * bary[0] + flat[ib as usize] * bary[1] + flat[ic as usize] * bary[2];
+    let rotation = match align {
+        Some(axis) => {
+            let [a, b, c] = sub.triangles[seed_local].map(|v| v as usize);
+            let corners = [sub.positions[a], sub.positions[b], sub.positions[c]];
+            let flat_corners = [flat[a], flat[b], flat[c]];
+            aligned_rotation(corners, flat_corners, n_p, axis).unwrap_or(rotation)
+        }
+        None => rotation,
+    };
+    let (sin, cos) = rotation.sin_cos();
+    flat.iter()
+        .map(|&q| {
+            let d = (q - p_flat) * scale;
+            Vec2::new(cos * d.x - sin * d.y, sin * d.x + cos * d.y) + Vec2::splat(0.5)
+        })
+        .collect()
 }
 
 /// The rotation (radians, applied to the flattened patch) that turns the

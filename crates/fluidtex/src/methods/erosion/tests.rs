@@ -39,6 +39,7 @@ pub(super) fn shape(radius: f32) -> PatchShape {
         texel_size: 0.0,
         feature_width: 1.0,
         split_length: 0.0,
+        whole_centre: false,
     }
 }
 
@@ -147,6 +148,7 @@ fn weights_follow_eqs_1_to_3_on_a_hand_built_patch() {
         texel_size: 0.0,
         feature_width: 1.0,
         split_length: 0.0,
+        whole_centre: false,
     };
     let rest: Vec<Vec2> = mesh.positions.iter().map(|p| p.truncate()).collect();
     // Stretch vertex 8 (corner) along x by 1: only triangles using it deform.
@@ -217,6 +219,57 @@ fn weights_follow_eqs_1_to_3_on_a_hand_built_patch() {
     assert_eq!(patch.weight[4], 1.0);
     assert_eq!(patch.weight[0], 1.0);
     assert_eq!(patch.weight[1], 0.0);
+}
+
+#[test]
+fn a_new_patch_keeps_its_centre_whole_however_curved_the_surface() {
+    // A patch over most of a hemisphere is flattened with distortion
+    // everywhere, its centre included: with δ_max close to 1 the paper's
+    // w_V there is far below 1, and the texel the patch was made for would
+    // erode (the still-fluid churn: the patch shows nothing, is deleted,
+    // and an identical one with a new id replaces it every frame).
+    let mesh = crate::atlas::fixtures::icosphere(6);
+    let at = SurfacePoint::new(0, [0.3, 0.3, 0.4]);
+    let paper = PatchShape {
+        delta_max: 1.2,
+        ..shape(1.2)
+    };
+    let before = create_on(&mesh, at, &paper, 0.0);
+    let pinned: Vec<usize> = (0..before.pinned.len())
+        .filter(|&v| before.pinned[v])
+        .collect();
+    assert!(pinned.len() >= 3);
+    let lowest = pinned
+        .iter()
+        .map(|&v| before.weight[v])
+        .fold(f32::INFINITY, f32::min);
+    // Control: the condition arises without the guard.
+    assert!(lowest < 0.5, "lowest pinned weight {lowest}");
+    let whole = PatchShape {
+        whole_centre: true,
+        ..paper
+    };
+    let patch = create_on(&mesh, at, &whole, 0.0);
+    assert_eq!(patch.positions, before.positions);
+    assert_eq!(patch.rest, before.rest);
+    for v in 0..patch.weight.len() {
+        let expected = if patch.pinned[v] {
+            1.0
+        } else {
+            before.weight[v]
+        };
+        assert_eq!(patch.weight[v], expected, "vertex {v}");
+    }
+    // With w = 1 the centre survives the erosion test for any feature value.
+    let test = ErosionTest::new(2f32.sqrt(), 0.1);
+    for k in 0..=10 {
+        let f = k as f32 / 10.0;
+        assert!(!test.eroded(f, 0.5, 0.5, 1.0), "feature {f}");
+        assert!(
+            test.eroded(f, 0.5, 0.5, lowest.min(0.3)),
+            "control, feature {f}"
+        );
+    }
 }
 
 fn exemplar() -> Arc<Exemplar> {
@@ -678,21 +731,33 @@ fn frames_after_the_flow_stops_are_bit_identical() {
         "the scene is still"
     );
     let c = Clip::from_meshes(meshes, 64);
-    let mut method = Erosion::new(ErosionParams::default(), exemplar(), 1).expect("params");
-    let r = step_all(&mut method, &c);
-    // Control: the frames before the stop do change.
-    assert!(r[0].channels != r[2].channels);
-    for k in 5..r.len() {
-        assert!(
-            r[k].channels == r[4].channels,
-            "frame {} changed",
-            frames[k]
-        );
-        assert!(
-            r[k].source == r[4].source,
-            "frame {} sources changed",
-            frames[k]
-        );
+    // The defaults (a later onset with a faster erosion) and the paper's
+    // Eq. 1 with the slower rate: the erosion that follows the stop must
+    // settle in both.
+    let paper_onset = ErosionParams {
+        delta_onset: 1.0,
+        erosion_rate: 2.4,
+        ..ErosionParams::default()
+    };
+    for params in [ErosionParams::default(), paper_onset] {
+        let mut method = Erosion::new(params.clone(), exemplar(), 1).expect("params");
+        let r = step_all(&mut method, &c);
+        // Control: the frames before the stop do change.
+        assert!(r[0].channels != r[2].channels);
+        for k in 5..r.len() {
+            assert!(
+                r[k].channels == r[4].channels,
+                "onset {}: frame {} changed",
+                params.delta_onset,
+                frames[k]
+            );
+            assert!(
+                r[k].source == r[4].source,
+                "onset {}: frame {} sources changed",
+                params.delta_onset,
+                frames[k]
+            );
+        }
     }
 }
 

@@ -90,58 +90,22 @@ pub fn cover(
     if uncovered.is_empty() {
         return stats;
     }
-    let mesh = inputs.surface.mesh;
-    let mut covered = vec![false; uncovered.len()];
-    // Uncovered texels by fluid triangle, in texel order.
-    let mut by_triangle: HashMap<u32, Vec<u32>> = HashMap::new();
-    for (k, u) in uncovered.iter().enumerate() {
-        by_triangle.entry(u.triangle).or_default().push(k as u32);
-    }
-    let point = |u: &Uncovered| crate::surface::SurfacePoint::new(u.triangle, u.bary);
-    let mut cursor = 0usize;
-    loop {
-        // Seeds of this round.
-        let seeds: Vec<usize> = match inputs.placement {
-            Placement::Local => {
-                while cursor < uncovered.len() && covered[cursor] {
-                    cursor += 1;
-                }
-                if cursor == uncovered.len() {
-                    break;
-                }
-                vec![cursor]
-            }
-            Placement::Global => {
-                let mut disks = DiskSet::new(inputs.shape.radius, inputs.normal_dot);
-                let mut chosen = Vec::new();
-                for (k, u) in uncovered.iter().enumerate() {
-                    if covered[k] {
-                        continue;
-                    }
-                    let x = point(u).position(mesh);
-                    if disks.try_insert(x, mesh.triangle_normal(u.triangle as usize)) {
-                        chosen.push(k);
-                    }
-                }
-                if chosen.is_empty() {
-                    break;
-                }
-                chosen
-            }
-        };
+    let mut holes = Holes::new(uncovered);
+    while let Some(seeds) = holes.next_seeds(inputs) {
         stats.rounds += 1;
         let first_id = *next_id;
         let created: Vec<(Patch, usize)> = seeds
             .par_iter()
             .enumerate()
             .filter_map(|(k, &s)| {
+                let at = holes.point(s);
                 let id = first_id + k as u32;
                 Patch::create(
                     id,
                     inputs.surface,
-                    point(&uncovered[s]),
+                    at,
                     &inputs.shape,
-                    (inputs.rotation)(point(&uncovered[s])),
+                    (inputs.rotation)(at),
                     inputs.align,
                 )
                 .map(|p| (p, s))
@@ -153,74 +117,144 @@ pub fn cover(
         }
         for (mut patch, seed) in created {
             stats.created += 1;
-            let at = point(&uncovered[seed]);
+            let at = holes.point(seed);
             if let Some(c) = chooser.as_deref_mut() {
                 patch.exemplar = c.choose(at, super::location_key(at));
             }
-            let mut shown = 0usize;
-            let one = std::slice::from_ref(&patch);
-            let frames = patch_frames(one);
-            let ctx = FillContext {
-                mesh,
-                patches: one,
-                frames: &frames,
-                exemplar: template.exemplar,
-                feature: template.feature,
-                test: template.test,
-                tolerance: template.tolerance,
-                multi: template.multi,
-            };
-            let candidates = PatchCandidates::build(
-                mesh,
-                inputs.index,
-                &patch,
-                frames.first().map_or(&[][..], Vec::as_slice),
-                template.tolerance,
-            );
-            for (f, list) in candidates.groups() {
-                let Some(texels) = by_triangle.get(&f) else {
-                    continue;
-                };
-                let [a, b, c] = mesh.corners(f as usize);
-                let n = (b - a).cross(c - a).normalize_or_zero();
-                for &k in texels {
-                    let k = k as usize;
-                    if covered[k] {
-                        continue;
-                    }
-                    let u = &uncovered[k];
-                    let x = a * u.bary[0] + b * u.bary[1] + c * u.bary[2];
-                    if let Some(hit) = ctx.resolve(list, x, n) {
-                        out.write(u.texel as usize, hit, patch.id, ctx.exemplar_of(0));
-                        covered[k] = true;
-                        shown += 1;
-                    }
-                }
-            }
-            if !covered[seed] {
-                // See the module doc: the creating texel is the patch centre.
-                let hit = Hit {
-                    patch: 0,
-                    uv: Vec2::splat(0.5),
-                };
-                out.write(
-                    uncovered[seed].texel as usize,
-                    hit,
-                    patch.id,
-                    ctx.exemplar_of(0),
-                );
-                covered[seed] = true;
-                stats.forced += 1;
-                shown += 1;
-            }
+            let (shown, forced) = holes.fill(template, inputs, &patch, seed, out);
+            stats.forced += usize::from(forced);
             if let Some(c) = chooser.as_deref_mut() {
-                c.coverage
-                    .push(at.position(mesh), patch.exemplar, shown as f32);
+                c.coverage.push(
+                    at.position(inputs.surface.mesh),
+                    patch.exemplar,
+                    shown as f32,
+                );
             }
             patches.push(patch);
         }
     }
     stats
+}
+
+/// The update's uncovered texels and which of them new patches covered.
+struct Holes<'u> {
+    uncovered: &'u [Uncovered],
+    covered: Vec<bool>,
+    /// Uncovered texels by fluid triangle, in texel order.
+    by_triangle: HashMap<u32, Vec<u32>>,
+    /// Local placement: no texel before it is uncovered.
+    cursor: usize,
+}
+
+impl<'u> Holes<'u> {
+    fn new(uncovered: &'u [Uncovered]) -> Holes<'u> {
+        let mut by_triangle: HashMap<u32, Vec<u32>> = HashMap::new();
+        for (k, u) in uncovered.iter().enumerate() {
+            by_triangle.entry(u.triangle).or_default().push(k as u32);
+        }
+        Holes {
+            uncovered,
+            covered: vec![false; uncovered.len()],
+            by_triangle,
+            cursor: 0,
+        }
+    }
+
+    fn point(&self, k: usize) -> crate::surface::SurfacePoint {
+        let u = &self.uncovered[k];
+        crate::surface::SurfacePoint::new(u.triangle, u.bary)
+    }
+
+    /// The texels new patches are centred at this round; `None` when every
+    /// texel is covered.
+    fn next_seeds(&mut self, inputs: &UpdateInputs<'_>) -> Option<Vec<usize>> {
+        match inputs.placement {
+            Placement::Local => {
+                while self.cursor < self.uncovered.len() && self.covered[self.cursor] {
+                    self.cursor += 1;
+                }
+                (self.cursor < self.uncovered.len()).then(|| vec![self.cursor])
+            }
+            Placement::Global => {
+                let mesh = inputs.surface.mesh;
+                let mut disks = DiskSet::new(inputs.shape.radius, inputs.normal_dot);
+                let mut chosen = Vec::new();
+                for (k, u) in self.uncovered.iter().enumerate() {
+                    if self.covered[k] {
+                        continue;
+                    }
+                    let x = self.point(k).position(mesh);
+                    if disks.try_insert(x, mesh.triangle_normal(u.triangle as usize)) {
+                        chosen.push(k);
+                    }
+                }
+                (!chosen.is_empty()).then_some(chosen)
+            }
+        }
+    }
+
+    /// Fills the still uncovered texels new patch `patch` (made at texel
+    /// `seed`) shows; returns how many, and whether the seed texel had to
+    /// be assigned to it without showing it (see the module doc).
+    fn fill(
+        &mut self,
+        template: &FillContext<'_>,
+        inputs: &UpdateInputs<'_>,
+        patch: &Patch,
+        seed: usize,
+        out: &mut FillBuffers,
+    ) -> (usize, bool) {
+        let mesh = inputs.surface.mesh;
+        let one = std::slice::from_ref(patch);
+        let frames = patch_frames(one);
+        let ctx = FillContext {
+            mesh,
+            patches: one,
+            frames: &frames,
+            ..*template
+        };
+        let candidates = PatchCandidates::build(
+            mesh,
+            inputs.index,
+            patch,
+            frames.first().map_or(&[][..], Vec::as_slice),
+            template.tolerance,
+        );
+        let mut shown = 0usize;
+        for (f, list) in candidates.groups() {
+            let Some(texels) = self.by_triangle.get(&f) else {
+                continue;
+            };
+            let [a, b, c] = mesh.corners(f as usize);
+            let n = (b - a).cross(c - a).normalize_or_zero();
+            for &k in texels {
+                let k = k as usize;
+                if self.covered[k] {
+                    continue;
+                }
+                let u = &self.uncovered[k];
+                let x = a * u.bary[0] + b * u.bary[1] + c * u.bary[2];
+                if let Some(hit) = ctx.resolve(list, x, n) {
+                    out.write(u.texel as usize, hit, patch.id, ctx.exemplar_of(0));
+                    self.covered[k] = true;
+                    shown += 1;
+                }
+            }
+        }
+        let forced = !self.covered[seed];
+        if forced {
+            // See the module doc: the creating texel is the patch centre.
+            let hit = Hit {
+                patch: 0,
+                uv: Vec2::splat(0.5),
+            };
+            let texel = self.uncovered[seed].texel as usize;
+            out.write(texel, hit, patch.id, ctx.exemplar_of(0));
+            self.covered[seed] = true;
+            shown += 1;
+        }
+        (shown, forced)
+    }
 }
 
 /// The fluid triangles one new patch may cover, each with its candidate
