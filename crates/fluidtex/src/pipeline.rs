@@ -30,9 +30,8 @@ use thiserror::Error;
 use std::sync::Arc;
 
 use crate::atlas::{AtlasError, AtlasParams};
-use crate::driver::{
-    DrivenFrame, Driver, DriverError, FrameGeometry, FrameSink, PendingFrame, StageClock,
-};
+use crate::driver::{DrivenFrame, Driver, DriverError, FrameSink, PendingFrame};
+use crate::frame::{FrameGeometry, GeometryError, StageClock};
 use crate::io::image::{ExrOptions, ExrSample, PngDepth, PngOptions};
 use crate::io::{InputGuard, IoError, Staging, WriteHook};
 use crate::mesh::{TriMesh, ValidationReport};
@@ -366,6 +365,12 @@ fn resume(
     }
     frames.retain(|&f| f > last);
     Ok((previous, Some(last)))
+}
+
+impl From<GeometryError> for PipelineError {
+    fn from(e: GeometryError) -> PipelineError {
+        PipelineError::from(DriverError::from(e))
+    }
 }
 
 impl From<DriverError> for PipelineError {
