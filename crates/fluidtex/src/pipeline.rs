@@ -755,11 +755,10 @@ fn read_grey(job: &Job, method: &dyn Method, number: i32) -> Result<Vec<f32>, Pi
         frame_tag(number),
         spec.format.extension()
     ));
-    let decoded =
-        crate::exemplar::decode::read_image(&path).map_err(|e| PipelineError::Output {
-            path: path.clone(),
-            message: format!("cannot read it back for the coherence measurement: {e}"),
-        })?;
+    let decoded = crate::io::image_read::read_image(&path).map_err(|e| PipelineError::Output {
+        path: path.clone(),
+        message: format!("cannot read it back for the coherence measurement: {e}"),
+    })?;
     Ok(crate::metrics::luminance(&decoded.texture))
 }
 
@@ -777,7 +776,7 @@ fn reload_coherence(
 ) -> Option<CoherencePrevious> {
     let load = || -> Result<CoherencePrevious, String> {
         let path = job.out_dir.join(format!("source.{}.exr", frame_tag(last)));
-        let ids = crate::exemplar::decode::read_image(&path).map_err(|e| e.to_string())?;
+        let ids = crate::io::image_read::read_image(&path).map_err(|e| e.to_string())?;
         let source: Vec<u32> = ids
             .texture
             .data
