@@ -242,30 +242,40 @@ fn png_writes(tex: &Texture, runs: usize, one: &rayon::ThreadPool) {
         };
         best(runs, || encode_png(tex, &opts).expect("png"))
     };
-    let (t, b) = png_all(PngEncoder::Parallel, 1);
-    println!(
-        "{size}² PNG parallel level 1, {threads} threads: {}  {:7.1} MB",
-        ms(t),
-        mb(b.len())
-    );
-    let (t, b) = one.install(|| png_all(PngEncoder::Parallel, 1));
-    println!(
-        "{size}² PNG parallel level 1, 1 thread:  {}  {:7.1} MB",
-        ms(t),
-        mb(b.len())
-    );
-    let (t, b) = png_all(PngEncoder::Parallel, 6);
-    println!(
-        "{size}² PNG parallel level 6, {threads} threads: {}  {:7.1} MB",
-        ms(t),
-        mb(b.len())
-    );
-    let (t, b) = one.install(|| png_all(PngEncoder::Image, 1));
-    println!(
-        "{size}² PNG image crate fast, 1 thread:  {}  {:7.1} MB",
-        ms(t),
-        mb(b.len())
-    );
+    let runs_of = [
+        (
+            format!("parallel level 1, {threads} threads:"),
+            PngEncoder::Parallel,
+            1,
+            false,
+        ),
+        (
+            "parallel level 1, 1 thread: ".to_string(),
+            PngEncoder::Parallel,
+            1,
+            true,
+        ),
+        (
+            format!("parallel level 6, {threads} threads:"),
+            PngEncoder::Parallel,
+            6,
+            false,
+        ),
+        (
+            "image crate fast, 1 thread: ".to_string(),
+            PngEncoder::Image,
+            1,
+            true,
+        ),
+    ];
+    for (label, encoder, level, one_thread) in runs_of {
+        let (t, b) = if one_thread {
+            one.install(|| png_all(encoder, level))
+        } else {
+            png_all(encoder, level)
+        };
+        println!("{size}² PNG {label} {}  {:7.1} MB", ms(t), mb(b.len()));
+    }
 }
 
 /// The atlas as 16-bit EXR under each compression, on all threads and on one.

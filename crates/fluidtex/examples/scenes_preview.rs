@@ -70,27 +70,46 @@ fn main() -> Result<(), Error> {
         if let Some(r) = o.resolution {
             params.resolution = r;
         }
+        let plan = Plan::new(name, params, o.samples);
+        let m = if scenes::SPH_SCENES.contains(name) {
+            Measured::simulated(name, &plan)?
+        } else {
+            Measured::analytic(name, &plan)?
+        };
+        m.print_row(name, &params);
+        if let (Some(dir), Some(mesh)) = (&o.out, m.preview) {
+            let path = format!("{dir}/{name}.png");
+            render(&mesh, view(name), 320, 240).save(&path)?;
+            eprintln!("wrote {path} (frame {})", plan.preview_frame);
+        }
+    }
+    Ok(())
+}
+
+/// Which frames of a scene are measured.
+struct Plan {
+    params: scenes::SceneParams,
+    /// Frames sampled evenly over the scene's range.
+    picks: Vec<i32>,
+    /// The frame drawn in the preview.
+    preview_frame: i32,
+}
+
+impl Plan {
+    fn new(name: &str, params: scenes::SceneParams, samples: usize) -> Plan {
         let span = params.last - params.first;
-        let samples = o.samples;
         let picks: Vec<i32> = (0..samples)
             .map(|i| {
                 params.first + (span as f64 * i as f64 / (samples.max(2) - 1) as f64).round() as i32
             })
             .collect();
         let preview_frame = params.first + preview_offset(name, span);
-        let m = if scenes::SPH_SCENES.contains(name) {
-            Measured::simulated(name, params, &picks, preview_frame)?
-        } else {
-            Measured::analytic(name, params, &picks, preview_frame)?
-        };
-        m.print_row(name, &params);
-        if let (Some(dir), Some(mesh)) = (&o.out, m.preview) {
-            let path = format!("{dir}/{name}.png");
-            render(&mesh, view(name), 320, 240).save(&path)?;
-            eprintln!("wrote {path} (frame {preview_frame})");
+        Plan {
+            params,
+            picks,
+            preview_frame,
         }
     }
-    Ok(())
 }
 
 /// What one scene's sampled frames measured.
@@ -129,12 +148,8 @@ impl Measured {
 
     /// A simulated scene: every frame up to the last sampled one, as a
     /// simulation must run them.
-    fn simulated(
-        name: &str,
-        params: scenes::SceneParams,
-        picks: &[i32],
-        preview_frame: i32,
-    ) -> Result<Measured, Error> {
+    fn simulated(name: &str, plan: &Plan) -> Result<Measured, Error> {
+        let (params, picks, preview_frame) = (plan.params, &plan.picks, plan.preview_frame);
         let mut m = Measured::new();
         let mut scene = scenes::by_name(name, Some(params))?;
         let last = *picks.iter().max().unwrap_or(&params.first);
@@ -156,15 +171,11 @@ impl Measured {
     }
 
     /// An analytic scene: the sampled frames only, each raw and relaxed.
-    fn analytic(
-        name: &str,
-        params: scenes::SceneParams,
-        picks: &[i32],
-        preview_frame: i32,
-    ) -> Result<Measured, Error> {
+    fn analytic(name: &str, plan: &Plan) -> Result<Measured, Error> {
+        let (params, preview_frame) = (plan.params, plan.preview_frame);
         let mut m = Measured::new();
         let mut scene = analytic::by_name(name, params).ok_or("unknown analytic scene")?;
-        let mut frames = picks.to_vec();
+        let mut frames = plan.picks.clone();
         if !frames.contains(&preview_frame) {
             frames.push(preview_frame);
         }
