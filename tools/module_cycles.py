@@ -79,19 +79,25 @@ def file_module(src_dir, path):
     return rel
 
 
+def closing_brace(code, j):
+    """The offset of the brace that closes the one at `j` (or the end)."""
+    depth = 0
+    while j < len(code):
+        if code[j] == "{":
+            depth += 1
+        elif code[j] == "}":
+            depth -= 1
+            if depth == 0:
+                break
+        j += 1
+    return j
+
+
 def inline_modules(code):
     """(start, end, name, is_test) for each inline `mod name { ... }`."""
     found = []
     for m in re.finditer(r"\bmod\s+(" + IDENT + r")\s*\{", code):
-        depth, j = 0, m.end() - 1
-        while j < len(code):
-            if code[j] == "{":
-                depth += 1
-            elif code[j] == "}":
-                depth -= 1
-                if depth == 0:
-                    break
-            j += 1
+        j = closing_brace(code, m.end() - 1)
         before = code[max(0, m.start() - 80) : m.start()]
         is_test = bool(re.search(r"#\[cfg\(test\)\]\s*(pub(\([^)]*\))?\s*)?$", before))
         found.append((m.start(), j, m.group(1), is_test))
@@ -108,16 +114,7 @@ def test_spans(code):
         if j < len(code) and code[j] == ";":
             spans.append((m.start(), j))
             continue
-        depth = 0
-        while j < len(code):
-            if code[j] == "{":
-                depth += 1
-            elif code[j] == "}":
-                depth -= 1
-                if depth == 0:
-                    break
-            j += 1
-        spans.append((m.start(), j))
+        spans.append((m.start(), closing_brace(code, j)))
     return spans
 
 
@@ -279,13 +276,17 @@ def strongly_connected(g):
 
 
 def report(edges, comps, include_tests):
+    """Each cycle and its edges. With `include_tests` only the edges made
+    by test code alone are listed (the others close library paths)."""
     for comp in comps:
         print("cycle among: " + " <-> ".join(comp))
         for a in comp:
             for b in comp:
                 uses = edges.get((a, b), [])
-                if not include_tests:
-                    uses = [u for u in uses if not u[2]]
+                library = [u for u in uses if not u[2]]
+                if include_tests and library:
+                    continue
+                uses = uses if include_tests else library
                 if uses:
                     where = ", ".join(f"{f}:{l}" for (f, l, _) in uses[:4])
                     more = f" (+{len(uses) - 4} more)" if len(uses) > 4 else ""
@@ -306,7 +307,7 @@ def main():
         print("no cycle outside tests")
     with_tests = [c for c in strongly_connected(graph(edges, top_modules, True)) if c not in library]
     if with_tests:
-        print("cycles made only with test code (not counted):")
+        print("cycles closed only by test code (not counted; test-only edges listed):")
         report(edges, with_tests, True)
     return 1 if library else 0
 
