@@ -128,15 +128,37 @@ fn atlas(size: u32, exemplar: Option<&image::RgbImage>, seed: u64) -> Texture {
 fn main() {
     let dir = tempfile::tempdir().expect("temp dir");
     let threads = rayon::current_num_threads();
+    println!("io_bench: {threads} rayon threads");
+    mesh_reads(dir.path());
+    mesh_writes(dir.path());
+    let exemplar = std::env::args()
+        .nth(1)
+        .map(|p| image::open(Path::new(&p)).expect("exemplar").to_rgb8());
+    println!(
+        "atlas content: {}",
+        if exemplar.is_some() {
+            "exemplar pieces"
+        } else {
+            "value noise"
+        }
+    );
     let one = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .build()
         .expect("pool");
-    println!("io_bench: {threads} rayon threads");
+    for size in [2048u32, 6144] {
+        let tex = atlas(size, exemplar.as_ref(), 1);
+        let runs = if size > 4096 { 2 } else { 3 };
+        png_writes(&tex, runs, &one);
+        exr_writes(dir.path(), &tex, runs);
+    }
+}
 
-    // Reading: 100k vertices, 200k triangles, binary PLY with velocity.
+/// Reading (and writing back) 100k vertices, 200k triangles as a binary
+/// PLY with velocity.
+fn mesh_reads(dir: &Path) {
     let (big, _) = grid_mesh(315);
-    let ply = dir.path().join("fluid.0001.ply");
+    let ply = dir.join("fluid.0001.ply");
     write_ply(&ply, &big, PlyEncoding::BinaryLittleEndian).expect("write ply");
     let (t, (m, _)) = best(5, || {
         read_mesh(&ply, &ReadOptions::default()).expect("read")
@@ -154,15 +176,17 @@ fn main() {
         "write binary PLY  (same mesh):                    {}",
         ms(t)
     );
+}
 
-    // Writing meshes: 100k triangles with uvs and normals.
+/// Writing a 100k-triangle mesh with uvs and normals as OBJ and as glb.
+fn mesh_writes(dir: &Path) {
     let (mesh, uvs) = grid_mesh(223);
     let normals = mesh.vertex_normals();
     let mat = ObjMaterial {
         name: "atlas".into(),
         map_kd: "frame.0001.png".into(),
     };
-    let obj = dir.path().join("frame.0001.obj");
+    let obj = dir.join("frame.0001.obj");
     let (t, _) = best(3, || {
         write_obj(
             &obj,
@@ -181,7 +205,7 @@ fn main() {
         ms(t)
     );
     let png = encode_png(&Texture::filled(256, 256, 3, 0.5), &PngOptions::default()).expect("png");
-    let glb = dir.path().join("frame.0001.glb");
+    let glb = dir.join("frame.0001.glb");
     let (t, _) = best(3, || {
         write_glb(
             &glb,
@@ -199,81 +223,90 @@ fn main() {
         mesh.triangle_count(),
         ms(t)
     );
+}
 
-    // Atlases.
-    let exemplar = std::env::args()
-        .nth(1)
-        .map(|p| image::open(Path::new(&p)).expect("exemplar").to_rgb8());
-    println!(
-        "atlas content: {}",
-        if exemplar.is_some() {
-            "exemplar pieces"
-        } else {
-            "value noise"
-        }
-    );
-    for size in [2048u32, 6144] {
-        let tex = atlas(size, exemplar.as_ref(), 1);
-        let runs = if size > 4096 { 2 } else { 3 };
-        let mb = |n: usize| n as f64 / 1e6;
-        let png_all = |encoder, level| {
-            let opts = PngOptions {
-                encoder,
-                level,
-                ..Default::default()
-            };
-            best(runs, || encode_png(&tex, &opts).expect("png"))
+fn mb(n: usize) -> f64 {
+    n as f64 / 1e6
+}
+
+/// The atlas as PNG: the parallel encoder on all threads and on `one`,
+/// at levels 1 and 6, and the image crate's encoder for reference.
+fn png_writes(tex: &Texture, runs: usize, one: &rayon::ThreadPool) {
+    let size = tex.width;
+    let threads = rayon::current_num_threads();
+    let png_all = |encoder, level| {
+        let opts = PngOptions {
+            encoder,
+            level,
+            ..Default::default()
         };
-        let (t, b) = png_all(PngEncoder::Parallel, 1);
-        println!(
-            "{size}² PNG parallel level 1, {threads} threads: {}  {:7.1} MB",
-            ms(t),
-            mb(b.len())
-        );
-        let (t, b) = one.install(|| png_all(PngEncoder::Parallel, 1));
-        println!(
-            "{size}² PNG parallel level 1, 1 thread:  {}  {:7.1} MB",
-            ms(t),
-            mb(b.len())
-        );
-        let (t, b) = png_all(PngEncoder::Parallel, 6);
-        println!(
-            "{size}² PNG parallel level 6, {threads} threads: {}  {:7.1} MB",
-            ms(t),
-            mb(b.len())
-        );
-        let (t, b) = one.install(|| png_all(PngEncoder::Image, 1));
-        println!(
-            "{size}² PNG image crate fast, 1 thread:  {}  {:7.1} MB",
-            ms(t),
-            mb(b.len())
-        );
-        for (name, compression) in [
-            ("ZIP16", ExrCompression::Zip16),
-            ("PIZ", ExrCompression::Piz),
-            ("none", ExrCompression::None),
-        ] {
-            for single in [false, true] {
-                let path = dir.path().join("atlas.exr");
-                let opts = ExrOptions {
-                    sample: ExrSample::F16,
-                    compression,
-                    channel_names: None,
-                    single_threaded: single,
-                };
-                let (t, _) = best(runs, || write_exr(&path, &tex, &opts).expect("exr"));
-                let len = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
-                let th = if single {
-                    "1 thread".to_string()
-                } else {
-                    format!("{threads} threads")
-                };
-                println!(
-                    "{size}² EXR f16 {name:5} {th:>10}:      {}  {:7.1} MB",
-                    ms(t),
-                    mb(len as usize)
-                );
-            }
+        best(runs, || encode_png(tex, &opts).expect("png"))
+    };
+    let runs_of = [
+        (
+            format!("parallel level 1, {threads} threads:"),
+            PngEncoder::Parallel,
+            1,
+            false,
+        ),
+        (
+            "parallel level 1, 1 thread: ".to_string(),
+            PngEncoder::Parallel,
+            1,
+            true,
+        ),
+        (
+            format!("parallel level 6, {threads} threads:"),
+            PngEncoder::Parallel,
+            6,
+            false,
+        ),
+        (
+            "image crate fast, 1 thread: ".to_string(),
+            PngEncoder::Image,
+            1,
+            true,
+        ),
+    ];
+    for (label, encoder, level, one_thread) in runs_of {
+        let (t, b) = if one_thread {
+            one.install(|| png_all(encoder, level))
+        } else {
+            png_all(encoder, level)
+        };
+        println!("{size}² PNG {label} {}  {:7.1} MB", ms(t), mb(b.len()));
+    }
+}
+
+/// The atlas as 16-bit EXR under each compression, on all threads and on one.
+fn exr_writes(dir: &Path, tex: &Texture, runs: usize) {
+    let size = tex.width;
+    let threads = rayon::current_num_threads();
+    for (name, compression) in [
+        ("ZIP16", ExrCompression::Zip16),
+        ("PIZ", ExrCompression::Piz),
+        ("none", ExrCompression::None),
+    ] {
+        for single in [false, true] {
+            let path = dir.join("atlas.exr");
+            let opts = ExrOptions {
+                sample: ExrSample::F16,
+                compression,
+                channel_names: None,
+                single_threaded: single,
+            };
+            let (t, _) = best(runs, || write_exr(&path, tex, &opts).expect("exr"));
+            let len = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
+            let th = if single {
+                "1 thread".to_string()
+            } else {
+                format!("{threads} threads")
+            };
+            println!(
+                "{size}² EXR f16 {name:5} {th:>10}:      {}  {:7.1} MB",
+                ms(t),
+                mb(len as usize)
+            );
         }
     }
 }

@@ -18,22 +18,44 @@ use fluidtex::mesh::TriMesh;
 use fluidtex::scenes::{self, QualityStats, analytic, triangle_quality};
 use glam::{Mat3, Vec3};
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let mut out: Option<String> = None;
-    let mut only: Vec<String> = Vec::new();
-    let mut resolution: Option<u32> = None;
-    let mut samples = 5usize;
-    let mut args = std::env::args().skip(1);
-    while let Some(a) = args.next() {
-        match a.as_str() {
-            "--out" => out = args.next(),
-            "--scene" => only.extend(args.next()),
-            "--resolution" => resolution = args.next().and_then(|s| s.parse().ok()),
-            "--frames" => samples = args.next().and_then(|s| s.parse().ok()).unwrap_or(5),
-            other => return Err(format!("unknown argument {other}").into()),
+type Error = Box<dyn std::error::Error>;
+
+/// The command line.
+struct Options {
+    /// Folder for the preview pictures.
+    out: Option<String>,
+    /// Scenes to measure (all when empty).
+    only: Vec<String>,
+    resolution: Option<u32>,
+    /// Frames sampled per scene.
+    samples: usize,
+}
+
+impl Options {
+    fn parse() -> Result<Options, Error> {
+        let mut o = Options {
+            out: None,
+            only: Vec::new(),
+            resolution: None,
+            samples: 5,
+        };
+        let mut args = std::env::args().skip(1);
+        while let Some(a) = args.next() {
+            match a.as_str() {
+                "--out" => o.out = args.next(),
+                "--scene" => o.only.extend(args.next()),
+                "--resolution" => o.resolution = args.next().and_then(|s| s.parse().ok()),
+                "--frames" => o.samples = args.next().and_then(|s| s.parse().ok()).unwrap_or(5),
+                other => return Err(format!("unknown argument {other}").into()),
+            }
         }
+        Ok(o)
     }
-    if let Some(dir) = &out {
+}
+
+fn main() -> Result<(), Error> {
+    let o = Options::parse()?;
+    if let Some(dir) = &o.out {
         std::fs::create_dir_all(dir)?;
     }
     println!(
@@ -41,13 +63,40 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     println!("|---|---|---|---|---|---|---|---|---|");
     for (name, _) in scenes::catalogue() {
-        if !only.is_empty() && !only.iter().any(|o| o == name) {
+        if !o.only.is_empty() && !o.only.iter().any(|x| x == name) {
             continue;
         }
         let mut params = scenes::default_params(name)?;
-        if let Some(r) = resolution {
+        if let Some(r) = o.resolution {
             params.resolution = r;
         }
+        let plan = Plan::new(name, params, o.samples);
+        let m = if scenes::SPH_SCENES.contains(name) {
+            Measured::simulated(name, &plan)?
+        } else {
+            Measured::analytic(name, &plan)?
+        };
+        m.print_row(name, &params);
+        if let (Some(dir), Some(mesh)) = (&o.out, m.preview) {
+            let path = format!("{dir}/{name}.png");
+            render(&mesh, view(name), 320, 240).save(&path)?;
+            eprintln!("wrote {path} (frame {})", plan.preview_frame);
+        }
+    }
+    Ok(())
+}
+
+/// Which frames of a scene are measured.
+struct Plan {
+    params: scenes::SceneParams,
+    /// Frames sampled evenly over the scene's range.
+    picks: Vec<i32>,
+    /// The frame drawn in the preview.
+    preview_frame: i32,
+}
+
+impl Plan {
+    fn new(name: &str, params: scenes::SceneParams, samples: usize) -> Plan {
         let span = params.last - params.first;
         let picks: Vec<i32> = (0..samples)
             .map(|i| {
@@ -55,91 +104,132 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             })
             .collect();
         let preview_frame = params.first + preview_offset(name, span);
-        let mut tri_range = (usize::MAX, 0usize);
-        let mut raw_q = Vec::new();
-        let mut relaxed_q = Vec::new();
-        let mut seconds = 0.0;
-        let mut timed = 0;
-        let mut preview: Option<TriMesh> = None;
-        if scenes::SPH_SCENES.contains(name) {
-            let mut scene = scenes::by_name(name, Some(params))?;
-            let last = *picks.iter().max().unwrap_or(&params.first);
-            let last = last.max(preview_frame.min(params.last));
-            for f in params.first..=last {
-                let start = Instant::now();
-                let mesh = scene.frame(f)?;
-                seconds += start.elapsed().as_secs_f64();
-                timed += 1;
-                if picks.contains(&f) || f == preview_frame {
-                    tri_range = (
-                        tri_range.0.min(mesh.triangle_count()),
-                        tri_range.1.max(mesh.triangle_count()),
-                    );
-                    relaxed_q.push(triangle_quality(&mesh));
-                }
-                if f == preview_frame {
-                    preview = Some(mesh);
-                }
+        Plan {
+            params,
+            picks,
+            preview_frame,
+        }
+    }
+}
+
+/// What one scene's sampled frames measured.
+struct Measured {
+    /// Fewest and most triangles.
+    tri_range: (usize, usize),
+    /// Quality of the raw marching-cubes meshes (analytic scenes only).
+    raw_q: Vec<QualityStats>,
+    /// Quality of the meshes as the scene gives them.
+    relaxed_q: Vec<QualityStats>,
+    /// Seconds spent making the timed frames, and their count.
+    seconds: f64,
+    timed: usize,
+    /// The frame drawn in the preview.
+    preview: Option<TriMesh>,
+}
+
+impl Measured {
+    fn new() -> Measured {
+        Measured {
+            tri_range: (usize::MAX, 0),
+            raw_q: Vec::new(),
+            relaxed_q: Vec::new(),
+            seconds: 0.0,
+            timed: 0,
+            preview: None,
+        }
+    }
+
+    fn count_triangles(&mut self, mesh: &TriMesh) {
+        self.tri_range = (
+            self.tri_range.0.min(mesh.triangle_count()),
+            self.tri_range.1.max(mesh.triangle_count()),
+        );
+    }
+
+    /// A simulated scene: every frame up to the last sampled one, as a
+    /// simulation must run them.
+    fn simulated(name: &str, plan: &Plan) -> Result<Measured, Error> {
+        let (params, picks, preview_frame) = (plan.params, &plan.picks, plan.preview_frame);
+        let mut m = Measured::new();
+        let mut scene = scenes::by_name(name, Some(params))?;
+        let last = *picks.iter().max().unwrap_or(&params.first);
+        let last = last.max(preview_frame.min(params.last));
+        for f in params.first..=last {
+            let start = Instant::now();
+            let mesh = scene.frame(f)?;
+            m.seconds += start.elapsed().as_secs_f64();
+            m.timed += 1;
+            if picks.contains(&f) || f == preview_frame {
+                m.count_triangles(&mesh);
+                m.relaxed_q.push(triangle_quality(&mesh));
             }
-        } else {
-            let mut scene = analytic::by_name(name, params).ok_or("unknown analytic scene")?;
-            let mut frames = picks.clone();
-            if !frames.contains(&preview_frame) {
-                frames.push(preview_frame);
-            }
-            for &f in &frames {
-                let t = params.time(f);
-                scene.set_relax_iterations(0);
-                let (raw, _) = scene.mesh_at(t);
-                scene.set_relax_iterations(fluidtex::scenes::relax::RELAX_ITERATIONS);
-                let start = Instant::now();
-                let (mesh, _) = scene.mesh_at(t);
-                seconds += start.elapsed().as_secs_f64();
-                timed += 1;
-                tri_range = (
-                    tri_range.0.min(mesh.triangle_count()),
-                    tri_range.1.max(mesh.triangle_count()),
-                );
-                raw_q.push(triangle_quality(&raw));
-                relaxed_q.push(triangle_quality(&mesh));
-                if f == preview_frame {
-                    preview = Some(mesh);
-                }
+            if f == preview_frame {
+                m.preview = Some(mesh);
             }
         }
-        let fmt = |q: &[QualityStats]| {
-            if q.is_empty() {
-                return ("-".to_string(), "-".to_string(), 0);
+        Ok(m)
+    }
+
+    /// An analytic scene: the sampled frames only, each raw and relaxed.
+    fn analytic(name: &str, plan: &Plan) -> Result<Measured, Error> {
+        let (params, preview_frame) = (plan.params, plan.preview_frame);
+        let mut m = Measured::new();
+        let mut scene = analytic::by_name(name, params).ok_or("unknown analytic scene")?;
+        let mut frames = plan.picks.clone();
+        if !frames.contains(&preview_frame) {
+            frames.push(preview_frame);
+        }
+        for &f in &frames {
+            let t = params.time(f);
+            scene.set_relax_iterations(0);
+            let (raw, _) = scene.mesh_at(t);
+            scene.set_relax_iterations(fluidtex::scenes::relax::RELAX_ITERATIONS);
+            let start = Instant::now();
+            let (mesh, _) = scene.mesh_at(t);
+            m.seconds += start.elapsed().as_secs_f64();
+            m.timed += 1;
+            m.count_triangles(&mesh);
+            m.raw_q.push(triangle_quality(&raw));
+            m.relaxed_q.push(triangle_quality(&mesh));
+            if f == preview_frame {
+                m.preview = Some(mesh);
             }
-            // Worst sampled frame for the tails, median frame for the median.
-            let p5 = q.iter().map(|s| s.p5).fold(f32::INFINITY, f32::min);
-            let med = q.iter().map(|s| s.median).fold(f32::INFINITY, f32::min);
-            let b10 = q.iter().map(|s| s.below_10).fold(0.0f32, f32::max);
-            let deg = q.iter().map(|s| s.degenerate).sum();
-            (
-                format!("{p5:.1}° / {med:.1}°"),
-                format!("{:.1}%", 100.0 * b10),
-                deg,
-            )
-        };
-        let (raw_a, raw_b, _) = fmt(&raw_q);
-        let (rel_a, rel_b, deg) = fmt(&relaxed_q);
+        }
+        Ok(m)
+    }
+
+    /// The scene's row of the table.
+    fn print_row(&self, name: &str, params: &scenes::SceneParams) {
+        let (raw_a, raw_b, _) = quality_cells(&self.raw_q);
+        let (rel_a, rel_b, deg) = quality_cells(&self.relaxed_q);
         println!(
             "| {name} | {} | {}-{} | {}-{} | {:.3} | {raw_a} | {rel_a} | {raw_b} / {rel_b} | {deg} |",
             params.resolution,
             params.first,
             params.last,
-            tri_range.0,
-            tri_range.1,
-            seconds / timed.max(1) as f64
+            self.tri_range.0,
+            self.tri_range.1,
+            self.seconds / self.timed.max(1) as f64
         );
-        if let (Some(dir), Some(mesh)) = (&out, preview) {
-            let path = format!("{dir}/{name}.png");
-            render(&mesh, view(name), 320, 240).save(&path)?;
-            eprintln!("wrote {path} (frame {preview_frame})");
-        }
     }
-    Ok(())
+}
+
+/// The min-angle cells of a row (p5 / median, share below 10°) and the
+/// degenerate triangle count.
+fn quality_cells(q: &[QualityStats]) -> (String, String, usize) {
+    if q.is_empty() {
+        return ("-".to_string(), "-".to_string(), 0);
+    }
+    // Worst sampled frame for the tails, median frame for the median.
+    let p5 = q.iter().map(|s| s.p5).fold(f32::INFINITY, f32::min);
+    let med = q.iter().map(|s| s.median).fold(f32::INFINITY, f32::min);
+    let b10 = q.iter().map(|s| s.below_10).fold(0.0f32, f32::max);
+    let deg = q.iter().map(|s| s.degenerate).sum();
+    (
+        format!("{p5:.1}° / {med:.1}°"),
+        format!("{:.1}%", 100.0 * b10),
+        deg,
+    )
 }
 
 /// Frame (from the first) shown in the preview: where the scene is most telling.

@@ -12,109 +12,13 @@
 //! that run's timings), `eval::evaluate` measures metrics in memory.
 
 use std::sync::Arc;
-use std::time::Instant;
 
-use glam::Vec3;
 use thiserror::Error;
 
-use crate::atlas::{Atlas, AtlasError, AtlasParams};
-use crate::mesh::{Topology, TriMesh, ValidationReport};
+use crate::atlas::{AtlasError, AtlasParams};
+use crate::frame::{FrameGeometry, GeometryError, StageClock};
+use crate::mesh::{TriMesh, ValidationReport};
 use crate::methods::{FrameContext, FrameResult, Method, MethodError};
-use crate::surface::SurfaceIndex;
-
-/// Everything about one frame's surface that does not depend on the
-/// method, built once per frame.
-pub struct FrameGeometry {
-    /// The input's frame number.
-    pub number: i32,
-    pub mesh: TriMesh,
-    pub index: SurfaceIndex,
-    pub atlas: Atlas,
-    pub topology: Topology,
-    /// Area-weighted vertex normals ([`TriMesh::vertex_normals`]).
-    pub normals: Vec<Vec3>,
-    /// What validation dropped or repaired when the frame was read.
-    pub report: ValidationReport,
-}
-
-impl FrameGeometry {
-    /// Builds the frame's surface index, topology and normals (stage
-    /// `bvh`) and atlas (stage `atlas`).
-    pub fn build(
-        number: i32,
-        mesh: TriMesh,
-        report: ValidationReport,
-        atlas: &AtlasParams,
-        clock: &mut StageClock,
-    ) -> Result<FrameGeometry, DriverError> {
-        let index = SurfaceIndex::new(&mesh);
-        let topology = Topology::new(mesh.vertex_count(), &mesh.triangles);
-        let normals = mesh.vertex_normals();
-        clock.lap("bvh");
-        let atlas = Atlas::build(&mesh, atlas).map_err(|source| DriverError::Atlas {
-            frame: number,
-            source,
-        })?;
-        clock.lap("atlas");
-        Ok(FrameGeometry {
-            number,
-            mesh,
-            index,
-            atlas,
-            topology,
-            normals,
-            report,
-        })
-    }
-
-    /// Per-vertex normals of the atlas's output mesh: seam copies share
-    /// the normal of their source vertex, so shading is smooth across seams.
-    pub fn uv_mesh_normals(&self) -> Vec<Vec3> {
-        self.atlas
-            .uv_mesh
-            .source_vertex
-            .iter()
-            .map(|&v| self.normals.get(v as usize).copied().unwrap_or(Vec3::Z))
-            .collect()
-    }
-}
-
-/// Records the duration of consecutive stages of one frame.
-pub struct StageClock {
-    last: Instant,
-    pub stages: Vec<(&'static str, f64)>,
-}
-
-impl Default for StageClock {
-    fn default() -> Self {
-        StageClock {
-            last: Instant::now(),
-            stages: Vec::new(),
-        }
-    }
-}
-
-impl StageClock {
-    /// Closes the stage that started at the previous call.
-    pub fn lap(&mut self, name: &'static str) {
-        let now = Instant::now();
-        self.stages
-            .push((name, now.duration_since(self.last).as_secs_f64()));
-        self.last = now;
-    }
-
-    /// Appends stages timed elsewhere (a method's own clock) and starts
-    /// the next stage now.
-    pub fn extend(&mut self, stages: &[(&'static str, f64)]) {
-        self.stages.extend_from_slice(stages);
-        self.last = Instant::now();
-    }
-
-    /// Seconds of every stage so far.
-    pub fn total(&self) -> f64 {
-        self.stages.iter().map(|(_, s)| s).sum()
-    }
-}
 
 /// Errors of the driver itself (a sink has its own error type, which
 /// converts from this one).
@@ -124,6 +28,12 @@ pub enum DriverError {
     Atlas { frame: i32, source: AtlasError },
     #[error(transparent)]
     Method(#[from] MethodError),
+}
+
+impl From<GeometryError> for DriverError {
+    fn from(GeometryError { frame, source }: GeometryError) -> DriverError {
+        DriverError::Atlas { frame, source }
+    }
 }
 
 /// A frame the method has filled, as handed to a [`FrameSink`].
@@ -251,6 +161,7 @@ pub fn clip_geometry(
                 &mut clock,
             )
             .map(Arc::new)
+            .map_err(DriverError::from)
         })
         .collect()
 }

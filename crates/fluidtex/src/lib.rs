@@ -38,7 +38,9 @@
 //! # Modules
 //!
 //! One per concept: [`mesh`], [`surface`], [`param`], [`atlas`],
-//! [`exemplar`], [`methods`], [`driver`] (the frame loop), [`metrics`],
+//! [`exemplar`], [`methods`], [`driver`] (the frame loop), [`frame`] (one
+//! frame's geometry and stage clock, shared by the driver and the methods),
+//! [`metrics`],
 //! [`coherence`] (does the texture ride the flow: measured on outputs),
 //! [`eval`] (the evaluation harness), [`render`], [`scenes`], [`io`],
 //! [`texture`] (the float image type and texel convention), and the shared
@@ -51,6 +53,7 @@ pub mod coherence;
 pub mod driver;
 pub mod eval;
 pub mod exemplar;
+pub mod frame;
 pub mod fuzz;
 pub mod io;
 pub mod mesh;

@@ -30,9 +30,8 @@ use thiserror::Error;
 use std::sync::Arc;
 
 use crate::atlas::{AtlasError, AtlasParams};
-use crate::driver::{
-    DrivenFrame, Driver, DriverError, FrameGeometry, FrameSink, PendingFrame, StageClock,
-};
+use crate::driver::{DrivenFrame, Driver, DriverError, FrameSink, PendingFrame};
+use crate::frame::{FrameGeometry, GeometryError, StageClock};
 use crate::io::image::{ExrOptions, ExrSample, PngDepth, PngOptions};
 use crate::io::{InputGuard, IoError, Staging, WriteHook};
 use crate::mesh::{TriMesh, ValidationReport};
@@ -372,6 +371,12 @@ fn resume(
     }
     frames.retain(|&f| f > last);
     Ok((previous, Some(last)))
+}
+
+impl From<GeometryError> for PipelineError {
+    fn from(e: GeometryError) -> PipelineError {
+        PipelineError::from(DriverError::from(e))
+    }
 }
 
 impl From<DriverError> for PipelineError {
@@ -757,11 +762,10 @@ fn read_grey(job: &Job, method: &dyn Method, number: i32) -> Result<Vec<f32>, Pi
         frame_tag(number),
         spec.format.extension()
     ));
-    let decoded =
-        crate::exemplar::decode::read_image(&path).map_err(|e| PipelineError::Output {
-            path: path.clone(),
-            message: format!("cannot read it back for the coherence measurement: {e}"),
-        })?;
+    let decoded = crate::io::image_read::read_image(&path).map_err(|e| PipelineError::Output {
+        path: path.clone(),
+        message: format!("cannot read it back for the coherence measurement: {e}"),
+    })?;
     Ok(crate::metrics::luminance(&decoded.texture))
 }
 
@@ -779,7 +783,7 @@ fn reload_coherence(
 ) -> Option<CoherencePrevious> {
     let load = || -> Result<CoherencePrevious, String> {
         let path = job.out_dir.join(format!("source.{}.exr", frame_tag(last)));
-        let ids = crate::exemplar::decode::read_image(&path).map_err(|e| e.to_string())?;
+        let ids = crate::io::image_read::read_image(&path).map_err(|e| e.to_string())?;
         let source: Vec<u32> = ids
             .texture
             .data
@@ -978,9 +982,23 @@ impl FileSink<'_, '_> {
         method: &dyn Method,
         result: &crate::methods::FrameResult,
     ) -> Result<(), PipelineError> {
-        let (job, first_frame, number, atlas) = (self.job, self.first_frame, g.number, &g.atlas);
+        let colour_png = self.write_channels(files, g.number, method, result)?;
+        let normals = g.uv_mesh_normals();
+        self.write_meshes(files, g, &normals, colour_png.as_ref())?;
+        self.write_patch_views(files, g, result, &normals)
+    }
+
+    /// Each channel atlas under its spec's name; the colour atlas's file
+    /// name and PNG bytes, where it is a PNG, for the meshes to embed.
+    fn write_channels(
+        &self,
+        files: &mut Staging<'_>,
+        number: i32,
+        method: &dyn Method,
+        result: &crate::methods::FrameResult,
+    ) -> Result<Option<(String, Vec<u8>)>, PipelineError> {
         let tag = frame_tag(number);
-        let dir = &job.out_dir;
+        let dir = &self.job.out_dir;
         let specs = method.channel_specs();
         if specs.len() != result.channels.len() {
             return Err(PipelineError::Output {
@@ -1003,33 +1021,43 @@ impl FileSink<'_, '_> {
                 colour_png = Some((file, bytes));
             }
         }
-        let uv = &atlas.uv_mesh;
-        let normals = g.uv_mesh_normals();
+        Ok(colour_png)
+    }
+
+    /// `mesh.F.obj` (with a material naming the colour PNG) and
+    /// `mesh.F.glb` (with the PNG embedded), as the job asks.
+    fn write_meshes(
+        &self,
+        files: &mut Staging<'_>,
+        g: &FrameGeometry,
+        normals: &[Vec3],
+        colour_png: Option<&(String, Vec<u8>)>,
+    ) -> Result<(), PipelineError> {
+        let (job, uv) = (self.job, &g.atlas.uv_mesh);
+        let tag = frame_tag(g.number);
         if job.outputs.obj {
-            let obj = dir.join(format!("mesh.{tag}.obj"));
-            let material = colour_png
-                .as_ref()
-                .map(|(file, _)| crate::io::obj_write::ObjMaterial {
-                    name: "fluidtex".to_string(),
-                    map_kd: file.clone(),
-                });
+            let obj = job.out_dir.join(format!("mesh.{tag}.obj"));
+            let material = colour_png.map(|(file, _)| crate::io::obj_write::ObjMaterial {
+                name: "fluidtex".to_string(),
+                map_kd: file.clone(),
+            });
             crate::io::obj_write::stage_obj(
                 files,
                 &obj,
                 &uv.positions,
                 &uv.uvs,
-                Some(&normals),
+                Some(normals),
                 &uv.triangles,
                 material.as_ref(),
             )?;
         }
         if job.outputs.glb {
-            let path = dir.join(format!("mesh.{tag}.glb"));
-            let png = colour_png.as_ref().map(|(_, b)| b.as_slice());
+            let path = job.out_dir.join(format!("mesh.{tag}.glb"));
+            let png = colour_png.map(|(_, b)| b.as_slice());
             let glb = crate::io::gltf::encode_glb(
                 &uv.positions,
                 &uv.uvs,
-                Some(&normals),
+                Some(normals),
                 &uv.triangles,
                 png,
             )
@@ -1039,8 +1067,21 @@ impl FileSink<'_, '_> {
             })?;
             write_file(files, &path, &glb)?;
         }
+        Ok(())
+    }
+
+    /// The views of where texels came from: `preview.F.png` on preview
+    /// frames, and with debug outputs `patches.F.png` and `source.F.exr`.
+    fn write_patch_views(
+        &self,
+        files: &mut Staging<'_>,
+        g: &FrameGeometry,
+        result: &crate::methods::FrameResult,
+        normals: &[Vec3],
+    ) -> Result<(), PipelineError> {
+        let (job, number, atlas) = (self.job, g.number, &g.atlas);
         let preview = job.outputs.preview_every > 0
-            && (number - first_frame).rem_euclid(job.outputs.preview_every as i32) == 0;
+            && (number - self.first_frame).rem_euclid(job.outputs.preview_every as i32) == 0;
         // The patch colours as floats serve the preview only; the debug
         // file is made in 8 bits from the dilated ids (`patch_png`).
         let radius = job.atlas.gutter.max(1) * 2;
@@ -1055,12 +1096,13 @@ impl FileSink<'_, '_> {
             _ => None,
         };
         if preview && let Some(colour) = result.channels.first() {
-            self.write_preview(files, g, colour, patches.as_ref(), &normals)?;
+            self.write_preview(files, g, colour, patches.as_ref(), normals)?;
         }
         if job.outputs.debug
             && let Some(source) = &result.source
         {
-            let path = dir.join(format!("patches.{tag}.png"));
+            let tag = frame_tag(number);
+            let path = job.out_dir.join(format!("patches.{tag}.png"));
             match &patches {
                 Some(colours) => {
                     write_channel(files, &path, colours, ChannelFormat::Png8)?;
@@ -1073,23 +1115,8 @@ impl FileSink<'_, '_> {
                     }
                 },
             }
-            let ids: Vec<f32> = source
-                .par_iter()
-                .with_min_len(1 << 16)
-                .map(|&s| if s == SOURCE_OUTSIDE { -1.0 } else { s as f32 })
-                .collect();
-            let ids = Texture {
-                width: atlas.width,
-                height: atlas.height,
-                channels: 1,
-                data: ids,
-            };
-            write_channel(
-                files,
-                &dir.join(format!("source.{tag}.exr")),
-                &ids,
-                ChannelFormat::Exr,
-            )?;
+            let path = job.out_dir.join(format!("source.{tag}.exr"));
+            write_source_ids(files, &path, atlas, source)?;
         }
         Ok(())
     }
@@ -1134,6 +1161,29 @@ impl FileSink<'_, '_> {
         write_channel(files, &path, &sheet, ChannelFormat::Png8)?;
         Ok(())
     }
+}
+
+/// `source.F.exr`: each texel's source patch id as a float, -1 outside
+/// the charts.
+fn write_source_ids(
+    files: &mut Staging<'_>,
+    path: &Path,
+    atlas: &crate::atlas::Atlas,
+    source: &[u32],
+) -> Result<(), PipelineError> {
+    let ids: Vec<f32> = source
+        .par_iter()
+        .with_min_len(1 << 16)
+        .map(|&s| if s == SOURCE_OUTSIDE { -1.0 } else { s as f32 })
+        .collect();
+    let ids = Texture {
+        width: atlas.width,
+        height: atlas.height,
+        channels: 1,
+        data: ids,
+    };
+    write_channel(files, path, &ids, ChannelFormat::Exr)?;
+    Ok(())
 }
 
 /// Writes one channel atlas; returns the PNG bytes for PNG formats (the

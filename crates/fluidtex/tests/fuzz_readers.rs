@@ -173,7 +173,7 @@ fn fuzz_exemplar_images() {
     ]);
     fuzz("image", CI_CASES, fixtures, |b| {
         one_line(
-            fluidtex::exemplar::decode::decode_image(b, "f.png")
+            fluidtex::io::image_read::decode_image(b, "f.png")
                 .map(|_| ())
                 .map_err(|e| e.to_string()),
         )

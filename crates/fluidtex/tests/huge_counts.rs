@@ -84,8 +84,7 @@ fn header_counts_do_not_reserve_memory_the_data_does_not_hold() {
     let vtk = |b: &str| {
         fluidtex::io::vtk::parse_vtk(Path::new("huge.vtk"), b.as_bytes(), &opts).map(|_| ())
     };
-    let image =
-        |b: &[u8], what: &str| fluidtex::exemplar::decode::decode_image(b, what).map(|_| ());
+    let image = |b: &[u8], what: &str| fluidtex::io::image_read::decode_image(b, what).map(|_| ());
 
     // Every reader runs under the cap; the asserts run after it is lifted
     // (a failing assert's backtrace needs memory of its own).

@@ -10,6 +10,7 @@
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
+use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
@@ -207,107 +208,150 @@ fn time_run(
             tmp.path().to_path_buf()
         }
     };
-    let mut method = build_method(config)?;
-    let job = build_job(config, out, false)?;
-    let mut rows: Vec<BenchRow> = Vec::new();
-    let mut done_at: Vec<std::time::Instant> = Vec::new();
-    let start = std::time::Instant::now();
-    let cpu_start = cpu_seconds();
-    let mut observer = |e: Event<'_>| {
-        if let Event::Done { stats } = e {
-            done_at.push(std::time::Instant::now());
-            rows.push((
-                stats.frame,
-                stats.seconds.clone(),
-                stats.stage_order.clone(),
-                stats.method_stats.clone(),
-            ));
-        }
-    };
-    pipeline::run(&job, source, method.as_mut(), &mut observer)?;
-    let wall = start.elapsed().as_secs_f64();
-    let cpu = cpu_seconds().zip(cpu_start).map(|(b, a)| b - a);
-
+    let timing = Timing::run(config, out, source)?;
     let threads = rayon::current_num_threads();
-    let frames = rows.len();
     println!(
-        "{} on {title}, atlas {}², {frames} frames, {threads} threads",
-        a.method, a.atlas
+        "{} on {title}, atlas {}², {} frames, {threads} threads",
+        a.method,
+        a.atlas,
+        timing.rows.len()
     );
-    let Some((_, _, order, _)) = rows.last() else {
-        bail!("no frame was processed")
-    };
-    let order = order.clone();
-    print!("{:<8}", "frame");
-    // A column per stage, wide enough for its name ("exemplar filter").
-    let width = |s: &str| s.len().max(9) + 1;
-    for s in &order {
-        print!("{s:>w$}", w = width(s));
-    }
-    println!("{:>10}{:>9}{:>9}", "total", "patches", "created");
-    let mut sums: BTreeMap<String, f64> = BTreeMap::new();
-    for (k, (f, secs, _, ms)) in rows.iter().enumerate() {
-        print!("{f:<8}");
-        let mut total = 0.0;
-        for s in &order {
-            let v = secs.get(s).copied().unwrap_or(0.0);
-            total += if s == "read" && !count_read { 0.0 } else { v };
-            print!("{v:>w$.3}", w = width(s));
-            if k > 0 {
-                *sums.entry(s.clone()).or_default() += v;
-            }
-        }
-        let get = |key| {
-            ms.value(key)
-                .map(|v| v.to_string())
-                .unwrap_or_else(|| "-".into())
-        };
-        println!(
-            "{total:>10.3}{:>9}{:>9}",
-            get(Stat::PatchesAlive),
-            get(Stat::PatchesCreated)
-        );
-    }
-    let n = (rows.len() - 1).max(1) as f64;
-    print!("{:<8}", "mean*");
-    let mut total = 0.0;
-    for s in &order {
-        let v = sums.get(s).copied().unwrap_or(0.0) / n;
-        total += if s == "read" && !count_read { 0.0 } else { v };
-        print!("{v:>w$.3}", w = width(s));
-    }
-    println!("{total:>10.3}");
-    if count_read {
-        println!("(* frames after the first; total = sum of the stages)");
-    } else {
-        println!(
-            "(* frames after the first; 'read' copies pre-generated meshes and is left out of the total)"
-        );
-    }
-    // Wall clock between consecutive finished frames, after the first.
-    let gaps: Vec<f64> = done_at
-        .windows(2)
-        .map(|w| w[1].duration_since(w[0]).as_secs_f64())
-        .collect();
-    if !gaps.is_empty() {
-        let mean = gaps.iter().sum::<f64>() / gaps.len() as f64;
-        println!("wall clock: {mean:.3} s/frame after the first, {wall:.1} s in all");
-    }
-    if let Some(cpu) = cpu {
-        println!(
-            "cpu use: {:.0} % of {} % ({cpu:.1} s user+sys over {wall:.1} s)",
-            100.0 * cpu / wall.max(1e-9),
-            100 * std::thread::available_parallelism().map_or(1, |n| n.get()),
-        );
-    }
-    match peak_memory() {
-        Some(bytes) => println!(
-            "peak memory: {:.2} GiB (VmHWM)",
-            bytes as f64 / (1u64 << 30) as f64
-        ),
-        None => println!("peak memory: unknown on this system"),
-    }
+    timing.print_table(count_read)?;
+    timing.print_totals();
     Ok(())
+}
+
+/// What one timed run measured.
+struct Timing {
+    /// A row per frame, in order.
+    rows: Vec<BenchRow>,
+    /// When each frame was finished.
+    done_at: Vec<Instant>,
+    /// Wall-clock seconds of the whole run.
+    wall: f64,
+    /// CPU seconds (user + system) of the run, where the system says.
+    cpu: Option<f64>,
+}
+
+impl Timing {
+    /// Runs the frame job over `source` into `out`, keeping each frame's
+    /// stage timings and method statistics.
+    fn run(config: &Config, out: PathBuf, source: &mut dyn FrameSource) -> Result<Timing> {
+        let mut method = build_method(config)?;
+        let job = build_job(config, out, false)?;
+        let mut rows: Vec<BenchRow> = Vec::new();
+        let mut done_at: Vec<Instant> = Vec::new();
+        let start = Instant::now();
+        let cpu_start = cpu_seconds();
+        let mut observer = |e: Event<'_>| {
+            if let Event::Done { stats } = e {
+                done_at.push(Instant::now());
+                rows.push((
+                    stats.frame,
+                    stats.seconds.clone(),
+                    stats.stage_order.clone(),
+                    stats.method_stats.clone(),
+                ));
+            }
+        };
+        pipeline::run(&job, source, method.as_mut(), &mut observer)?;
+        let wall = start.elapsed().as_secs_f64();
+        let cpu = cpu_seconds().zip(cpu_start).map(|(b, a)| b - a);
+        Ok(Timing {
+            rows,
+            done_at,
+            wall,
+            cpu,
+        })
+    }
+
+    /// A line per frame with each stage's seconds, the total and the
+    /// patch counts, then the mean of the frames after the first.
+    fn print_table(&self, count_read: bool) -> Result<()> {
+        let rows = &self.rows;
+        let Some((_, _, order, _)) = rows.last() else {
+            bail!("no frame was processed")
+        };
+        // `read` copies pre-generated meshes unless the sequence is read
+        // from disk: it then counts in the total.
+        let counted = |s: &str, v: f64| if s == "read" && !count_read { 0.0 } else { v };
+        print!("{:<8}", "frame");
+        // A column per stage, wide enough for its name ("exemplar filter").
+        let width = |s: &str| s.len().max(9) + 1;
+        for s in order {
+            print!("{s:>w$}", w = width(s));
+        }
+        println!("{:>10}{:>9}{:>9}", "total", "patches", "created");
+        let mut sums: BTreeMap<String, f64> = BTreeMap::new();
+        for (k, (f, secs, _, ms)) in rows.iter().enumerate() {
+            print!("{f:<8}");
+            let mut total = 0.0;
+            for s in order {
+                let v = secs.get(s).copied().unwrap_or(0.0);
+                total += counted(s, v);
+                print!("{v:>w$.3}", w = width(s));
+                if k > 0 {
+                    *sums.entry(s.clone()).or_default() += v;
+                }
+            }
+            let get = |key| {
+                ms.value(key)
+                    .map(|v| v.to_string())
+                    .unwrap_or_else(|| "-".into())
+            };
+            println!(
+                "{total:>10.3}{:>9}{:>9}",
+                get(Stat::PatchesAlive),
+                get(Stat::PatchesCreated)
+            );
+        }
+        let n = (rows.len() - 1).max(1) as f64;
+        print!("{:<8}", "mean*");
+        let mut total = 0.0;
+        for s in order {
+            let v = sums.get(s).copied().unwrap_or(0.0) / n;
+            total += counted(s, v);
+            print!("{v:>w$.3}", w = width(s));
+        }
+        println!("{total:>10.3}");
+        if count_read {
+            println!("(* frames after the first; total = sum of the stages)");
+        } else {
+            println!(
+                "(* frames after the first; 'read' copies pre-generated meshes and is left out of the total)"
+            );
+        }
+        Ok(())
+    }
+
+    /// Wall clock per frame, CPU use and peak memory.
+    fn print_totals(&self) {
+        let wall = self.wall;
+        // Wall clock between consecutive finished frames, after the first.
+        let gaps: Vec<f64> = self
+            .done_at
+            .windows(2)
+            .map(|w| w[1].duration_since(w[0]).as_secs_f64())
+            .collect();
+        if !gaps.is_empty() {
+            let mean = gaps.iter().sum::<f64>() / gaps.len() as f64;
+            println!("wall clock: {mean:.3} s/frame after the first, {wall:.1} s in all");
+        }
+        if let Some(cpu) = self.cpu {
+            println!(
+                "cpu use: {:.0} % of {} % ({cpu:.1} s user+sys over {wall:.1} s)",
+                100.0 * cpu / wall.max(1e-9),
+                100 * std::thread::available_parallelism().map_or(1, |n| n.get()),
+            );
+        }
+        match peak_memory() {
+            Some(bytes) => println!(
+                "peak memory: {:.2} GiB (VmHWM)",
+                bytes as f64 / (1u64 << 30) as f64
+            ),
+            None => println!("peak memory: unknown on this system"),
+        }
+    }
 }
 
 /// The process's peak resident memory (Linux `VmHWM`), in bytes.

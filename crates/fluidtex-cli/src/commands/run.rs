@@ -135,8 +135,9 @@ pub fn read_options(velocity: Option<&[String]>) -> Result<ReadOptions> {
     Ok(o)
 }
 
-/// The exemplar the config names, or the built-in pebbles.
-pub fn build_exemplar(config: &Config) -> Result<Exemplar> {
+/// The config's feature-map method and exemplar filter, each its default
+/// where the config names none.
+fn feature_settings(config: &Config) -> Result<(FeatureMethod, ExemplarFilter)> {
     let method = match config.feature_method.as_deref() {
         None => FeatureMethod::default(),
         Some(name) => FeatureMethod::parse_named("feature method", name).map_err(Error::msg)?,
@@ -145,6 +146,12 @@ pub fn build_exemplar(config: &Config) -> Result<Exemplar> {
         None => ExemplarFilter::default(),
         Some(name) => ExemplarFilter::parse_named("exemplar filter", name).map_err(Error::msg)?,
     };
+    Ok((method, filter))
+}
+
+/// The exemplar the config names, or the built-in pebbles.
+pub fn build_exemplar(config: &Config) -> Result<Exemplar> {
+    let (method, filter) = feature_settings(config)?;
     let channels: Vec<(String, PathBuf)> = config
         .channels
         .iter()
@@ -185,14 +192,7 @@ pub fn build_exemplar_set(config: &Config) -> Result<ExemplarSet> {
              `exemplars` entries, not with exemplar, --feature or --channel"
         );
     }
-    let method = match config.feature_method.as_deref() {
-        None => FeatureMethod::default(),
-        Some(name) => FeatureMethod::parse_named("feature method", name).map_err(Error::msg)?,
-    };
-    let filter = match config.exemplar_filter.as_deref() {
-        None => ExemplarFilter::default(),
-        Some(name) => ExemplarFilter::parse_named("exemplar filter", name).map_err(Error::msg)?,
-    };
+    let (method, filter) = feature_settings(config)?;
     let mut entries = Vec::with_capacity(config.exemplars.len());
     for e in &config.exemplars {
         let channels: Vec<(String, PathBuf)> = e

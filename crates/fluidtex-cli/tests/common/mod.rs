@@ -147,7 +147,7 @@ pub fn assert_same_outputs(a: &Path, b: &Path) {
 /// Width and height of a decoded PNG or EXR (decoded in full, by the
 /// library's exemplar reader).
 pub fn image(path: &Path) -> fluidtex::texture::Texture {
-    fluidtex::exemplar::decode::read_image(path)
+    fluidtex::io::image_read::read_image(path)
         .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
         .texture
 }

@@ -107,7 +107,8 @@ use glam::{Vec2, Vec3};
 use thiserror::Error;
 
 use crate::atlas::AtlasError;
-use crate::driver::{DrivenFrame, Driver, DriverError, FrameSink, PendingFrame, StageClock};
+use crate::driver::{DrivenFrame, Driver, DriverError, FrameSink, PendingFrame};
+use crate::frame::StageClock;
 use crate::methods::{FrameResult, Method, MethodError, Stat, StatsExt};
 use crate::metrics::{
     self, FidelityReference, Metric, MetricsError, StaticStop, Summary, SurfaceSamples,

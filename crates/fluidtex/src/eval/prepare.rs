@@ -12,7 +12,7 @@ use std::sync::Arc;
 
 use crate::atlas::{Atlas, AtlasParams};
 use crate::coherence::{Carried, CoherenceSettings, carry_by_velocity, sample_surface};
-use crate::driver::{DriverError, FrameGeometry, StageClock};
+use crate::frame::{FrameGeometry, GeometryError, StageClock};
 use crate::mesh::TriMesh;
 use crate::metrics::{Thresholds, interior_mask};
 use crate::render::{BACKGROUND, Camera, GBuffer, rasterize};
@@ -92,15 +92,8 @@ pub fn prepare(
     for (&number, (mesh, report)) in frames.iter().zip(meshes) {
         let time = (f64::from(number - info.first)) / info.fps;
         let geometry =
-            FrameGeometry::build(number, mesh, report, atlas, &mut StageClock::default()).map_err(
-                |e| match e {
-                    DriverError::Atlas { frame, source } => EvalError::Atlas { frame, source },
-                    DriverError::Method(m) => EvalError::Method {
-                        method: String::new(),
-                        source: m,
-                    },
-                },
-            )?;
+            FrameGeometry::build(number, mesh, report, atlas, &mut StageClock::default())
+                .map_err(|GeometryError { frame, source }| EvalError::Atlas { frame, source })?;
         out.push(prepare_frame(time, geometry, &camera, thresholds)?);
     }
     let truth = TruthMotion::of(&*scene, settings.trace_substeps);

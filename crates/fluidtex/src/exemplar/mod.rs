@@ -2,7 +2,7 @@
 //! patch selection (displacement, roughness, ...), and the feature map that
 //! decides what the erosion removes first (Gagnon et al. 2021, Sec. 5.2).
 //!
-//! - [`Exemplar::load`] reads PNG, JPEG or EXR files ([`decode`], [`openexr`]),
+//! - [`Exemplar::load`] reads PNG, JPEG or EXR files ([`crate::io::image_read`]),
 //!   grey or colour, 8/16-bit or float, any size; values are the stored ones
 //!   scaled to `[0, 1]` for integer formats (no colour-space conversion, so
 //!   an atlas written back in [`SampleFormat`] reproduces them).
@@ -22,10 +22,8 @@
 //!   among them ([`ExemplarSet`], [`ExemplarSelect`]).
 
 pub mod channels;
-pub mod decode;
 pub mod feature;
 pub mod mip;
-pub mod openexr;
 pub mod pebbles;
 mod sampling;
 pub mod set;
@@ -39,6 +37,8 @@ pub use mip::mip_levels;
 pub use pebbles::builtin_pebbles;
 pub use set::{ExemplarSelect, ExemplarSet, RegionImage};
 
+use crate::io::image_read::{self, ImageError};
+pub use crate::io::image_read::{Decoded, SampleFormat};
 use crate::texture::Texture;
 use sampling::{Lattice, blend, blend_levels};
 
@@ -61,24 +61,6 @@ crate::named!(ExemplarFilter {
     Unfiltered => "none",
 });
 
-/// A decoded image and how its samples were stored.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Decoded {
-    pub texture: Texture,
-    pub format: SampleFormat,
-}
-
-/// How a channel's samples were stored, and so how its atlas is written.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum SampleFormat {
-    /// 8-bit integer (PNG 8-bit).
-    U8,
-    /// 16-bit integer (PNG 16-bit).
-    U16,
-    /// Float (EXR).
-    F32,
-}
-
 /// An extra channel (displacement, roughness, ...) synthesised with the same
 /// patch selection as the colour.
 #[derive(Clone, Debug, PartialEq)]
@@ -93,18 +75,9 @@ pub struct ExtraChannel {
 /// in-memory texture) at fault.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum ExemplarError {
-    #[error("{what}: file not found")]
-    NotFound { what: String },
-    #[error("{what}: cannot read: {reason}")]
-    Io { what: String, reason: String },
-    #[error("{what}: cannot decode image: {reason}")]
-    Decode { what: String, reason: String },
-    #[error("{what}: image has zero size ({width}x{height})")]
-    ZeroSize {
-        what: String,
-        width: u32,
-        height: u32,
-    },
+    /// The image itself could not be read (see [`ImageError`]).
+    #[error(transparent)]
+    Image(#[from] ImageError),
     #[error(
         "{what} is {width}x{height} but the colour exemplar {colour} is {colour_width}x{colour_height}; they must match"
     )]
@@ -115,16 +88,6 @@ pub enum ExemplarError {
         colour: String,
         colour_width: u32,
         colour_height: u32,
-    },
-    #[error(
-        "{what}: texel ({x}, {y}) channel {channel} is {value}; images must hold finite values"
-    )]
-    NotFinite {
-        what: String,
-        x: u32,
-        y: u32,
-        channel: usize,
-        value: f32,
     },
     #[error("{what}: feature value {value} at texel ({x}, {y}) is outside [0, 1]")]
     FeatureRange {
@@ -234,7 +197,7 @@ impl Exemplar {
     pub fn repack(&mut self) -> Result<(), ExemplarError> {
         let colour_name = "colour texture";
         well_formed(&self.colour, colour_name)?;
-        decode::check(&self.colour, colour_name)?;
+        image_read::check(&self.colour, colour_name)?;
         let (w, h) = (self.colour.width, self.colour.height);
         let mismatch = |what: String, t: &Texture| ExemplarError::SizeMismatch {
             what,
@@ -247,7 +210,7 @@ impl Exemplar {
         for (i, c) in self.channels.iter().enumerate() {
             let what = format!("extra channel '{}'", c.name);
             well_formed(&c.texture, &what)?;
-            decode::check(&c.texture, &what)?;
+            image_read::check(&c.texture, &what)?;
             if (c.texture.width, c.texture.height) != (w, h) {
                 return Err(mismatch(what, &c.texture));
             }
@@ -300,7 +263,7 @@ impl Exemplar {
         feature: Option<&Path>,
         derive: FeatureMethod,
     ) -> Result<Exemplar, ExemplarError> {
-        let main = decode::read_image(colour)?;
+        let main = image_read::read_image(colour)?;
         let (w, h) = (main.texture.width, main.texture.height);
         let check_size = |path: &Path, t: &Texture| {
             if (t.width, t.height) == (w, h) {
@@ -318,7 +281,7 @@ impl Exemplar {
         };
         let mut extras = Vec::with_capacity(channels.len());
         for (name, path) in channels {
-            let d = decode::read_image(path)?;
+            let d = image_read::read_image(path)?;
             check_size(path, &d.texture)?;
             extras.push(ExtraChannel {
                 name: name.clone(),
@@ -328,7 +291,7 @@ impl Exemplar {
         }
         let feature = match feature {
             Some(path) => {
-                let d = decode::read_image(path)?;
+                let d = image_read::read_image(path)?;
                 check_size(path, &d.texture)?;
                 let grey = Texture {
                     width: d.texture.width,

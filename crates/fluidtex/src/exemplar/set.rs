@@ -40,9 +40,7 @@ use crate::mesh::{Attribute, TriMesh};
 use crate::surface::SurfacePoint;
 use crate::texture::Texture;
 
-/// Name of the per-vertex attribute (and PLY vertex property) holding the
-/// exemplar index of region selection.
-pub const EXEMPLAR_ID: &str = "exemplar_id";
+pub use crate::mesh::EXEMPLAR_ID;
 
 /// Histogram steering counts the patches whose centres lie within this many
 /// patch radii of the new patch's centre \[3] ("a few radii": far enough to
@@ -79,7 +77,7 @@ pub struct RegionImage {
 impl RegionImage {
     /// Reads a region image (PNG, JPEG or EXR; luminance).
     pub fn load(path: &Path) -> Result<RegionImage, ExemplarError> {
-        let d = super::decode::read_image(path)?;
+        let d = crate::io::image_read::read_image(path)?;
         Ok(RegionImage::new(
             Texture {
                 width: d.texture.width,

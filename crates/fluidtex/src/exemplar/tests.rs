@@ -325,7 +325,7 @@ fn loads_each_format_and_depth() {
     let grey_exr = d.join("grey.exr");
     write_grey_exr(&grey_exr, 3, 2, &[0.0, 0.5, 1.0, 0.25, 0.75, 0.125]);
 
-    let read = |p: &Path| decode::read_image(p).expect("decodes");
+    let read = |p: &Path| crate::io::image_read::read_image(p).expect("decodes");
     let check = |p: &Path, w: u32, h: u32, c: usize, f: SampleFormat, data: &[f32]| {
         let d = read(p);
         assert_eq!(
@@ -535,7 +535,7 @@ fn each_error_names_the_file() {
     let empty = Texture::filled(0, 0, 3, 0.0);
     assert!(matches!(
         Exemplar::new(empty, SampleFormat::U8, vec![], flat_feature(1, 1, 0.0)),
-        Err(ExemplarError::ZeroSize { .. })
+        Err(ExemplarError::Image(ImageError::ZeroSize { .. }))
     ));
     let extra = || ExtraChannel {
         name: "d".into(),
@@ -614,7 +614,7 @@ fn pebbles_tile_seamlessly() {
         assert!(rx <= 1.0 && ry <= 1.0, "seams visible: {rx:.2}, {ry:.2}");
     }
     // Known-bad control: a crop of a larger photograph does not tile.
-    let gravel = decode::read_image(&data_dir().join("gravel.png")).expect("gravel");
+    let gravel = crate::io::image_read::read_image(&data_dir().join("gravel.png")).expect("gravel");
     let (rx, ry) = seam_ratio(&gravel.texture);
     assert!(
         rx > 1.0 && ry > 1.0,
@@ -755,8 +755,9 @@ fn distance_feature_of_discs_peaks_at_centres() {
 
 #[test]
 fn auto_chooses_by_separability() {
-    let load =
-        |name: &str| decode::read_image(&data_dir().join(format!("{name}.png"))).expect(name);
+    let load = |name: &str| {
+        crate::io::image_read::read_image(&data_dir().join(format!("{name}.png"))).expect(name)
+    };
     let p = DistanceParams::default();
     let chosen = |name: &str| {
         let d = feature::derive(&load(name).texture, FeatureMethod::Auto, &p).expect("derives");
@@ -798,7 +799,7 @@ fn auto_chooses_by_separability() {
 
 #[test]
 fn derived_maps_are_valid_and_tile() {
-    let gravel = decode::read_image(&data_dir().join("gravel.png")).expect("gravel");
+    let gravel = crate::io::image_read::read_image(&data_dir().join("gravel.png")).expect("gravel");
     for method in [FeatureMethod::Luminance, FeatureMethod::DistanceTransform] {
         let d =
             feature::derive(&gravel.texture, method, &DistanceParams::default()).expect("derives");

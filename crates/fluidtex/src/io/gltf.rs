@@ -60,79 +60,121 @@ pub fn encode_glb(
     base_color_png: Option<&[u8]>,
 ) -> Result<Vec<u8>, String> {
     check_mesh(positions, uvs, normals, triangles)?;
-    let mut bin: Vec<u8> = Vec::new();
-    let mut views: Vec<Value> = Vec::new();
-    let mut accessors: Vec<Value> = Vec::new();
     let mut json = json!({
         "asset": { "version": "2.0", "generator": concat!("fluidtex ", env!("CARGO_PKG_VERSION")) },
         "scene": 0,
     });
-
     if triangles.is_empty() {
         json["scenes"] = json!([{}]);
-        return Ok(assemble(&json, &bin));
+        return Ok(assemble(&json, &[]));
     }
+    // The buffer views in this order: positions, normals, uvs, indices,
+    // the colour image.
+    let mut buffer = GlbBuffer::default();
+    let mut primitive = buffer.primitive(positions, uvs, normals, triangles);
+    if let Some(png) = base_color_png {
+        buffer.base_colour(&mut json, png);
+        primitive["material"] = json!(0);
+    }
+    json["scenes"] = json!([{ "nodes": [0] }]);
+    json["nodes"] = json!([{ "mesh": 0 }]);
+    json["meshes"] = json!([{ "primitives": [primitive] }]);
+    let GlbBuffer {
+        bin,
+        views,
+        accessors,
+    } = buffer;
+    json["accessors"] = Value::Array(accessors);
+    json["bufferViews"] = Value::Array(views);
+    json["buffers"] = json!([{ "byteLength": bin.len() }]);
+    Ok(assemble(&json, &bin))
+}
 
-    let mut view = |bin: &mut Vec<u8>, data: &[u8], target: Option<u32>| -> usize {
-        let offset = bin.len();
-        bin.extend_from_slice(data);
-        bin.resize(bin.len().next_multiple_of(4), 0);
+/// The binary chunk as it is filled, with its buffer views and accessors.
+#[derive(Default)]
+struct GlbBuffer {
+    bin: Vec<u8>,
+    views: Vec<Value>,
+    accessors: Vec<Value>,
+}
+
+impl GlbBuffer {
+    /// Appends `data` (padded to 4 bytes) as a new buffer view; its index.
+    fn view(&mut self, data: &[u8], target: Option<u32>) -> usize {
+        let offset = self.bin.len();
+        self.bin.extend_from_slice(data);
+        self.bin.resize(self.bin.len().next_multiple_of(4), 0);
         let mut v = json!({ "buffer": 0, "byteOffset": offset, "byteLength": data.len() });
         if let Some(t) = target {
             v["target"] = json!(t);
         }
-        views.push(v);
-        views.len() - 1
-    };
-    let floats =
-        |v: &mut dyn Iterator<Item = f32>| -> Vec<u8> { v.flat_map(f32::to_le_bytes).collect() };
-
-    let (lo, hi) = positions.iter().fold(
-        (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
-        |(lo, hi), &p| (lo.min(p), hi.max(p)),
-    );
-    let pos_view = view(
-        &mut bin,
-        &floats(&mut positions.iter().flat_map(|p| p.to_array())),
-        Some(ARRAY_BUFFER),
-    );
-    accessors.push(json!({
-        "bufferView": pos_view, "componentType": FLOAT, "count": positions.len(), "type": "VEC3",
-        "min": lo.to_array(), "max": hi.to_array(),
-    }));
-    let mut attributes = json!({ "POSITION": accessors.len() - 1 });
-    if let Some(ns) = normals {
-        let v = view(
-            &mut bin,
-            &floats(&mut ns.iter().flat_map(|n| n.to_array())),
-            Some(ARRAY_BUFFER),
-        );
-        accessors.push(
-            json!({ "bufferView": v, "componentType": FLOAT, "count": ns.len(), "type": "VEC3" }),
-        );
-        attributes["NORMAL"] = json!(accessors.len() - 1);
+        self.views.push(v);
+        self.views.len() - 1
     }
-    let uv_view = view(
-        &mut bin,
-        &floats(&mut uvs.iter().flat_map(|t| t.to_array())),
-        Some(ARRAY_BUFFER),
-    );
-    accessors.push(json!({ "bufferView": uv_view, "componentType": FLOAT, "count": uvs.len(), "type": "VEC2" }));
-    attributes["TEXCOORD_0"] = json!(accessors.len() - 1);
-    let idx: Vec<u8> = triangles
-        .iter()
-        .flatten()
-        .flat_map(|i| i.to_le_bytes())
-        .collect();
-    let idx_view = view(&mut bin, &idx, Some(ELEMENT_ARRAY_BUFFER));
-    accessors.push(json!({
-        "bufferView": idx_view, "componentType": UNSIGNED_INT, "count": triangles.len() * 3, "type": "SCALAR",
-    }));
-    let indices = accessors.len() - 1;
 
-    let mut primitive = json!({ "attributes": attributes, "indices": indices, "mode": 4 });
-    if let Some(png) = base_color_png {
-        let img_view = view(&mut bin, png, None);
+    /// A vertex attribute of little-endian floats, `kind` ("VEC3", "VEC2")
+    /// per vertex; the accessor's index. `bounds` go with positions, whose
+    /// accessor must state them.
+    fn floats(
+        &mut self,
+        values: impl Iterator<Item = f32>,
+        count: usize,
+        kind: &str,
+        bounds: Option<(Vec3, Vec3)>,
+    ) -> usize {
+        let bytes: Vec<u8> = values.flat_map(f32::to_le_bytes).collect();
+        let view = self.view(&bytes, Some(ARRAY_BUFFER));
+        let mut accessor =
+            json!({ "bufferView": view, "componentType": FLOAT, "count": count, "type": kind });
+        if let Some((lo, hi)) = bounds {
+            accessor["min"] = json!(lo.to_array());
+            accessor["max"] = json!(hi.to_array());
+        }
+        self.accessors.push(accessor);
+        self.accessors.len() - 1
+    }
+
+    /// The triangle list's attributes and indices, as a glTF primitive.
+    fn primitive(
+        &mut self,
+        positions: &[Vec3],
+        uvs: &[Vec2],
+        normals: Option<&[Vec3]>,
+        triangles: &[[u32; 3]],
+    ) -> Value {
+        let bounds = positions.iter().fold(
+            (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
+            |(lo, hi), &p| (lo.min(p), hi.max(p)),
+        );
+        let position = self.floats(flat3(positions), positions.len(), "VEC3", Some(bounds));
+        let mut attributes = json!({ "POSITION": position });
+        if let Some(ns) = normals {
+            let normal = self.floats(flat3(ns), ns.len(), "VEC3", None);
+            attributes["NORMAL"] = json!(normal);
+        }
+        let uv = self.floats(
+            uvs.iter().flat_map(|t| t.to_array()),
+            uvs.len(),
+            "VEC2",
+            None,
+        );
+        attributes["TEXCOORD_0"] = json!(uv);
+        let idx: Vec<u8> = triangles
+            .iter()
+            .flatten()
+            .flat_map(|i| i.to_le_bytes())
+            .collect();
+        let idx_view = self.view(&idx, Some(ELEMENT_ARRAY_BUFFER));
+        self.accessors.push(json!({
+            "bufferView": idx_view, "componentType": UNSIGNED_INT, "count": triangles.len() * 3, "type": "SCALAR",
+        }));
+        let indices = self.accessors.len() - 1;
+        json!({ "attributes": attributes, "indices": indices, "mode": 4 })
+    }
+
+    /// Embeds `png` and adds the one material that shows it as base colour.
+    fn base_colour(&mut self, json: &mut Value, png: &[u8]) {
+        let img_view = self.view(png, None);
         json["images"] = json!([{ "bufferView": img_view, "mimeType": "image/png" }]);
         json["samplers"] = json!([{
             "magFilter": LINEAR, "minFilter": LINEAR, "wrapS": CLAMP_TO_EDGE, "wrapT": CLAMP_TO_EDGE,
@@ -146,15 +188,12 @@ pub fn encode_glb(
                 "roughnessFactor": 1.0,
             },
         }]);
-        primitive["material"] = json!(0);
     }
-    json["scenes"] = json!([{ "nodes": [0] }]);
-    json["nodes"] = json!([{ "mesh": 0 }]);
-    json["meshes"] = json!([{ "primitives": [primitive] }]);
-    json["accessors"] = Value::Array(accessors);
-    json["bufferViews"] = Value::Array(views);
-    json["buffers"] = json!([{ "byteLength": bin.len() }]);
-    Ok(assemble(&json, &bin))
+}
+
+/// The coordinates of `v`, one after another.
+fn flat3(v: &[Vec3]) -> impl Iterator<Item = f32> + '_ {
+    v.iter().flat_map(|p| p.to_array())
 }
 
 /// Header + JSON chunk (space-padded) + BIN chunk (zero-padded, if any).

@@ -1,4 +1,5 @@
-//! Reading fluid mesh sequences and writing every per-frame output.
+//! Reading fluid mesh sequences and images, and writing every per-frame
+//! output.
 //!
 //! **Reading.** [`read_mesh`] picks a reader from the file extension
 //! ([`ply`], [`obj`], [`vtk`]), then runs [`mesh::validate()`]: indices out of
@@ -7,7 +8,10 @@
 //! no face is valid (the fluid can vanish) and reads as an empty mesh.
 //! [`sequence`] turns a frame pattern (`fluid.$F4.ply`, `fluid.####.ply`,
 //! `fluid.%04d.ply`) and a frame range into a lazy stream of frames, so memory
-//! is bounded by one frame whatever the sequence length.
+//! is bounded by one frame whatever the sequence length. [`image_read`]
+//! reads PNG, JPEG and EXR images (exemplars, feature maps, our own
+//! outputs read back) into float textures, beside [`image`], which writes
+//! them.
 //!
 //! **Writing.** Every output goes through [`atomic::write_atomic`]: a temp
 //! file in the target directory, synced, then renamed, so a killed run never
@@ -20,15 +24,18 @@
 //! [`gltf`]: binary glTF 2.0), and PLY with velocity ([`ply_write`], used
 //! by the scene generator).
 //!
-//! **Errors.** One [`IoError`] for the whole module. Its message is one line
-//! that names the file and, where it applies, the element (`face 88`,
-//! `vertex 12`, `frame 14`), e.g.
+//! **Errors.** One [`IoError`] for meshes and outputs; image reading has
+//! its own [`image_read::ImageError`], which the exemplar's errors wrap.
+//! A message is one line that names the file and, where it applies, the
+//! element (`face 88`, `vertex 12`, `frame 14`), e.g.
 //! `fluid.0012.ply: face 88 refers to vertex 9999, but the mesh has 1000 vertices`.
 //! Element indices are zero-based, as in the file.
 
 pub mod atomic;
+mod exr_read;
 pub mod gltf;
 pub mod image;
+pub mod image_read;
 pub mod lock;
 pub mod obj;
 pub mod obj_write;

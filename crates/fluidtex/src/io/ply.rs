@@ -36,8 +36,7 @@ use ply_rs_bw::ply::{
 };
 
 use super::{IoError, ReadOptions, read_bytes};
-use crate::exemplar::set::EXEMPLAR_ID;
-use crate::mesh::{Attribute, MeshError, TriMesh};
+use crate::mesh::{Attribute, EXEMPLAR_ID, MeshError, TriMesh};
 
 /// Velocity property triples tried in order when none is configured.
 pub const VELOCITY_NAMES: [[&str; 3]; 3] = [

@@ -19,6 +19,10 @@ pub use validate::{MeshError, ValidationReport, validate};
 /// Name of the per-vertex velocity attribute (world units per second).
 pub const VELOCITY: &str = "velocity";
 
+/// Name of the per-vertex attribute (and PLY vertex property) holding the
+/// exemplar index of region selection ([`crate::exemplar::ExemplarSet`]).
+pub const EXEMPLAR_ID: &str = "exemplar_id";
+
 /// One named per-vertex attribute array. Its length equals the vertex count.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Attribute {

@@ -34,9 +34,9 @@ use std::collections::BTreeMap;
 use thiserror::Error;
 
 use crate::atlas::Atlas;
-use crate::driver::FrameGeometry;
-pub use crate::driver::StageClock;
 pub use crate::exemplar::channels::{ChannelFormat, ChannelSpec};
+use crate::frame::FrameGeometry;
+pub use crate::frame::StageClock;
 use crate::mesh::{Topology, TriMesh};
 use crate::surface::SurfaceIndex;
 use crate::surface::velocity::{FlowFrame, FlowInterval};

@@ -39,6 +39,7 @@ use std::path::PathBuf;
 
 use super::ExemplarError;
 use super::sampling::{Lattice, blend};
+use crate::io::image_read::ImageError;
 use crate::texture::Texture;
 
 /// How a feature map is derived when none is given.
@@ -179,7 +180,7 @@ pub(crate) fn check_map(map: &Texture, what: &str) -> Result<(), ExemplarError> 
             ),
         });
     }
-    super::decode::check(map, what)?;
+    crate::io::image_read::check(map, what)?;
     if let Some(i) = map.data.iter().position(|v| !(0.0..=1.0).contains(v)) {
         let w = map.width as usize;
         return Err(ExemplarError::FeatureRange {
@@ -283,7 +284,7 @@ pub fn derive(
     params: &DistanceParams,
 ) -> Result<Derived, ExemplarError> {
     params.validate()?;
-    super::decode::check(colour, "colour texture")?;
+    crate::io::image_read::check(colour, "colour texture")?;
     let (w, h) = (colour.width as usize, colour.height as usize);
     let lum = luminance(colour);
     let stretched = || stretch(&lum);
@@ -293,9 +294,11 @@ pub fn derive(
                 map,
                 origin: FeatureOrigin::Derived(m),
             })
-            .map_err(|e| ExemplarError::Decode {
-                what: "derived feature map".into(),
-                reason: e.to_string(),
+            .map_err(|e| {
+                ExemplarError::Image(ImageError::Decode {
+                    what: "derived feature map".into(),
+                    reason: e.to_string(),
+                })
             })
     };
     if method == FeatureMethod::Luminance {

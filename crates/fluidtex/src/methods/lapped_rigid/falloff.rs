@@ -66,7 +66,7 @@ impl PatchMask {
     /// Reads a mask image (PNG, JPEG or EXR; luminance, alpha ignored).
     /// The error names the file.
     pub fn from_file(path: &Path) -> Result<PatchMask, String> {
-        let decoded = crate::exemplar::decode::read_image(path).map_err(|e| e.to_string())?;
+        let decoded = crate::io::image_read::read_image(path).map_err(|e| e.to_string())?;
         let t = decoded.texture;
         let data = crate::exemplar::feature::luminance(&t);
         if let Some(k) = data.iter().position(|v| !v.is_finite()) {

@@ -804,7 +804,7 @@ impl Method for LappedRigid {
     }
 
     fn channel_specs(&self) -> Vec<ChannelSpec> {
-        crate::pipeline::exemplar_channels(&self.exemplar)
+        crate::exemplar::channels::exemplar_channels(&self.exemplar)
     }
 
     fn step(&mut self, ctx: &FrameContext<'_>) -> Result<FrameResult, MethodError> {

@@ -1,4 +1,6 @@
-//! Reading exemplar images (PNG, JPEG, EXR) into float textures.
+//! Reading images (PNG, JPEG, EXR) into float textures: exemplars, their
+//! channels and feature maps, and our own outputs read back. Writing is
+//! [`super::image`].
 //!
 //! Integer formats are scaled to `[0, 1]` (8-bit by 255, 16-bit by 65535)
 //! and nothing else: no sRGB decoding, so an atlas written back in the same
@@ -20,21 +22,65 @@ use std::io::Cursor;
 use std::path::Path;
 
 use image::DynamicImage;
+use thiserror::Error;
 
-use super::{ExemplarError, SampleFormat};
 use crate::texture::Texture;
 
-pub use super::Decoded;
+/// A decoded image and how its samples were stored.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Decoded {
+    pub texture: Texture,
+    pub format: SampleFormat,
+}
+
+/// How a channel's samples were stored, and so how its atlas is written.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum SampleFormat {
+    /// 8-bit integer (PNG 8-bit).
+    U8,
+    /// 16-bit integer (PNG 16-bit).
+    U16,
+    /// Float (EXR).
+    F32,
+}
+
+/// Errors reading one image. `what` names the file (or the in-memory
+/// texture) at fault.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum ImageError {
+    #[error("{what}: file not found")]
+    NotFound { what: String },
+    #[error("{what}: cannot read: {reason}")]
+    Io { what: String, reason: String },
+    #[error("{what}: cannot decode image: {reason}")]
+    Decode { what: String, reason: String },
+    #[error("{what}: image has zero size ({width}x{height})")]
+    ZeroSize {
+        what: String,
+        width: u32,
+        height: u32,
+    },
+    #[error(
+        "{what}: texel ({x}, {y}) channel {channel} is {value}; images must hold finite values"
+    )]
+    NotFinite {
+        what: String,
+        x: u32,
+        y: u32,
+        channel: usize,
+        value: f32,
+    },
+}
 
 const EXR_MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
 
 /// Reads an image file, recognising the format from its contents.
-pub fn read_image(path: &Path) -> Result<Decoded, ExemplarError> {
+pub fn read_image(path: &Path) -> Result<Decoded, ImageError> {
     let what = path.display().to_string();
     if !path.exists() {
-        return Err(ExemplarError::NotFound { what });
+        return Err(ImageError::NotFound { what });
     }
-    let bytes = std::fs::read(path).map_err(|e| ExemplarError::Io {
+    let bytes = std::fs::read(path).map_err(|e| ImageError::Io {
         what: what.clone(),
         reason: e.to_string(),
     })?;
@@ -43,10 +89,10 @@ pub fn read_image(path: &Path) -> Result<Decoded, ExemplarError> {
 
 /// Decodes image bytes (PNG, JPEG or EXR, recognised from the contents);
 /// `what` names the image in messages.
-pub fn decode_image(bytes: &[u8], what: &str) -> Result<Decoded, ExemplarError> {
+pub fn decode_image(bytes: &[u8], what: &str) -> Result<Decoded, ImageError> {
     // Files shorter than 4 bytes fall through to the image crate's error.
     let decoded = if bytes.starts_with(&EXR_MAGIC) {
-        super::openexr::decode_exr(bytes, what)?
+        super::exr_read::decode_exr(bytes, what)?
     } else {
         decode_with_image_crate(bytes, what)?
     };
@@ -71,7 +117,7 @@ pub fn check_size_against_data(
     channels: u64,
     len: usize,
     what: &str,
-) -> Result<(), ExemplarError> {
+) -> Result<(), ImageError> {
     let samples = width.saturating_mul(height).saturating_mul(channels.max(1));
     if samples > max_samples_for(len) {
         let of = if channels > 1 {
@@ -79,7 +125,7 @@ pub fn check_size_against_data(
         } else {
             String::new()
         };
-        return Err(ExemplarError::Decode {
+        return Err(ImageError::Decode {
             what: what.to_owned(),
             reason: format!(
                 "the header says {width}x{height} pixels{of}, more than {len} bytes can hold \
@@ -91,9 +137,9 @@ pub fn check_size_against_data(
 }
 
 /// Rejects empty images and non-finite samples.
-pub(crate) fn check(texture: &Texture, what: &str) -> Result<(), ExemplarError> {
+pub(crate) fn check(texture: &Texture, what: &str) -> Result<(), ImageError> {
     if texture.width == 0 || texture.height == 0 {
-        return Err(ExemplarError::ZeroSize {
+        return Err(ImageError::ZeroSize {
             what: what.to_owned(),
             width: texture.width,
             height: texture.height,
@@ -103,7 +149,7 @@ pub(crate) fn check(texture: &Texture, what: &str) -> Result<(), ExemplarError> 
     if let Some(i) = texture.data.iter().position(|x| !x.is_finite()) {
         let texel = i / channels;
         let w = texture.width as usize;
-        return Err(ExemplarError::NotFinite {
+        return Err(ImageError::NotFinite {
             what: what.to_owned(),
             x: (texel % w) as u32,
             y: (texel / w) as u32,
@@ -114,17 +160,17 @@ pub(crate) fn check(texture: &Texture, what: &str) -> Result<(), ExemplarError> 
     Ok(())
 }
 
-fn decode_with_image_crate(bytes: &[u8], what: &str) -> Result<Decoded, ExemplarError> {
+fn decode_with_image_crate(bytes: &[u8], what: &str) -> Result<Decoded, ImageError> {
     let what = || what.to_owned();
     let reader = || {
         image::ImageReader::new(Cursor::new(bytes))
             .with_guessed_format()
-            .map_err(|e| ExemplarError::Io {
+            .map_err(|e| ImageError::Io {
                 what: what(),
                 reason: e.to_string(),
             })
     };
-    let decode_err = |e: image::ImageError| ExemplarError::Decode {
+    let decode_err = |e: image::ImageError| ImageError::Decode {
         what: what(),
         reason: e.to_string(),
     };
@@ -132,7 +178,7 @@ fn decode_with_image_crate(bytes: &[u8], what: &str) -> Result<Decoded, Exemplar
     let (w, h) = reader()?.into_dimensions().map_err(decode_err)?;
     check_size_against_data(u64::from(w), u64::from(h), 1, bytes.len(), &what())?;
     let image = reader()?.decode().map_err(decode_err)?;
-    from_dynamic(image).map_err(|reason| ExemplarError::Decode {
+    from_dynamic(image).map_err(|reason| ImageError::Decode {
         what: what(),
         reason,
     })

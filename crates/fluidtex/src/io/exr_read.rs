@@ -1,4 +1,4 @@
-//! OpenEXR exemplars through the `exr` crate: the first flat layer, any of
+//! Reading OpenEXR images through the `exr` crate: the first flat layer, any of
 //! these channel sets (names as OpenEXR spells them, case-sensitive):
 //!
 //! - `R`, `G`, `B` (and `A`): colour, 3 (4) channels;
@@ -12,25 +12,25 @@ use std::io::Cursor;
 
 use exr::prelude::{AnyChannels, FlatSamples, Image, Layer, ReadChannels, ReadLayers};
 
-use super::{Decoded, ExemplarError, SampleFormat};
+use super::image_read::{Decoded, ImageError, SampleFormat};
 use crate::texture::Texture;
 
 type FlatImage = Image<Layer<AnyChannels<FlatSamples>>>;
 
-pub(crate) fn decode_exr(bytes: &[u8], what: &str) -> Result<Decoded, ExemplarError> {
+pub(crate) fn decode_exr(bytes: &[u8], what: &str) -> Result<Decoded, ImageError> {
     let what = || what.to_owned();
-    let decode_err = |e: exr::error::Error| ExemplarError::Decode {
+    let decode_err = |e: exr::error::Error| ImageError::Decode {
         what: what(),
         reason: e.to_string(),
     };
     // The headers alone first: no layer may claim more pixels than the
-    // data can hold (see `decode::check_size_against_data`).
+    // data can hold (see `image_read::check_size_against_data`).
     let meta =
         exr::meta::MetaData::read_from_buffered(Cursor::new(bytes), false).map_err(decode_err)?;
     for header in &meta.headers {
         let size = header.layer_size;
         let channels = header.channels.list.len().max(1) as u64;
-        super::decode::check_size_against_data(
+        super::image_read::check_size_against_data(
             size.width() as u64,
             size.height() as u64,
             channels,
@@ -67,7 +67,7 @@ pub(crate) fn decode_exr(bytes: &[u8], what: &str) -> Result<Decoded, ExemplarEr
         _ if channels.len() == 1 => channels.iter().map(values).collect(),
         _ => {
             let names: Vec<String> = channels.iter().map(|c| c.name.to_string()).collect();
-            return Err(ExemplarError::Decode {
+            return Err(ImageError::Decode {
                 what: what(),
                 reason: format!(
                     "EXR channels [{}]: expected R,G,B(,A), Y(,A) or a single channel",
@@ -78,7 +78,7 @@ pub(crate) fn decode_exr(bytes: &[u8], what: &str) -> Result<Decoded, ExemplarEr
     };
     let n = w * h;
     if planes.iter().any(|p| p.len() != n) {
-        return Err(ExemplarError::Decode {
+        return Err(ImageError::Decode {
             what: what(),
             reason: "EXR channels are subsampled; only full-resolution channels are supported"
                 .into(),
@@ -89,7 +89,7 @@ pub(crate) fn decode_exr(bytes: &[u8], what: &str) -> Result<Decoded, ExemplarEr
         data.extend(planes.iter().map(|p| p[i]));
     }
     let texture = Texture::from_data(w as u32, h as u32, planes.len(), data).map_err(|e| {
-        ExemplarError::Decode {
+        ImageError::Decode {
             what: what(),
             reason: e.to_string(),
         }
