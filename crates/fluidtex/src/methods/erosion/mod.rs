@@ -540,6 +540,19 @@ struct Blended {
     used: Option<Vec<u32>>,
 }
 
+impl Blended {
+    /// Texels the update covered hold one new patch each.
+    fn count_update(&mut self, source: &[u32]) {
+        if let Some(layers) = self.layers.as_mut() {
+            for (l, &s) in layers.iter_mut().zip(source) {
+                if *l == 0 && s != fill::OUTSIDE && s != fill::UNCOVERED {
+                    *l = 1;
+                }
+            }
+        }
+    }
+}
+
 impl Erosion {
     /// r and S, resolved on the first non-empty frame and kept.
     fn resolve_scale(
@@ -577,36 +590,11 @@ impl Erosion {
         clock: &mut StageClock,
     ) -> Result<Blended, MethodError> {
         let mesh = ctx.mesh;
-        if mesh.velocity().is_none() {
-            return Err(MethodError::MissingVelocity {
-                frame: ctx.number,
-                method: self.name(),
-            });
-        }
+        self.require_velocity(ctx)?;
         let (radius, exemplar_size) = self.resolve_scale(mesh, counts);
         let shape = self.shape(radius, exemplar_size, mesh, ctx.atlas);
-        let align = (self.params.orientation == Orientation::Aligned)
-            .then(|| glam::Vec3::from(self.params.up_axis).normalize_or_zero());
-        if self.test.is_none() {
-            self.test = Some(self.erosion_test(radius / exemplar_size, &self.exemplar.feature));
-        }
-        if let Some(m) = &self.multi {
-            m.set
-                .check_mesh(mesh, ctx.number)
-                .map_err(MethodError::Input)?;
-        }
-        if let Some(mut m) = self.multi.take() {
-            if m.tests.is_empty() {
-                m.tests = (m.set.exemplars().iter())
-                    .map(|e| self.erosion_test(radius / exemplar_size, &e.feature))
-                    .collect();
-            }
-            if m.region.is_none() {
-                m.region = crate::exemplar::set::RegionBox::of(mesh);
-            }
-            self.multi = Some(m);
-        }
-        let test = self.test.unwrap_or_else(ErosionTest::never);
+        let align = self.align_axis();
+        let test = self.prepare_tests(ctx, radius / exemplar_size)?;
 
         // 1. Advection and projection (Sec. 4).
         let carried = self.advect(ctx, &shape, radius, counts)?;
@@ -623,14 +611,7 @@ impl Erosion {
         clock.lap("creation");
 
         // 2. Weights (Eqs. 1-3).
-        let max_drop = match (self.variant, self.params.weights) {
-            (Variant::Erode, WeightMode::Progressive) => Some(self.params.erosion_rate * ctx.dt),
-            _ => None,
-        };
-        self.state
-            .patches
-            .par_iter_mut()
-            .for_each(|p| p.update_weights(&shape, max_drop));
+        self.update_weights(&shape, ctx.dt);
         clock.lap("weights");
 
         // 3. Lapped (or blended) fill.
@@ -641,35 +622,24 @@ impl Erosion {
         let feature = self.feature_levels.samplers();
         let multi_fill = self.multi.as_ref().map(exemplars::Multi::fill);
         let mut blended = Blended::default();
+        let exemplar = Arc::clone(&self.exemplar);
         let uncovered = {
             let frames = fill::patch_frames(&self.state.patches);
-            let candidates =
-                Candidates::build(mesh, ctx.index, &self.state.patches, &frames, tolerance);
             let fill_ctx = FillContext {
                 mesh,
                 patches: &self.state.patches,
                 frames: &frames,
-                exemplar: &self.exemplar,
+                exemplar: &exemplar,
                 feature: &feature,
                 test,
                 tolerance,
                 multi: multi_fill.as_ref(),
             };
-            counts.candidate_pairs = candidates.len();
-            if self.variant == Variant::Blend {
-                let outcome = blend::fill(&fill_ctx, ctx.atlas, &candidates, out);
-                blended.layers = Some(outcome.layers);
-                blended.used = Some(outcome.used);
-                outcome.uncovered
-            } else {
-                fill::fill(&fill_ctx, ctx.atlas, &candidates, out)
-            }
-            // The fill's buffers are large; they are freed before the update.
+            self.fill(ctx, &fill_ctx, out, counts, &mut blended)
         };
         clock.lap("fill");
 
-        // 4. Distribution update.
-        let exemplar = Arc::clone(&self.exemplar);
+        // 4. Distribution update: new patches see the fill's settings.
         let template = FillContext {
             mesh,
             patches: &[],
@@ -708,16 +678,98 @@ impl Erosion {
             counts.created += stats.created;
             counts.forced = stats.forced;
         }
-        if let Some(layers) = blended.layers.as_mut() {
-            // Texels the update covered hold one new patch each.
-            for (l, &s) in layers.iter_mut().zip(&out.source) {
-                if *l == 0 && s != fill::OUTSIDE && s != fill::UNCOVERED {
-                    *l = 1;
-                }
-            }
-        }
+        blended.count_update(&out.source);
         clock.lap("update");
         Ok(blended)
+    }
+
+    /// Erosion carries patches with the mesh velocity: a frame without it is an input error.
+    fn require_velocity(&self, ctx: &FrameContext<'_>) -> Result<(), MethodError> {
+        match ctx.mesh.velocity() {
+            Some(_) => Ok(()),
+            None => Err(MethodError::MissingVelocity {
+                frame: ctx.number,
+                method: self.name(),
+            }),
+        }
+    }
+
+    /// The world axis the exemplar's up follows on new patches, with
+    /// aligned orientation.
+    fn align_axis(&self) -> Option<glam::Vec3> {
+        (self.params.orientation == Orientation::Aligned)
+            .then(|| glam::Vec3::from(self.params.up_axis).normalize_or_zero())
+    }
+
+    /// w_V of every patch (Eqs. 1-3), progressive (at most
+    /// `erosion_rate` · dt lower than the last frame's) when eroding with
+    /// progressive weights.
+    fn update_weights(&mut self, shape: &PatchShape, dt: f32) {
+        let max_drop = match (self.variant, self.params.weights) {
+            (Variant::Erode, WeightMode::Progressive) => Some(self.params.erosion_rate * dt),
+            _ => None,
+        };
+        self.state
+            .patches
+            .par_iter_mut()
+            .for_each(|p| p.update_weights(shape, max_drop));
+    }
+
+    /// The erosion tests of this run, built on the first frame with a
+    /// surface (they need r/S), and the exemplar set's checks of this mesh.
+    fn prepare_tests(
+        &mut self,
+        ctx: &FrameContext<'_>,
+        footprint: f32,
+    ) -> Result<ErosionTest, MethodError> {
+        if self.test.is_none() {
+            self.test = Some(self.erosion_test(footprint, &self.exemplar.feature));
+        }
+        if let Some(m) = &self.multi {
+            m.set
+                .check_mesh(ctx.mesh, ctx.number)
+                .map_err(MethodError::Input)?;
+        }
+        if let Some(mut m) = self.multi.take() {
+            if m.tests.is_empty() {
+                m.tests = (m.set.exemplars().iter())
+                    .map(|e| self.erosion_test(footprint, &e.feature))
+                    .collect();
+            }
+            if m.region.is_none() {
+                m.region = crate::exemplar::set::RegionBox::of(ctx.mesh);
+            }
+            self.multi = Some(m);
+        }
+        Ok(self.test.unwrap_or_else(ErosionTest::never))
+    }
+
+    /// The lapped fill (or the blended one), over the candidate pairs of
+    /// every patch; returns the texels no patch covered.
+    fn fill(
+        &self,
+        ctx: &FrameContext<'_>,
+        fill_ctx: &FillContext<'_>,
+        out: &mut FillBuffers,
+        counts: &mut StepCounts,
+        blended: &mut Blended,
+    ) -> Vec<fill::Uncovered> {
+        let candidates = Candidates::build(
+            ctx.mesh,
+            ctx.index,
+            fill_ctx.patches,
+            fill_ctx.frames,
+            fill_ctx.tolerance,
+        );
+        counts.candidate_pairs = candidates.len();
+        if self.variant == Variant::Blend {
+            let outcome = blend::fill(fill_ctx, ctx.atlas, &candidates, out);
+            blended.layers = Some(outcome.layers);
+            blended.used = Some(outcome.used);
+            outcome.uncovered
+        } else {
+            fill::fill(fill_ctx, ctx.atlas, &candidates, out)
+        }
     }
 
     /// Carries every patch to this frame (or drops them all on a fresh

@@ -288,6 +288,295 @@ impl Optimization {
             }
         })
     }
+
+    /// The previous frame's lattice (the cached one when it matches), when
+    /// the carried state fits it and its texture can be transported.
+    fn previous_lattice(&mut self, ctx: &FrameContext<'_>) -> Option<Lattice> {
+        let k = self.exemplar.total_channels();
+        let cached = self.last_lattice.take();
+        let p = ctx
+            .previous
+            .filter(|p| !p.mesh.is_empty() && self.state.m > 0)?;
+        let l = match cached {
+            Some(l) if l.triangles.len() == p.mesh.triangle_count() && l.m == self.state.m => l,
+            _ => Lattice::new(p.mesh, self.state.m),
+        };
+        (l.len() * k == self.state.values.len() && l.len() == self.state.orientation.len())
+            .then_some(l)
+    }
+
+    /// Every channel resampled from the points into the atlas, and the
+    /// exemplar level the finest working exemplar corresponds to.
+    fn atlas_output(
+        &self,
+        atlas: &crate::atlas::Atlas,
+        lattice: &Lattice,
+        s: &[f32],
+        result: &mut FrameResult,
+    ) {
+        let k = self.exemplar.total_channels();
+        result.channels = output::fill(atlas, lattice, s, k, &self.exemplar);
+        if let Some(search) = self.search.first().and_then(|s| s.as_ref()) {
+            let lod = (self.exemplar.size().0 as f32 / search.exemplar.width as f32)
+                .log2()
+                .max(0.0);
+            result.exemplar_lod = Some(output::lod_map(atlas, lod));
+        }
+    }
+
+    /// A frame without surface: empty channels, and no state to carry.
+    fn empty_frame(&mut self, atlas: &crate::atlas::Atlas, result: &mut FrameResult) {
+        self.state.m = 0;
+        self.state.values.clear();
+        self.state.orientation.clear();
+        self.last_lattice = None;
+        let mut layout = vec![self.exemplar.colour.channels];
+        layout.extend(self.exemplar.channels.iter().map(|c| c.texture.channels));
+        result.channels = layout
+            .into_iter()
+            .map(|c| Texture::filled(atlas.width, atlas.height, c, 0.0))
+            .collect();
+        result.stats.insert("points".into(), 0.into());
+    }
+
+    /// Point spacing h, fixed on the first frame with a surface: the finer
+    /// of the user's point count over the area and one atlas texel; returns
+    /// which rule set it on that frame.
+    fn spacing(
+        &mut self,
+        mesh: &crate::mesh::TriMesh,
+        atlas: &crate::atlas::Atlas,
+    ) -> (f32, Option<&'static str>) {
+        if let Some(h) = self.state.spacing {
+            return (h, None);
+        }
+        let area = mesh.area() as f32;
+        let by_points = (area * 2.0 / (3f32.sqrt() * self.params.points as f32)).sqrt();
+        let by_atlas = if atlas.scale > 0.0 {
+            (1.0 / atlas.scale) as f32
+        } else {
+            0.0
+        };
+        let (h, rule) = if by_atlas > by_points {
+            (by_atlas, "atlas texel")
+        } else {
+            (by_points, "points")
+        };
+        self.state.spacing = Some(h);
+        self.state.exemplar_texels = Some(match self.params.exemplar_size {
+            Some(s) => ((s / h).round() as u32).clamp(8, 4096),
+            None => self.params.exemplar_texels,
+        });
+        (h, Some(rule))
+    }
+
+    /// Carries the previous frame's point colours (back-tracked through
+    /// the flow) and its coarsest orientations (vector advection) to this
+    /// frame's lattice; also returns how many points found no previous
+    /// surface.
+    #[allow(clippy::type_complexity)]
+    fn transport(
+        &self,
+        ctx: &FrameContext<'_>,
+        lattice: &Lattice,
+        prev_lattice: &Lattice,
+        coarsest: &Level,
+        match_distance: f32,
+        h: f32,
+    ) -> Result<(Option<Vec<f32>>, Option<Vec<Vec3>>, usize), MethodError> {
+        let Some(prev) = ctx.previous else {
+            return Ok((None, None, 0));
+        };
+        let mesh = ctx.mesh;
+        let velocity = mesh.velocity().ok_or(MethodError::MissingVelocity {
+            frame: ctx.number,
+            method: "optimization",
+        })?;
+        let k = self.exemplar.total_channels();
+        {
+            let pv = prev.mesh.velocity().ok_or(MethodError::MissingVelocity {
+                frame: ctx.number - 1,
+                method: "optimization",
+            })?;
+            let cur = FlowFrame {
+                mesh,
+                index: ctx.index,
+                velocity,
+            };
+            let old = FlowFrame {
+                mesh: prev.mesh,
+                index: prev.index,
+                velocity: pv,
+            };
+            let hint = 4.0 * h.max(mesh.mean_edge_length());
+            let back = FlowInterval {
+                from: cur,
+                to: Some(old),
+                dt: -ctx.dt,
+                substeps: self.params.substeps,
+                search_hint: hint,
+            };
+            let forward = FlowInterval {
+                from: old,
+                to: Some(cur),
+                dt: ctx.dt,
+                substeps: self.params.substeps,
+                search_hint: hint,
+            };
+            let orientation: Vec<Vec3> = self
+                .state
+                .orientation
+                .iter()
+                .map(|&a| Vec3::from(a))
+                .collect();
+            let previous = transport::Previous {
+                mesh: prev.mesh,
+                index: prev.index,
+                lattice: prev_lattice,
+                values: &self.state.values,
+                channels: k,
+                orientation: &orientation,
+            };
+            let (values, missing) = transport::colours(&lattice.positions, &back, &previous);
+            let orientation = transport::orientations(
+                &coarsest.positions,
+                &coarsest.normals,
+                &back,
+                &forward,
+                &previous,
+                match_distance,
+            );
+            Ok((Some(values), Some(orientation), missing))
+        }
+    }
+
+    /// Synthesis over `levels`, coarse to fine: each level starts from the
+    /// transported colours restricted to it (random exemplar texels on a
+    /// first frame) and the values copied up from the coarser level.
+    /// Returns the finest level's values and the per-level statistics.
+    #[allow(clippy::too_many_arguments)]
+    fn synthesise(
+        &mut self,
+        ctx: &FrameContext<'_>,
+        lattice: &Lattice,
+        levels: &[Level],
+        restricted: Option<&[Vec<f32>]>,
+        fine_orientation: &[Vec3],
+        h: f32,
+        times: &mut solve::SolveTimes,
+    ) -> Result<(Vec<f32>, Vec<serde_json::Value>), MethodError> {
+        let k = self.exemplar.total_channels();
+        let synth_levels = levels.len();
+        let mut level_stats = Vec::new();
+        let top = synth_levels - 1;
+        let mut s: Vec<f32> = match restricted {
+            Some(r) => r[top].clone(),
+            None => {
+                let (seed, frame) = (self.seed, ctx.number as i64 as u64);
+                let search = self.level_search(top, h * (1u32 << top) as f32);
+                let ex = &search.exemplar;
+                let n = ex.candidates() as u64;
+                let lv = &levels[top];
+                let mut s = vec![0.0f32; lv.len() * k];
+                s.par_chunks_mut(k)
+                    .zip(lv.ids.par_iter())
+                    .for_each(|(o, &id)| {
+                        let pick = mix(seed, frame, id as u64) % n.max(1);
+                        let (x, y) = ex.position(pick as u32);
+                        o.copy_from_slice(ex.texel(x, y));
+                    });
+                s
+            }
+        };
+        for l in (0..synth_levels).rev() {
+            let texel = h * (1u32 << l) as f32;
+            self.level_search(l, texel);
+            let search = self.search[l]
+                .as_ref()
+                .ok_or(MethodError::State("search structures missing".into()))?;
+            let lv = &levels[l];
+            let orient: Vec<Vec3> = lv
+                .ids
+                .iter()
+                .map(|&id| fine_orientation[id as usize])
+                .collect();
+            let input = solve::LevelInput {
+                level: lv,
+                orientation: &orient,
+                exemplar: &search.exemplar,
+                passes: &search.passes,
+                transported: restricted.map(|r| r[l].as_slice()),
+                coherence: self.params.coherence,
+                spacing: self.params.centre_spacing,
+                iterations: self.params.iterations,
+                robust: self.params.robust,
+                refine: solve::REFINE_STEPS,
+            };
+            let reports = solve::optimise(&input, &mut s, times);
+            level_stats.push(serde_json::json!({
+                "level": l,
+                "points": lv.len(),
+                "exemplar_texels": search.exemplar.width,
+                "passes": reports.iter().map(|r| serde_json::json!({
+                    "width": r.width,
+                    "centres": r.centres,
+                    "iterations": r.iterations,
+                    "energy_start": r.start(),
+                    "energy_end": r.end(),
+                    "unconverged_matches": r.changed,
+                })).collect::<Vec<_>>(),
+            }));
+            if l > 0 {
+                // Copy up: shared points keep their values, new points take
+                // the interpolation of the coarser cell.
+                let finer = &levels[l - 1];
+                let mut up = vec![0.0f32; finer.len() * k];
+                lattice.prolong(lv, &s, k, finer, &mut up);
+                s = up;
+            }
+        }
+        Ok((s, level_stats))
+    }
+
+    /// Contrast of the point values (and of the transported texture)
+    /// against the working exemplar, into `stats`.
+    fn contrast_stats(
+        &self,
+        s: &[f32],
+        transported: Option<&[f32]>,
+        stats: &mut std::collections::BTreeMap<String, serde_json::Value>,
+    ) {
+        let k = self.exemplar.total_channels();
+        // Contrast of the point values (and of the transported texture)
+        // against the working exemplar: with the atlas contrast of the
+        // report, says which stage loses it (synthesis, transport, output).
+        let point_contrast = self.search.first().and_then(|x| x.as_ref()).map(|x| {
+            let sigma_ex = luminance_sigma(&x.exemplar.data, k, self.exemplar.colour.channels);
+            let of = |v: &[f32]| {
+                luminance_sigma(v, k, self.exemplar.colour.channels) / sigma_ex.max(1e-12)
+            };
+            (of(s), transported.map(of))
+        });
+        if let Some((points, carried)) = point_contrast {
+            stats.insert("point_contrast".into(), serde_json::json!(points));
+            if let Some(c) = carried {
+                stats.insert("transported_contrast".into(), serde_json::json!(c));
+            }
+        }
+    }
+}
+
+/// Splits the clock's last stage (synthesis) into building the
+/// neighbourhoods (once per pass), the search (query vectors + nearest
+/// neighbours) and the solve (z reads, averaging, energies, copying up).
+fn split_synthesis(clock: &mut StageClock, times: &solve::SolveTimes) {
+    if let Some((_, total)) = clock.stages.pop() {
+        let nb = times.neighbourhoods.min(total);
+        let search = times.search.min(total - nb);
+        clock.stages.push(("neighbourhoods", nb));
+        clock.stages.push(("search", search));
+        clock.stages.push(("solve", total - nb - search));
+    }
 }
 
 /// A well-mixed 64-bit value from (seed, stream, index).
@@ -350,7 +639,7 @@ impl Method for Optimization {
     }
 
     fn channel_specs(&self) -> Vec<ChannelSpec> {
-        crate::pipeline::exemplar_channels(&self.exemplar)
+        crate::exemplar::channels::exemplar_channels(&self.exemplar)
     }
 
     fn step(&mut self, ctx: &FrameContext<'_>) -> Result<FrameResult, MethodError> {
@@ -360,69 +649,22 @@ impl Method for Optimization {
         let k = self.exemplar.total_channels();
         let mut result = FrameResult::default();
         if mesh.is_empty() {
-            self.state.m = 0;
-            self.state.values.clear();
-            self.state.orientation.clear();
-            self.last_lattice = None;
-            let mut layout = vec![self.exemplar.colour.channels];
-            layout.extend(self.exemplar.channels.iter().map(|c| c.texture.channels));
-            result.channels = layout
-                .into_iter()
-                .map(|c| Texture::filled(atlas.width, atlas.height, c, 0.0))
-                .collect();
-            result.stats.insert("points".into(), 0.into());
+            self.empty_frame(atlas, &mut result);
             clock.lap("points");
             result.timings = clock.stages;
             return Ok(result);
         }
-        let velocity = mesh.velocity().ok_or(MethodError::MissingVelocity {
+        mesh.velocity().ok_or(MethodError::MissingVelocity {
             frame: ctx.number,
             method: "optimization",
         })?;
 
         // 1. Points and hierarchy.
-        let (h, spacing_rule) = match self.state.spacing {
-            Some(h) => (h, None),
-            None => {
-                let area = mesh.area() as f32;
-                let by_points = (area * 2.0 / (3f32.sqrt() * self.params.points as f32)).sqrt();
-                let by_atlas = if atlas.scale > 0.0 {
-                    (1.0 / atlas.scale) as f32
-                } else {
-                    0.0
-                };
-                let (h, rule) = if by_atlas > by_points {
-                    (by_atlas, "atlas texel")
-                } else {
-                    (by_points, "points")
-                };
-                self.state.spacing = Some(h);
-                self.state.exemplar_texels = Some(match self.params.exemplar_size {
-                    Some(s) => ((s / h).round() as u32).clamp(8, 4096),
-                    None => self.params.exemplar_texels,
-                });
-                (h, Some(rule))
-            }
-        };
+        let (h, spacing_rule) = self.spacing(mesh, atlas);
         let m = steps_for(mesh, h);
         let lattice = Lattice::new(mesh, m);
 
-        // The previous texture, when it can be carried.
-        let prev_lattice = match (ctx.previous, self.last_lattice.take()) {
-            (Some(p), cached) if !p.mesh.is_empty() && self.state.m > 0 => {
-                let l = match cached {
-                    Some(l)
-                        if l.triangles.len() == p.mesh.triangle_count() && l.m == self.state.m =>
-                    {
-                        l
-                    }
-                    _ => Lattice::new(p.mesh, self.state.m),
-                };
-                (l.len() * k == self.state.values.len() && l.len() == self.state.orientation.len())
-                    .then_some(l)
-            }
-            _ => None,
-        };
+        let prev_lattice = self.previous_lattice(ctx);
         let carried = prev_lattice.is_some();
         let synth_levels = if carried {
             self.params.levels_after_first
@@ -434,83 +676,30 @@ impl Method for Optimization {
         clock.lap("points");
 
         // 2. Transport.
-        let mut transported: Option<Vec<f32>> = None;
-        let mut coarse_orientation: Option<Vec<Vec3>> = None;
         let coarsest = &levels[all_levels - 1];
         let texel_coarse = h * (1u32 << (all_levels - 1)) as f32;
-        let mut missing = 0usize;
-        if let (Some(prev_lattice), Some(prev)) = (&prev_lattice, ctx.previous) {
-            let pv = prev.mesh.velocity().ok_or(MethodError::MissingVelocity {
-                frame: ctx.number - 1,
-                method: "optimization",
-            })?;
-            let cur = FlowFrame {
-                mesh,
-                index: ctx.index,
-                velocity,
-            };
-            let old = FlowFrame {
-                mesh: prev.mesh,
-                index: prev.index,
-                velocity: pv,
-            };
-            let hint = 4.0 * h.max(mesh.mean_edge_length());
-            let back = FlowInterval {
-                from: cur,
-                to: Some(old),
-                dt: -ctx.dt,
-                substeps: self.params.substeps,
-                search_hint: hint,
-            };
-            let forward = FlowInterval {
-                from: old,
-                to: Some(cur),
-                dt: ctx.dt,
-                substeps: self.params.substeps,
-                search_hint: hint,
-            };
-            let orientation: Vec<Vec3> = self
-                .state
-                .orientation
-                .iter()
-                .map(|&a| Vec3::from(a))
-                .collect();
-            let previous = transport::Previous {
-                mesh: prev.mesh,
-                index: prev.index,
-                lattice: prev_lattice,
-                values: &self.state.values,
-                channels: k,
-                orientation: &orientation,
-            };
-            let (values, miss) = transport::colours(&lattice.positions, &back, &previous);
-            missing = miss;
-            transported = Some(values);
-            coarse_orientation = Some(transport::orientations(
-                &coarsest.positions,
-                &coarsest.normals,
-                &back,
-                &forward,
-                &previous,
+        let (transported, coarse_orientation, missing) = match &prev_lattice {
+            Some(prev_lattice) => self.transport(
+                ctx,
+                &lattice,
+                prev_lattice,
+                coarsest,
                 0.25 * texel_coarse,
-            ));
-        }
+                h,
+            )?,
+            None => (None, None, 0),
+        };
         clock.lap("transport");
 
-        // 3. Orientation field.
+        // 3. Orientation field: the transported one, or the reference
+        // directions on a first frame, smoothed over the hierarchy.
         let coarse = coarse_orientation.unwrap_or_else(|| {
-            coarsest
-                .normals
-                .iter()
+            (coarsest.normals.iter())
                 .map(|&n| orientation::reference(n))
                 .collect()
         });
-        let fine_orientation = orientation::smooth_hierarchy(
-            &lattice,
-            &levels,
-            coarse,
-            self.params.orientation_iterations,
-        );
+        let iterations = self.params.orientation_iterations;
+        let fine_orientation = orientation::smooth_hierarchy(&lattice, &levels, coarse, iterations);
         clock.lap("orientation");
 
         // 4. Synthesis, coarse to fine.
@@ -518,123 +707,32 @@ impl Method for Optimization {
             .as_ref()
             .map(|t| restrict(&levels[..synth_levels], t, k));
         let mut times = solve::SolveTimes::default();
-        let mut level_stats = Vec::new();
-        let top = synth_levels - 1;
-        let mut s: Vec<f32> = match &restricted {
-            Some(r) => r[top].clone(),
-            None => {
-                let (seed, frame) = (self.seed, ctx.number as i64 as u64);
-                let search = self.level_search(top, h * (1u32 << top) as f32);
-                let ex = &search.exemplar;
-                let n = ex.candidates() as u64;
-                let lv = &levels[top];
-                let mut s = vec![0.0f32; lv.len() * k];
-                s.par_chunks_mut(k)
-                    .zip(lv.ids.par_iter())
-                    .for_each(|(o, &id)| {
-                        let pick = mix(seed, frame, id as u64) % n.max(1);
-                        let (x, y) = ex.position(pick as u32);
-                        o.copy_from_slice(ex.texel(x, y));
-                    });
-                s
-            }
-        };
-        for l in (0..synth_levels).rev() {
-            let texel = h * (1u32 << l) as f32;
-            self.level_search(l, texel);
-            let search = self.search[l]
-                .as_ref()
-                .ok_or(MethodError::State("search structures missing".into()))?;
-            let lv = &levels[l];
-            let orient: Vec<Vec3> = lv
-                .ids
-                .iter()
-                .map(|&id| fine_orientation[id as usize])
-                .collect();
-            let input = solve::LevelInput {
-                level: lv,
-                orientation: &orient,
-                exemplar: &search.exemplar,
-                passes: &search.passes,
-                transported: restricted.as_ref().map(|r| r[l].as_slice()),
-                coherence: self.params.coherence,
-                spacing: self.params.centre_spacing,
-                iterations: self.params.iterations,
-                robust: self.params.robust,
-                refine: solve::REFINE_STEPS,
-            };
-            let reports = solve::optimise(&input, &mut s, &mut times);
-            level_stats.push(serde_json::json!({
-                "level": l,
-                "points": lv.len(),
-                "exemplar_texels": search.exemplar.width,
-                "passes": reports.iter().map(|r| serde_json::json!({
-                    "width": r.width,
-                    "centres": r.centres,
-                    "iterations": r.iterations,
-                    "energy_start": r.start(),
-                    "energy_end": r.end(),
-                    "unconverged_matches": r.changed,
-                })).collect::<Vec<_>>(),
-            }));
-            if l > 0 {
-                // Copy up: shared points keep their values, new points take
-                // the interpolation of the coarser cell.
-                let finer = &levels[l - 1];
-                let mut up = vec![0.0f32; finer.len() * k];
-                lattice.prolong(lv, &s, k, finer, &mut up);
-                s = up;
-            }
-        }
+        let (s, level_stats) = self.synthesise(
+            ctx,
+            &lattice,
+            &levels[..synth_levels],
+            restricted.as_deref(),
+            &fine_orientation,
+            h,
+            &mut times,
+        )?;
         clock.lap("synthesis");
-        // Split synthesis into building the neighbourhoods (once per pass),
-        // the search (query vectors + nearest neighbours) and the solve
-        // (z reads, averaging, energies, copying up).
-        if let Some((_, total)) = clock.stages.pop() {
-            let nb = times.neighbourhoods.min(total);
-            let search = times.search.min(total - nb);
-            clock.stages.push(("neighbourhoods", nb));
-            clock.stages.push(("search", search));
-            clock.stages.push(("solve", total - nb - search));
-        }
+        split_synthesis(&mut clock, &times);
 
         // 5. Atlas.
-        result.channels = output::fill(atlas, &lattice, &s, k, &self.exemplar);
-        if let Some(search) = self.search.first().and_then(|s| s.as_ref()) {
-            let lod = (self.exemplar.size().0 as f32 / search.exemplar.width as f32)
-                .log2()
-                .max(0.0);
-            result.exemplar_lod = Some(output::lod_map(atlas, lod));
-        }
+        self.atlas_output(atlas, &lattice, &s, &mut result);
         clock.lap("output");
 
-        // Contrast of the point values (and of the transported texture)
-        // against the working exemplar: with the atlas contrast of the
-        // report, says which stage loses it (synthesis, transport, output).
-        let point_contrast = self.search.first().and_then(|x| x.as_ref()).map(|x| {
-            let sigma_ex = luminance_sigma(&x.exemplar.data, k, self.exemplar.colour.channels);
-            let of = |v: &[f32]| {
-                luminance_sigma(v, k, self.exemplar.colour.channels) / sigma_ex.max(1e-12)
-            };
-            (of(&s), transported.as_deref().map(of))
-        });
+        self.contrast_stats(&s, transported.as_deref(), &mut result.stats);
         let stats = &mut result.stats;
-        if let Some((points, carried)) = point_contrast {
-            stats.insert("point_contrast".into(), serde_json::json!(points));
-            if let Some(c) = carried {
-                stats.insert("transported_contrast".into(), serde_json::json!(c));
-            }
-        }
         stats.insert("points".into(), lattice.len().into());
         stats.insert("lattice_steps".into(), m.into());
         stats.insert("spacing".into(), serde_json::json!(h));
         if let Some(rule) = spacing_rule {
             stats.insert("spacing_rule".into(), serde_json::json!(rule));
         }
-        stats.insert(
-            "exemplar_texels".into(),
-            self.state.exemplar_texels.unwrap_or(0).into(),
-        );
+        let texels = self.state.exemplar_texels.unwrap_or(0);
+        stats.insert("exemplar_texels".into(), texels.into());
         stats.insert("transported".into(), carried.into());
         stats.insert("transport_missing".into(), missing.into());
         stats.insert("levels".into(), serde_json::Value::Array(level_stats));

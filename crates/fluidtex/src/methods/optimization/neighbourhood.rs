@@ -108,6 +108,32 @@ pub fn build(
     members: &mut Vec<(u32, Vec2)>,
     cells: &mut [CellSample],
 ) {
+    let g = flatten_rings(level, centre, d, window, scratch);
+    let half = window.width as f32 / 2.0;
+    members.extend(
+        scratch
+            .placed
+            .iter()
+            .map(|&v| (v, scratch.coords[v as usize]))
+            .filter(|(_, x)| x.x.abs() < half && x.y.abs() < half),
+    );
+
+    rasterise(level, window, scratch, g, cells);
+}
+
+/// Flattens the level around `centre` ring by ring into the frame (d,
+/// d × n): each new vertex is placed at the mean of its placed neighbours'
+/// coordinates plus the edge to them, turned into the plane and kept at its
+/// 3-D length (texel units of `window`). Vertices facing away from the
+/// centre's normal are skipped; rings stop beyond the window. Returns the
+/// scratch generation marking this neighbourhood.
+fn flatten_rings(
+    level: &Level,
+    centre: u32,
+    d: Vec3,
+    window: Window,
+    scratch: &mut Scratch,
+) -> u32 {
     scratch.generation = scratch.generation.wrapping_add(1);
     if scratch.generation == 0 {
         scratch.stamp.fill(0);
@@ -121,8 +147,7 @@ pub fn build(
     let e1 = d;
     let e2 = d.cross(n_c);
     let inv = 1.0 / window.texel;
-    let half = window.width as f32 / 2.0;
-    let reach = half + 1.5;
+    let reach = window.width as f32 / 2.0 + 1.5;
     let p_c = level.positions[c];
 
     scratch.placed.clear();
@@ -185,15 +210,18 @@ pub fn build(
             }
         }
     }
-    members.extend(
-        scratch
-            .placed
-            .iter()
-            .map(|&v| (v, scratch.coords[v as usize]))
-            .filter(|(_, x)| x.x.abs() < half && x.y.abs() < half),
-    );
+    g
+}
 
-    // Pixel neighbourhood: rasterise flattened triangles onto the search grid.
+/// The pixel neighbourhood: the flattened triangles (all three corners
+/// placed in generation `g`) rasterised onto the g × g search grid.
+fn rasterise(
+    level: &Level,
+    window: Window,
+    scratch: &mut Scratch,
+    g: u32,
+    cells: &mut [CellSample],
+) {
     let hg = window.half_grid();
     let side = window.grid as usize;
     let stride = window.stride() as f32;
