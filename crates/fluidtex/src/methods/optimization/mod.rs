@@ -538,6 +538,25 @@ impl Optimization {
         Ok((s, level_stats))
     }
 
+    /// The points, their spacing h and lattice steps, and the rule that
+    /// set h.
+    fn lattice_stats(
+        &self,
+        lattice: &Lattice,
+        h: f32,
+        spacing_rule: Option<&'static str>,
+        stats: &mut std::collections::BTreeMap<String, serde_json::Value>,
+    ) {
+        stats.insert("points".into(), lattice.len().into());
+        stats.insert("lattice_steps".into(), lattice.m.into());
+        stats.insert("spacing".into(), serde_json::json!(h));
+        if let Some(rule) = spacing_rule {
+            stats.insert("spacing_rule".into(), serde_json::json!(rule));
+        }
+        let texels = self.state.exemplar_texels.unwrap_or(0);
+        stats.insert("exemplar_texels".into(), texels.into());
+    }
+
     /// Contrast of the point values (and of the transported texture)
     /// against the working exemplar, into `stats`.
     fn contrast_stats(
@@ -724,15 +743,8 @@ impl Method for Optimization {
         clock.lap("output");
 
         self.contrast_stats(&s, transported.as_deref(), &mut result.stats);
+        self.lattice_stats(&lattice, h, spacing_rule, &mut result.stats);
         let stats = &mut result.stats;
-        stats.insert("points".into(), lattice.len().into());
-        stats.insert("lattice_steps".into(), m.into());
-        stats.insert("spacing".into(), serde_json::json!(h));
-        if let Some(rule) = spacing_rule {
-            stats.insert("spacing_rule".into(), serde_json::json!(rule));
-        }
-        let texels = self.state.exemplar_texels.unwrap_or(0);
-        stats.insert("exemplar_texels".into(), texels.into());
         stats.insert("transported".into(), carried.into());
         stats.insert("transport_missing".into(), missing.into());
         stats.insert("levels".into(), serde_json::Value::Array(level_stats));

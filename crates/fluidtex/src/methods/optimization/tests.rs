@@ -420,6 +420,11 @@ fn match_ssd(
     e
 }
 
+/// A random whole-texel position in [0, n)².
+fn whole_texel(rng: &mut impl Rng, n: i32) -> Vec2 {
+    Vec2::new(rng.random_range(0..n) as f32, rng.random_range(0..n) as f32)
+}
+
 #[test]
 fn refinement_recovers_a_sub_texel_translation() {
     let ex = WorkingExemplar::new(&pebbles(128), 48);
@@ -428,10 +433,7 @@ fn refinement_recovers_a_sub_texel_translation() {
     let mut rng = rand::rngs::StdRng::seed_from_u64(11);
     let mut worst = 0.0f32;
     for _ in 0..40 {
-        let origin = Vec2::new(
-            rng.random_range(0..48) as f32,
-            rng.random_range(0..48) as f32,
-        );
+        let origin = whole_texel(&mut rng, 48);
         let delta = Vec2::new(rng.random_range(-0.45..0.45), rng.random_range(-0.45..0.45));
         let s = read_at(&ex, origin, delta, &members);
         let shift =
@@ -466,10 +468,7 @@ fn refinement_never_increases_a_match_ssd() {
     let mut rng = rand::rngs::StdRng::seed_from_u64(12);
     let mut lowered = 0;
     for trial in 0..60 {
-        let origin = Vec2::new(
-            rng.random_range(0..48) as f32,
-            rng.random_range(0..48) as f32,
-        );
+        let origin = whole_texel(&mut rng, 48);
         // Targets the exemplar does not contain exactly: a shifted read
         // plus noise, or (every third trial) another place entirely.
         let mut s = if trial % 3 == 0 {
