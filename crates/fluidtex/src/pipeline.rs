@@ -42,7 +42,7 @@ use crate::texture::Texture;
 use glam::Vec3;
 use rayon::prelude::*;
 
-pub use crate::exemplar::channels::{ChannelFormat, ChannelSpec, exemplar_channels};
+pub use crate::exemplar::channels::{ChannelFormat, ChannelSpec};
 
 /// Which files are written per frame besides the channel atlases.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -372,82 +372,75 @@ impl Optimization {
 
     /// Carries the previous frame's point colours (back-tracked through
     /// the flow) and its coarsest orientations (vector advection) to this
-    /// frame's lattice; also returns how many points found no previous
-    /// surface.
-    #[allow(clippy::type_complexity)]
+    /// frame's lattice; `None` without a previous frame.
     fn transport(
         &self,
         ctx: &FrameContext<'_>,
+        velocity: &[Vec3],
         lattice: &Lattice,
         prev_lattice: &Lattice,
         coarsest: &Level,
         match_distance: f32,
-        h: f32,
-    ) -> Result<(Option<Vec<f32>>, Option<Vec<Vec3>>, usize), MethodError> {
+    ) -> Result<Option<Transported>, MethodError> {
         let Some(prev) = ctx.previous else {
-            return Ok((None, None, 0));
+            return Ok(None);
         };
-        let mesh = ctx.mesh;
-        let velocity = mesh.velocity().ok_or(MethodError::MissingVelocity {
-            frame: ctx.number,
+        let pv = prev.mesh.velocity().ok_or(MethodError::MissingVelocity {
+            frame: ctx.number - 1,
             method: "optimization",
         })?;
-        let k = self.exemplar.total_channels();
-        {
-            let pv = prev.mesh.velocity().ok_or(MethodError::MissingVelocity {
-                frame: ctx.number - 1,
-                method: "optimization",
-            })?;
-            let cur = FlowFrame {
-                mesh,
-                index: ctx.index,
-                velocity,
-            };
-            let old = FlowFrame {
-                mesh: prev.mesh,
-                index: prev.index,
-                velocity: pv,
-            };
-            let hint = 4.0 * h.max(mesh.mean_edge_length());
-            let back = FlowInterval {
-                from: cur,
-                to: Some(old),
-                dt: -ctx.dt,
-                substeps: self.params.substeps,
-                search_hint: hint,
-            };
-            let forward = FlowInterval {
-                from: old,
-                to: Some(cur),
-                dt: ctx.dt,
-                substeps: self.params.substeps,
-                search_hint: hint,
-            };
-            let orientation: Vec<Vec3> = self
-                .state
-                .orientation
-                .iter()
-                .map(|&a| Vec3::from(a))
-                .collect();
-            let previous = transport::Previous {
-                mesh: prev.mesh,
-                index: prev.index,
-                lattice: prev_lattice,
-                values: &self.state.values,
-                channels: k,
-                orientation: &orientation,
-            };
-            let (values, missing) = transport::colours(&lattice.positions, &back, &previous);
-            let orientation = transport::orientations(
-                &coarsest.positions,
-                &coarsest.normals,
-                &back,
-                &forward,
-                &previous,
-                match_distance,
-            );
-            Ok((Some(values), Some(orientation), missing))
-        }
+        let mesh = ctx.mesh;
+        let cur = FlowFrame {
+            mesh,
+            index: ctx.index,
+            velocity,
+        };
+        let old = FlowFrame {
+            mesh: prev.mesh,
+            index: prev.index,
+            velocity: pv,
+        };
+        let h = self.state.spacing.unwrap_or(0.0);
+        let hint = 4.0 * h.max(mesh.mean_edge_length());
+        let back = FlowInterval {
+            from: cur,
+            to: Some(old),
+            dt: -ctx.dt,
+            substeps: self.params.substeps,
+            search_hint: hint,
+        };
+        let forward = FlowInterval {
+            from: old,
+            to: Some(cur),
+            dt: ctx.dt,
+            substeps: self.params.substeps,
+            search_hint: hint,
+        };
+        let orientation: Vec<Vec3> = (self.state.orientation.iter())
+            .map(|&a| Vec3::from(a))
+            .collect();
+        let previous = transport::Previous {
+            mesh: prev.mesh,
+            index: prev.index,
+            lattice: prev_lattice,
+            values: &self.state.values,
+            channels: self.exemplar.total_channels(),
+            orientation: &orientation,
+        };
+        let (colours, missing) = transport::colours(&lattice.positions, &back, &previous);
+        let coarse_orientation = transport::orientations(
+            &coarsest.positions,
+            &coarsest.normals,
+            &back,
+            &forward,
+            &previous,
+            match_distance,
+        );
+        Ok(Some(Transported {
+            colours,
+            coarse_orientation,
+            missing,
+        }))
     }
 
     /// Synthesis over `levels`, coarse to fine: each level starts from the
@@ -585,6 +578,16 @@ impl Optimization {
     }
 }
 
+/// The previous frame's texture carried to this frame's points.
+struct Transported {
+    /// Every channel at every lattice point.
+    colours: Vec<f32>,
+    /// Orientations at the coarsest level's points.
+    coarse_orientation: Vec<Vec3>,
+    /// Points whose back-tracked position found no previous surface.
+    missing: usize,
+}
+
 /// Splits the clock's last stage (synthesis) into building the
 /// neighbourhoods (once per pass), the search (query vectors + nearest
 /// neighbours) and the solve (z reads, averaging, energies, copying up).
@@ -673,7 +676,7 @@ impl Method for Optimization {
             result.timings = clock.stages;
             return Ok(result);
         }
-        mesh.velocity().ok_or(MethodError::MissingVelocity {
+        let velocity = mesh.velocity().ok_or(MethodError::MissingVelocity {
             frame: ctx.number,
             method: "optimization",
         })?;
@@ -697,16 +700,14 @@ impl Method for Optimization {
         // 2. Transport.
         let coarsest = &levels[all_levels - 1];
         let texel_coarse = h * (1u32 << (all_levels - 1)) as f32;
-        let (transported, coarse_orientation, missing) = match &prev_lattice {
-            Some(prev_lattice) => self.transport(
-                ctx,
-                &lattice,
-                prev_lattice,
-                coarsest,
-                0.25 * texel_coarse,
-                h,
-            )?,
-            None => (None, None, 0),
+        let carried_texture = match &prev_lattice {
+            Some(l) => self.transport(ctx, velocity, &lattice, l, coarsest, 0.25 * texel_coarse)?,
+            None => None,
+        };
+        let missing = carried_texture.as_ref().map_or(0, |t| t.missing);
+        let (transported, coarse_orientation) = match carried_texture {
+            Some(t) => (Some(t.colours), Some(t.coarse_orientation)),
+            None => (None, None),
         };
         clock.lap("transport");
 
