@@ -421,7 +421,9 @@ impl Erosion {
             delta_onset: self.params.delta_onset,
             far_distance: self.params.far_fraction * radius,
             centre_radius: self.params.centre_fraction * radius,
-            whole_centre: self.params.weights == WeightMode::Progressive,
+            // Only where progressive weights carry it over the next frames.
+            whole_centre: self.variant == Variant::Erode
+                && self.params.weights == WeightMode::Progressive,
         }
     }
 }
