@@ -12,7 +12,10 @@
 //!   there.
 //! - `FLUIDTEX_TEST_PAUSE_AFTER_FRAME=F`: once frame F is counted finished
 //!   (its files and `state.bin` written), print
-//!   `fluidtex-test: paused after frame F` and wait the same way.
+//!   `fluidtex-test: paused after frame F` and wait the same way. The
+//!   thread that writes frames pauses, so no later frame's file appears.
+//! - `FLUIDTEX_TEST_WRITE_IN_PLACE` (any value): write each frame before
+//!   computing the next, as a run without the memory for write-behind does.
 //! - `FLUIDTEX_TEST_MEMORY_AVAILABLE=BYTES`: the memory available to the
 //!   up-front memory check, instead of the machine's.
 
@@ -69,14 +72,20 @@ pub fn from_env() -> Result<TestHooks> {
     } else {
         None
     };
+    let after_frame: Option<fluidtex::pipeline::FrameHook> =
+        pause_after_frame()?.map(|asked| -> fluidtex::pipeline::FrameHook {
+            Arc::new(move |frame| maybe_pause_after(frame, Some(asked)))
+        });
     Ok(TestHooks {
         write,
         available_memory: number("FLUIDTEX_TEST_MEMORY_AVAILABLE")?,
+        after_frame,
+        write_in_place: std::env::var_os("FLUIDTEX_TEST_WRITE_IN_PLACE").is_some(),
     })
 }
 
 /// The frame after which to pause, if asked.
-pub fn pause_after_frame() -> Result<Option<i32>> {
+fn pause_after_frame() -> Result<Option<i32>> {
     let name = "FLUIDTEX_TEST_PAUSE_AFTER_FRAME";
     match std::env::var(name) {
         Ok(v) => {
@@ -89,7 +98,7 @@ pub fn pause_after_frame() -> Result<Option<i32>> {
 }
 
 /// Pauses after `frame` when it is the one asked for.
-pub fn maybe_pause_after(frame: i32, asked: Option<i32>) {
+fn maybe_pause_after(frame: i32, asked: Option<i32>) {
     if asked == Some(frame) {
         eprintln!("fluidtex-test: paused after frame {frame}");
         wait_for_stdin_to_end();

@@ -608,21 +608,29 @@ fn make_scene(dir: &Path, frames: &str) -> std::path::PathBuf {
     scene.join("fluid.####.ply")
 }
 
+/// Neither the thread count nor where frames are written (behind the next
+/// frame's computation, or in place before it) changes a byte.
 #[test]
-fn thread_count_does_not_change_the_outputs() {
+fn thread_count_and_write_behind_do_not_change_the_outputs() {
     let dir = tempfile::tempdir().unwrap();
     let pattern = make_scene(dir.path(), "0-3");
-    for threads in ["1", "2"] {
-        let out = dir.path().join(format!("t{threads}"));
+    for (name, threads, in_place) in [
+        ("t1", "1", false),
+        ("t2", "2", false),
+        ("inplace", "2", true),
+    ] {
+        let out = dir.path().join(name);
         let args = erosion_args(&pattern, &out);
-        let o = fluidtex()
-            .env("RAYON_NUM_THREADS", threads)
-            .args(&args)
-            .output()
-            .unwrap();
+        let mut command = fluidtex();
+        command.env("RAYON_NUM_THREADS", threads).args(&args);
+        if in_place {
+            command.env("FLUIDTEX_TEST_WRITE_IN_PLACE", "1");
+        }
+        let o = command.output().unwrap();
         check_ok(&o, &args);
     }
     assert_same_outputs(&dir.path().join("t1"), &dir.path().join("t2"));
+    assert_same_outputs(&dir.path().join("t2"), &dir.path().join("inplace"));
 }
 
 /// The files of frame `f` an erosion run with `--switch-map` of a sequence

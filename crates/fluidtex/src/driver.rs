@@ -41,8 +41,9 @@ pub struct DrivenFrame<'a> {
     /// The method that filled the frame (its name, channels and state).
     pub method: &'a dyn Method,
     pub geometry: &'a Arc<FrameGeometry>,
-    /// The frame before in this run, where there is one.
-    pub previous: Option<&'a FrameGeometry>,
+    /// The frame before in this run, where there is one (shared: a sink
+    /// may keep it beyond the call, as the write-behind writer does).
+    pub previous: Option<&'a Arc<FrameGeometry>>,
     /// Channels dilated into the gutter.
     pub result: FrameResult,
     /// Stages so far: the caller's (read, bvh, atlas), the method's, dilate.
@@ -133,7 +134,7 @@ impl<'m> Driver<'m> {
         sink.frame(DrivenFrame {
             method: &*self.method,
             geometry: &geometry,
-            previous: self.previous.as_deref(),
+            previous: self.previous.as_ref(),
             result,
             clock: &mut clock,
         })?;

@@ -97,6 +97,12 @@ impl StageClock {
         self.last = now;
     }
 
+    /// Starts the next stage now (time since the last lap belongs to no
+    /// stage: a frame waiting for its writer).
+    pub fn restart(&mut self) {
+        self.last = Instant::now();
+    }
+
     /// Appends stages timed elsewhere (a method's own clock) and starts
     /// the next stage now.
     pub fn extend(&mut self, stages: &[(&'static str, f64)]) {

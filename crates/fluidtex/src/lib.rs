@@ -43,6 +43,7 @@
 //! [`metrics`],
 //! [`coherence`] (does the texture ride the flow: measured on outputs),
 //! [`eval`] (the evaluation harness), [`render`], [`scenes`], [`io`],
+//! [`write_behind`] (a frame's files written while the next is computed),
 //! [`texture`] (the float image type and texel convention), and the shared
 //! vocabulary: [`provenance`] (which patch a texel came from), [`seed`]
 //! (seeded random streams), [`named`](mod@named) (settings with names on the command
@@ -68,3 +69,4 @@ pub mod scenes;
 pub mod seed;
 pub mod surface;
 pub mod texture;
+pub mod write_behind;

@@ -125,13 +125,25 @@ pub struct TestHooks {
     /// Memory available to the run in bytes, instead of the machine's
     /// `MemAvailable`, for testing the up-front memory check.
     pub available_memory: Option<u64>,
+    /// Called with the frame's number once its files and `state.bin` are
+    /// committed, on the thread that wrote them (before it takes the next
+    /// frame): a test that pauses here knows exactly which files exist.
+    pub after_frame: Option<FrameHook>,
+    /// Write each frame before computing the next, as a run without the
+    /// memory for write-behind does (tests compare the two).
+    pub write_in_place: bool,
 }
+
+/// See [`TestHooks::after_frame`].
+pub type FrameHook = Arc<dyn Fn(i32) + Send + Sync>;
 
 impl std::fmt::Debug for TestHooks {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("TestHooks")
             .field("write", &self.write.as_ref().map(|_| "hook"))
             .field("available_memory", &self.available_memory)
+            .field("after_frame", &self.after_frame.as_ref().map(|_| "hook"))
+            .field("write_in_place", &self.write_in_place)
             .finish()
     }
 }
@@ -260,6 +272,7 @@ pub fn run(
     let estimate = estimate_memory(&job.atlas, &method.channel_specs(), &job.outputs)
         .with_available(job.hooks.available_memory.or_else(available_memory));
     estimate.check()?;
+    let (mode, estimate) = write_mode(job, estimate, &method.channel_specs(), observer);
     observer(Event::Memory(estimate));
     std::fs::create_dir_all(&job.out_dir).map_err(|e| PipelineError::Output {
         path: job.out_dir.clone(),
@@ -286,7 +299,7 @@ pub fn run(
         (None, None)
     };
     let total = frames.len();
-    let mut sink = FileSink {
+    let mut writer = FrameWriter {
         job,
         guard: &guard,
         // Previews are taken every n frames counted from the sequence's
@@ -301,42 +314,82 @@ pub fn run(
             })?,
         ),
         resumed_after,
-        observer,
-        done: 0,
     };
     let mut driver = Driver::new(method, 1.0 / job.fps, job.atlas.gutter.max(1) * 2);
     driver.set_previous(previous);
-    for (k, &number) in frames.iter().enumerate() {
-        (sink.observer)(Event::Start {
-            number,
-            index: k,
-            total,
-        });
-        let mut clock = StageClock::default();
-        let (mesh, report) = source.read(number)?;
-        if report.dropped_degenerate > 0 {
-            (sink.observer)(Event::Warning(format!(
-                "frame {number}: dropped {} zero-area triangles",
-                report.dropped_degenerate
-            )));
-        }
-        clock.lap("read");
-        let geometry = FrameGeometry::build(number, mesh, report, &job.atlas, &mut clock)?;
-        driver.step(
-            PendingFrame {
-                geometry: Arc::new(geometry),
-                clock,
-            },
-            &mut sink,
-        )?;
-    }
-    let done = sink.done;
+    let done = crate::write_behind::scope(
+        mode,
+        move |w: WriteJob| writer.write(w),
+        |worker| -> Result<usize, PipelineError> {
+            let mut sink = FileSink {
+                writer: worker,
+                observer,
+                done: 0,
+            };
+            let looped = frames.iter().enumerate().try_for_each(|(k, &number)| {
+                (sink.observer)(Event::Start {
+                    number,
+                    index: k,
+                    total,
+                });
+                let mut clock = StageClock::default();
+                let (mesh, report) = source.read(number)?;
+                if report.dropped_degenerate > 0 {
+                    (sink.observer)(Event::Warning(format!(
+                        "frame {number}: dropped {} zero-area triangles",
+                        report.dropped_degenerate
+                    )));
+                }
+                clock.lap("read");
+                let geometry = FrameGeometry::build(number, mesh, report, &job.atlas, &mut clock)?;
+                driver.step(
+                    PendingFrame {
+                        geometry: Arc::new(geometry),
+                        clock,
+                    },
+                    &mut sink,
+                )
+            });
+            // The frames already handed over are written (and counted)
+            // whether or not a later one failed: `--resume` goes on from them.
+            let finished = sink.writer.finish();
+            let reported = sink.report(finished);
+            looped?;
+            reported?;
+            Ok(sink.done)
+        },
+    )?;
     drop(lock);
     Ok(Summary {
         frames_done: done,
         resumed_after,
         seconds: start.elapsed().as_secs_f64(),
     })
+}
+
+/// Write-behind where memory allows a second frame in flight (and no test
+/// asked for writes in place); otherwise frames are written one after
+/// another, with a warning when memory is the reason. Returns the mode and
+/// the memory estimate that goes with it.
+fn write_mode(
+    job: &Job,
+    serial: MemoryEstimate,
+    channels: &[ChannelSpec],
+    observer: &mut dyn FnMut(Event<'_>),
+) -> (crate::write_behind::Mode, MemoryEstimate) {
+    use crate::write_behind::Mode;
+    if job.hooks.write_in_place {
+        return (Mode::Inline, serial);
+    }
+    let behind = serial.clone().writing_behind(channels, &job.outputs);
+    if behind.check().is_ok() {
+        return (Mode::Behind, behind);
+    }
+    observer(Event::Warning(format!(
+        "writing each frame before computing the next: writing it behind would need {}",
+        behind.describe()
+    )));
+    (Mode::Inline, serial)
 }
 
 /// Loads the saved state of the run in `job.out_dir` (if any) into
@@ -388,9 +441,99 @@ impl From<DriverError> for PipelineError {
     }
 }
 
-/// The sink of `run`: every file of a frame, its coherence numbers and the
-/// saved state.
-struct FileSink<'a, 'o> {
+/// The sink of `run`, on the frame loop's thread: takes what the writer
+/// needs of the method (its state after this frame, before the method moves
+/// on), hands the frame to the [`FrameWriter`] and passes the writer's
+/// reports on to the observer, in frame order.
+struct FileSink<'w, 'a, 'o> {
+    writer: &'w mut crate::write_behind::Worker<'a, WriteJob, Written, PipelineError>,
+    observer: &'o mut dyn FnMut(Event<'_>),
+    done: usize,
+}
+
+impl FrameSink for FileSink<'_, '_, '_> {
+    type Error = PipelineError;
+
+    fn frame(&mut self, frame: DrivenFrame<'_>) -> Result<(), PipelineError> {
+        let DrivenFrame {
+            method,
+            geometry,
+            previous,
+            result,
+            clock,
+        } = frame;
+        let method = MethodSnapshot {
+            name: method.name(),
+            specs: method.channel_specs(),
+            state: method.save_state()?,
+        };
+        // The per-texel uv, layer counts and mip levels are the evaluation's;
+        // no file holds them, so they are not kept while the frame is written.
+        self.writer.submit(WriteJob {
+            geometry: Arc::clone(geometry),
+            previous: previous.cloned(),
+            channels: result.channels,
+            source: result.source,
+            method_stats: result.stats,
+            clock: std::mem::take(clock),
+            method,
+        });
+        let ready = self.writer.ready();
+        self.report(ready)
+    }
+}
+
+impl FileSink<'_, '_, '_> {
+    /// Tells the observer of each written frame (and of what went wrong
+    /// in writing it, as the first error).
+    fn report(
+        &mut self,
+        results: Vec<Result<Written, PipelineError>>,
+    ) -> Result<(), PipelineError> {
+        for written in results {
+            let Written { stats, warnings } = written?;
+            for w in warnings {
+                (self.observer)(Event::Warning(w));
+            }
+            (self.observer)(Event::Done { stats: &stats });
+            self.done += 1;
+        }
+        Ok(())
+    }
+}
+
+/// What the writer needs of the method after frame F, taken before the
+/// method moves on to F+1.
+struct MethodSnapshot {
+    name: &'static str,
+    specs: Vec<ChannelSpec>,
+    /// [`Method::save_state`] after F, for `state.bin`.
+    state: Vec<u8>,
+}
+
+/// A filled frame on its way to the writer.
+struct WriteJob {
+    geometry: Arc<FrameGeometry>,
+    previous: Option<Arc<FrameGeometry>>,
+    /// Channels dilated into the gutter, colour first.
+    channels: Vec<Texture>,
+    source: Option<Vec<u32>>,
+    method_stats: crate::methods::MethodStats,
+    /// Stages so far; the writer adds its own.
+    clock: StageClock,
+    method: MethodSnapshot,
+}
+
+/// What the writer reports of a frame whose files and state are committed.
+struct Written {
+    stats: FrameStats,
+    /// Said to the user before the frame counts done.
+    warnings: Vec<String>,
+}
+
+/// Writes every file of a frame, measures its coherence and saves the
+/// state; on the write-behind thread ([`crate::write_behind`]) or in place.
+struct FrameWriter<'a> {
     job: &'a Job,
     guard: &'a InputGuard,
     first_frame: i32,
@@ -398,60 +541,62 @@ struct FileSink<'a, 'o> {
     coherence_prev: Option<CoherencePrevious>,
     coherence_settings: crate::coherence::CoherenceSettings,
     resumed_after: Option<i32>,
-    observer: &'o mut dyn FnMut(Event<'_>),
-    done: usize,
 }
 
-impl FrameSink for FileSink<'_, '_> {
-    type Error = PipelineError;
-
-    fn frame(&mut self, frame: DrivenFrame<'_>) -> Result<(), PipelineError> {
-        let DrivenFrame {
-            method,
+impl FrameWriter<'_> {
+    fn write(&mut self, w: WriteJob) -> Result<Written, PipelineError> {
+        let WriteJob {
             geometry: g,
             previous,
-            mut result,
-            clock,
-        } = frame;
+            channels,
+            source,
+            method_stats,
+            mut clock,
+            method,
+        } = w;
+        // The time this frame waited for the writer is no stage of it.
+        clock.restart();
         let job = self.job;
         let number = g.number;
+        let mut warnings = Vec::new();
         let mut stats = FrameStats {
             frame: number,
-            method: method.name().to_string(),
+            method: method.name.to_string(),
             vertices: g.mesh.vertex_count(),
             triangles: g.mesh.triangle_count(),
             dropped_degenerate: g.report.dropped_degenerate,
             charts: g.atlas.chart_count,
             atlas_width: g.atlas.width,
             atlas_height: g.atlas.height,
-            method_stats: std::mem::take(&mut result.stats),
+            method_stats,
             ..Default::default()
         };
         // Every file of the frame is staged, then all are renamed together,
         // then the state counts the frame; a failure before the state is
         // written leaves the frame uncounted and `--resume` redoes it.
         let mut files = Staging::new(Some(self.guard), job.hooks.write.as_ref());
-        self.write_frame(&mut files, g, method, &result)?;
+        self.write_frame(&mut files, &g, &method, &channels, source.as_deref())?;
         clock.lap("write");
         if job.outputs.debug
-            && let Some(ids) = &result.source
+            && let Some(ids) = &source
         {
+            let prev = previous.as_deref();
             if self.coherence_prev.is_none()
-                && let (Some(last), Some(prev)) = (self.resumed_after, previous)
+                && let (Some(last), Some(prev)) = (self.resumed_after, prev)
             {
                 self.coherence_prev = reload_coherence(
                     job,
-                    method,
+                    method.specs.first(),
                     prev,
                     last,
                     &self.coherence_settings,
-                    self.observer,
+                    &mut warnings,
                 );
             }
-            let current = WrittenTexels::of(method, &g.atlas, ids, &result.channels);
-            if let (Some(before), Some(prev)) = (&self.coherence_prev, previous)
+            let current = WrittenTexels::of(&method.specs, &g.atlas, ids, &channels);
+            if let (Some(before), Some(prev)) = (&self.coherence_prev, prev)
                 && before.number == prev.number
-                && let Some(c) = self.measure_coherence(&mut files, prev, before, g, &current)?
+                && let Some(c) = self.measure_coherence(&mut files, prev, before, &g, &current)?
             {
                 stats.source_switch_share = Some(c.switch_share());
                 stats.source_changed_share = Some(c.switch.changed_share());
@@ -459,7 +604,7 @@ impl FrameSink for FileSink<'_, '_> {
             }
             self.coherence_prev = Some(CoherencePrevious::of(
                 &current,
-                g,
+                &g,
                 &self.coherence_settings,
                 job.outputs.switch_map,
             ));
@@ -482,10 +627,11 @@ impl FrameSink for FileSink<'_, '_> {
             &json,
         )?;
         files.commit()?;
-        save_state(job, self.guard, method, number)?;
-        (self.observer)(Event::Done { stats: &stats });
-        self.done += 1;
-        Ok(())
+        save_state(job, self.guard, &method, number)?;
+        if let Some(hook) = &job.hooks.after_frame {
+            hook(number);
+        }
+        Ok(Written { stats, warnings })
     }
 }
 
@@ -555,17 +701,16 @@ fn parse_state(path: &Path, bytes: &[u8]) -> Result<SavedState, PipelineError> {
 fn save_state(
     job: &Job,
     guard: &InputGuard,
-    method: &dyn Method,
+    method: &MethodSnapshot,
     frame: i32,
 ) -> Result<(), PipelineError> {
-    let method_state = method.save_state()?;
     let saved = SavedState {
         version: STATE_VERSION,
         fingerprint: job.fingerprint.clone(),
-        method: method.name().to_string(),
+        method: method.name.to_string(),
         last_frame: frame,
-        checksum: crc32fast::hash(&method_state),
-        method_state,
+        checksum: crc32fast::hash(&method.state),
+        method_state: method.state.clone(),
     };
     let bytes = postcard::to_allocvec(&saved).map_err(|e| PipelineError::Output {
         path: job.out_dir.join(STATE_FILE),
@@ -650,12 +795,12 @@ struct WrittenTexels<'a> {
 
 impl<'a> WrittenTexels<'a> {
     fn of(
-        method: &dyn Method,
+        specs: &[ChannelSpec],
         atlas: &'a crate::atlas::Atlas,
         source: &'a [u32],
         channels: &'a [Texture],
     ) -> WrittenTexels<'a> {
-        let colour = match (method.channel_specs().first(), channels.first()) {
+        let colour = match (specs.first(), channels.first()) {
             (Some(spec), Some(colour)) => Some((colour, spec.format)),
             _ => None,
         };
@@ -752,8 +897,12 @@ fn written_grey(colour: &Texture, format: ChannelFormat) -> Vec<f32> {
 }
 
 /// The luminance of frame `number`'s colour atlas as written.
-fn read_grey(job: &Job, method: &dyn Method, number: i32) -> Result<Vec<f32>, PipelineError> {
-    let Some(spec) = method.channel_specs().into_iter().next() else {
+fn read_grey(
+    job: &Job,
+    colour: Option<&ChannelSpec>,
+    number: i32,
+) -> Result<Vec<f32>, PipelineError> {
+    let Some(spec) = colour else {
         return Ok(Vec::new());
     };
     let path = job.out_dir.join(format!(
@@ -775,11 +924,11 @@ fn read_grey(job: &Job, method: &dyn Method, number: i32) -> Result<Vec<f32>, Pi
 /// frame has no coherence numbers).
 fn reload_coherence(
     job: &Job,
-    method: &dyn Method,
+    colour: Option<&ChannelSpec>,
     prev: &FrameGeometry,
     last: i32,
     settings: &crate::coherence::CoherenceSettings,
-    observer: &mut dyn FnMut(Event<'_>),
+    warnings: &mut Vec<String>,
 ) -> Option<CoherencePrevious> {
     let load = || -> Result<CoherencePrevious, String> {
         let path = job.out_dir.join(format!("source.{}.exr", frame_tag(last)));
@@ -792,7 +941,7 @@ fn reload_coherence(
             .map(|&v| if v < 0.0 { SOURCE_OUTSIDE } else { v as u32 })
             .collect();
         drop(ids);
-        let grey = read_grey(job, method, last).map_err(|e| e.to_string())?;
+        let grey = read_grey(job, colour, last).map_err(|e| e.to_string())?;
         let texels = crate::coherence::TexelFrame {
             atlas: &prev.atlas,
             source: &source,
@@ -813,16 +962,16 @@ fn reload_coherence(
     match load() {
         Ok(c) => Some(c),
         Err(e) => {
-            observer(Event::Warning(format!(
+            warnings.push(format!(
                 "frame {}: no source switch share (frame {last} cannot be reloaded: {e})",
                 last + 1
-            )));
+            ));
             None
         }
     }
 }
 
-impl FileSink<'_, '_> {
+impl FrameWriter<'_> {
     /// Source switch share and colour follow ratio from the frame before
     /// to this one (carried by the meshes' velocity), and, when asked,
     /// `switch.F.png`. `None` when a frame has no velocity or the data does
@@ -973,19 +1122,20 @@ pub fn patch_colour(source: u32) -> [f32; 3] {
     }
 }
 
-impl FileSink<'_, '_> {
+impl FrameWriter<'_> {
     /// Stages every file of one frame: channels, meshes, previews, debug.
     fn write_frame(
         &self,
         files: &mut Staging<'_>,
         g: &FrameGeometry,
-        method: &dyn Method,
-        result: &crate::methods::FrameResult,
+        method: &MethodSnapshot,
+        channels: &[Texture],
+        source: Option<&[u32]>,
     ) -> Result<(), PipelineError> {
-        let colour_png = self.write_channels(files, g.number, method, result)?;
+        let colour_png = self.write_channels(files, g.number, method, channels)?;
         let normals = g.uv_mesh_normals();
         self.write_meshes(files, g, &normals, colour_png.as_ref())?;
-        self.write_patch_views(files, g, result, &normals)
+        self.write_patch_views(files, g, channels, source, &normals)
     }
 
     /// Each channel atlas under its spec's name; the colour atlas's file
@@ -994,25 +1144,25 @@ impl FileSink<'_, '_> {
         &self,
         files: &mut Staging<'_>,
         number: i32,
-        method: &dyn Method,
-        result: &crate::methods::FrameResult,
+        method: &MethodSnapshot,
+        channels: &[Texture],
     ) -> Result<Option<(String, Vec<u8>)>, PipelineError> {
         let tag = frame_tag(number);
         let dir = &self.job.out_dir;
-        let specs = method.channel_specs();
-        if specs.len() != result.channels.len() {
+        let specs = &method.specs;
+        if specs.len() != channels.len() {
             return Err(PipelineError::Output {
                 path: dir.clone(),
                 message: format!(
                     "internal: method {} returned {} channels for {} names",
-                    method.name(),
-                    result.channels.len(),
+                    method.name,
+                    channels.len(),
                     specs.len()
                 ),
             });
         }
         let mut colour_png: Option<(String, Vec<u8>)> = None;
-        for (spec, texture) in specs.iter().zip(&result.channels) {
+        for (spec, texture) in specs.iter().zip(channels) {
             let file = format!("{}.{tag}.{}", spec.name, spec.format.extension());
             let path = dir.join(&file);
             if let Some(bytes) = write_channel(files, &path, texture, spec.format)?
@@ -1076,7 +1226,8 @@ impl FileSink<'_, '_> {
         &self,
         files: &mut Staging<'_>,
         g: &FrameGeometry,
-        result: &crate::methods::FrameResult,
+        channels: &[Texture],
+        source: Option<&[u32]>,
         normals: &[Vec3],
     ) -> Result<(), PipelineError> {
         let (job, number, atlas) = (self.job, g.number, &g.atlas);
@@ -1089,17 +1240,17 @@ impl FileSink<'_, '_> {
             frame: number,
             source,
         };
-        let patches = match &result.source {
+        let patches = match source {
             Some(source) if preview => {
                 Some(patch_colours(atlas, source, radius).map_err(atlas_error)?)
             }
             _ => None,
         };
-        if preview && let Some(colour) = result.channels.first() {
+        if preview && let Some(colour) = channels.first() {
             self.write_preview(files, g, colour, patches.as_ref(), normals)?;
         }
         if job.outputs.debug
-            && let Some(source) = &result.source
+            && let Some(source) = source
         {
             let tag = frame_tag(number);
             let path = job.out_dir.join(format!("patches.{tag}.png"));
@@ -1242,6 +1393,28 @@ pub struct MemoryEstimate {
 /// for it, since the check only catches atlases that cannot fit.
 const BASE_BYTES: u64 = 256 << 20;
 
+/// Components per output channel in the memory estimate (C): an upper
+/// bound, colour has 3 or 4.
+const ESTIMATE_COMPONENTS: u64 = 4;
+
+/// Bytes per texel of the debug outputs: patch colours (12), ids as floats
+/// (4) and their EXR planes (4).
+fn debug_bytes(outputs: &OutputOptions) -> u64 {
+    if outputs.debug { 12 + 4 + 4 } else { 0 }
+}
+
+/// Bytes per texel of the encoders: quantized samples and the compressed
+/// image, about 2 bytes per component (4 for 16-bit and float).
+fn encode_bytes(channels: &[ChannelSpec]) -> u64 {
+    channels
+        .iter()
+        .map(|c| match c.format {
+            ChannelFormat::Png8 => 2 * ESTIMATE_COMPONENTS,
+            ChannelFormat::Png16 | ChannelFormat::Exr => 4 * ESTIMATE_COMPONENTS,
+        })
+        .sum()
+}
+
 /// Estimates the memory of a run before any frame is read.
 ///
 /// Per atlas texel, at the peak of a frame (the write, while the method's
@@ -1262,17 +1435,9 @@ pub fn estimate_memory(
     channels: &[ChannelSpec],
     outputs: &OutputOptions,
 ) -> MemoryEstimate {
-    const C: u64 = 4;
-    let components = C * channels.len().max(1) as u64;
-    let encode: u64 = channels
-        .iter()
-        .map(|c| match c.format {
-            ChannelFormat::Png8 => 2 * C,
-            ChannelFormat::Png16 | ChannelFormat::Exr => 4 * C,
-        })
-        .sum();
-    let debug = if outputs.debug { 12 + 4 + 4 } else { 0 };
-    let bytes_per_texel = 4 * components + 12 + 4 * components + 8 + debug + encode;
+    let components = ESTIMATE_COMPONENTS * channels.len().max(1) as u64;
+    let bytes_per_texel =
+        4 * components + 12 + 4 * components + 8 + debug_bytes(outputs) + encode_bytes(channels);
     let texels = u64::from(atlas.width) * u64::from(atlas.height);
     MemoryEstimate {
         width: atlas.width,
@@ -1285,6 +1450,21 @@ pub fn estimate_memory(
 }
 
 impl MemoryEstimate {
+    /// The estimate when frame t is written while frame t+1 is computed
+    /// ([`crate::write_behind`]): besides the computing frame's peak, the
+    /// written frame's channels (4·C·channels bytes per texel), its source
+    /// ids (4), its debug views and its encoders' buffers are alive.
+    pub fn writing_behind(mut self, channels: &[ChannelSpec], outputs: &OutputOptions) -> Self {
+        let written = 4 * ESTIMATE_COMPONENTS * channels.len().max(1) as u64
+            + 4
+            + debug_bytes(outputs)
+            + encode_bytes(channels);
+        self.bytes_per_texel += written;
+        self.bytes =
+            u64::from(self.width) * u64::from(self.height) * self.bytes_per_texel + self.base_bytes;
+        self
+    }
+
     /// The same estimate with the available memory recorded.
     pub fn with_available(mut self, available: Option<u64>) -> MemoryEstimate {
         self.available = available;
@@ -1541,5 +1721,83 @@ mod tests {
         }
         source[chart[2]] = 1 << 24;
         assert_eq!(patch_png(&atlas, &source, 2).expect("dilate"), None);
+    }
+
+    /// Write-behind needs a second frame's buffers: with memory for the
+    /// serial estimate only, frames are written in place with one warning;
+    /// with memory for both, behind, with no warning and the larger
+    /// estimate reported; a test can ask for in place. The added bytes per
+    /// texel are exactly the written frame's: channels, ids, debug views
+    /// and encoders.
+    #[test]
+    fn write_behind_only_where_its_memory_is_available() {
+        use crate::write_behind::Mode;
+        let channels = vec![ChannelSpec {
+            name: "color".into(),
+            format: ChannelFormat::Png8,
+        }];
+        let job = |available: u64, in_place: bool| Job {
+            out_dir: PathBuf::from("unused"),
+            atlas: AtlasParams::square(1024),
+            fps: 24.0,
+            outputs: OutputOptions::default(),
+            resume: false,
+            fingerprint: String::new(),
+            hooks: TestHooks {
+                available_memory: Some(available),
+                write_in_place: in_place,
+                ..Default::default()
+            },
+        };
+        let serial = estimate_memory(
+            &AtlasParams::square(1024),
+            &channels,
+            &OutputOptions::default(),
+        );
+        let behind = serial
+            .clone()
+            .writing_behind(&channels, &OutputOptions::default());
+        // 4·4 channel floats + 4 ids + 20 debug + 8 encoding.
+        assert_eq!(
+            behind.bytes_per_texel - serial.bytes_per_texel,
+            16 + 4 + 20 + 8
+        );
+        assert_eq!(behind.bytes - serial.bytes, (1 << 20) * 48);
+        let no_debug = OutputOptions {
+            debug: false,
+            ..Default::default()
+        };
+        let lean = estimate_memory(&AtlasParams::square(1024), &channels, &no_debug);
+        assert_eq!(
+            lean.clone()
+                .writing_behind(&channels, &no_debug)
+                .bytes_per_texel
+                - lean.bytes_per_texel,
+            28
+        );
+        for (available, in_place, mode, warned) in [
+            (behind.bytes, false, Mode::Behind, false),
+            (behind.bytes - 1, false, Mode::Inline, true),
+            (serial.bytes, false, Mode::Inline, true),
+            (behind.bytes, true, Mode::Inline, false),
+        ] {
+            let job = job(available, in_place);
+            let mut warnings = Vec::new();
+            let mut observer = |e: Event<'_>| {
+                if let Event::Warning(w) = e {
+                    warnings.push(w);
+                }
+            };
+            let estimate = serial.clone().with_available(Some(available));
+            let (got, reported) = write_mode(&job, estimate, &channels, &mut observer);
+            assert_eq!(got, mode, "available {available}, in place {in_place}");
+            assert_eq!(warnings.len(), usize::from(warned), "{warnings:?}");
+            let expected = if mode == Mode::Behind {
+                &behind
+            } else {
+                &serial
+            };
+            assert_eq!(reported.bytes, expected.bytes);
+        }
     }
 }

@@ -75,7 +75,6 @@ pub fn execute(
     let job = build_job(config, out.clone(), resume)?;
     let total = source.frames().len() as u64;
     let progress = Progress::new(total, method.name(), quiet);
-    let pause_after = crate::test_hooks::pause_after_frame()?;
     let mut observer = |e: Event<'_>| match e {
         Event::Start { number, .. } => progress.set_message(format!("frame {number}")),
         Event::Done { stats } => {
@@ -91,7 +90,6 @@ pub fn execute(
             let secs: f64 = stats.seconds.values().sum();
             progress.set_message(format!("frame {} done in {secs:.2}s{patches}", stats.frame));
             progress.inc();
-            crate::test_hooks::maybe_pause_after(stats.frame, pause_after);
         }
         Event::Warning(w) => progress.warn(&w),
         Event::Memory(m) => progress.info(&format!("memory: {}", m.describe())),
