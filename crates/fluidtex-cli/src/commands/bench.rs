@@ -225,8 +225,12 @@ fn time_run(
 struct Timing {
     /// A row per frame, in order.
     rows: Vec<BenchRow>,
-    /// When each frame was finished.
-    done_at: Vec<Instant>,
+    /// Seconds from the start of the second frame to the end of the run:
+    /// the frames after the first, each computed and written. (Gaps between
+    /// finished frames would not do: with write-behind a frame is reported
+    /// finished while the next is being computed, so the first gap is
+    /// short by up to a frame.)
+    after_first: Option<f64>,
     /// Wall-clock seconds of the whole run.
     wall: f64,
     /// CPU seconds (user + system) of the run, where the system says.
@@ -240,12 +244,14 @@ impl Timing {
         let mut method = build_method(config)?;
         let job = build_job(config, out, false)?;
         let mut rows: Vec<BenchRow> = Vec::new();
-        let mut done_at: Vec<Instant> = Vec::new();
+        let mut second_start: Option<Instant> = None;
         let start = Instant::now();
         let cpu_start = cpu_seconds();
         let mut observer = |e: Event<'_>| {
+            if let Event::Start { index: 1, .. } = e {
+                second_start = Some(Instant::now());
+            }
             if let Event::Done { stats } = e {
-                done_at.push(Instant::now());
                 rows.push((
                     stats.frame,
                     stats.seconds.clone(),
@@ -259,7 +265,7 @@ impl Timing {
         let cpu = cpu_seconds().zip(cpu_start).map(|(b, a)| b - a);
         Ok(Timing {
             rows,
-            done_at,
+            after_first: second_start.map(|t| t.elapsed().as_secs_f64()),
             wall,
             cpu,
         })
@@ -327,14 +333,10 @@ impl Timing {
     /// Wall clock per frame, CPU use and peak memory.
     fn print_totals(&self) {
         let wall = self.wall;
-        // Wall clock between consecutive finished frames, after the first.
-        let gaps: Vec<f64> = self
-            .done_at
-            .windows(2)
-            .map(|w| w[1].duration_since(w[0]).as_secs_f64())
-            .collect();
-        if !gaps.is_empty() {
-            let mean = gaps.iter().sum::<f64>() / gaps.len() as f64;
+        if let Some(after_first) = self.after_first
+            && self.rows.len() > 1
+        {
+            let mean = after_first / (self.rows.len() - 1) as f64;
             println!("wall clock: {mean:.3} s/frame after the first, {wall:.1} s in all");
         }
         if let Some(cpu) = self.cpu {
