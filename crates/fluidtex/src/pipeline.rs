@@ -298,7 +298,6 @@ pub fn run(
     } else {
         (None, None)
     };
-    let total = frames.len();
     let mut writer = FrameWriter {
         job,
         guard: &guard,
@@ -326,36 +325,14 @@ pub fn run(
                 observer,
                 done: 0,
             };
-            let looped = frames.iter().enumerate().try_for_each(|(k, &number)| {
-                (sink.observer)(Event::Start {
-                    number,
-                    index: k,
-                    total,
-                });
-                let mut clock = StageClock::default();
-                let (mesh, report) = source.read(number)?;
-                if report.dropped_degenerate > 0 {
-                    (sink.observer)(Event::Warning(format!(
-                        "frame {number}: dropped {} zero-area triangles",
-                        report.dropped_degenerate
-                    )));
-                }
-                clock.lap("read");
-                let geometry = FrameGeometry::build(number, mesh, report, &job.atlas, &mut clock)?;
-                driver.step(
-                    PendingFrame {
-                        geometry: Arc::new(geometry),
-                        clock,
-                    },
-                    &mut sink,
-                )
-            });
+            let looped = drive(job, source, &frames, &mut driver, &mut sink);
             // The frames already handed over are written (and counted)
             // whether or not a later one failed: `--resume` goes on from them.
             let finished = sink.writer.finish();
             let reported = sink.report(finished);
-            looped?;
+            // A write error belongs to an earlier frame than the loop's.
             reported?;
+            looped?;
             Ok(sink.done)
         },
     )?;
@@ -365,6 +342,42 @@ pub fn run(
         resumed_after,
         seconds: start.elapsed().as_secs_f64(),
     })
+}
+
+/// Reads, builds and drives every frame of `frames` into `sink`.
+fn drive(
+    job: &Job,
+    source: &mut dyn FrameSource,
+    frames: &[i32],
+    driver: &mut Driver<'_>,
+    sink: &mut FileSink<'_, '_, '_>,
+) -> Result<(), PipelineError> {
+    let total = frames.len();
+    for (k, &number) in frames.iter().enumerate() {
+        (sink.observer)(Event::Start {
+            number,
+            index: k,
+            total,
+        });
+        let mut clock = StageClock::default();
+        let (mesh, report) = source.read(number)?;
+        if report.dropped_degenerate > 0 {
+            (sink.observer)(Event::Warning(format!(
+                "frame {number}: dropped {} zero-area triangles",
+                report.dropped_degenerate
+            )));
+        }
+        clock.lap("read");
+        let geometry = FrameGeometry::build(number, mesh, report, &job.atlas, &mut clock)?;
+        driver.step(
+            PendingFrame {
+                geometry: Arc::new(geometry),
+                clock,
+            },
+            sink,
+        )?;
+    }
+    Ok(())
 }
 
 /// Write-behind where memory allows a second frame in flight (and no test
