@@ -441,6 +441,12 @@ fn scene_then_run_with_erosion_covers_every_texel() {
         assert_eq!(covered as u64, stats["texels_in_charts"].as_u64().unwrap());
         assert_eq!(uncovered, 0);
         assert_eq!(covered + outside, 128 * 128);
+        // The packer's fill is the chart texels' share of the atlas.
+        assert_eq!(
+            stats["atlas_fill"].as_f64().unwrap(),
+            covered as f64 / (128.0 * 128.0),
+            "frame {f}"
+        );
         let alive = stats["patches_alive"].as_u64().unwrap();
         assert!(alive > 0);
         let distinct: BTreeSet<u32> = ids

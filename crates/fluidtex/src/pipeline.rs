@@ -191,6 +191,9 @@ pub struct FrameStats {
     pub charts: usize,
     pub atlas_width: u32,
     pub atlas_height: u32,
+    /// Share of atlas texels inside charts: how tightly the packer filled
+    /// the atlas (the rest is gutter and space between charts).
+    pub atlas_fill: f64,
     /// Share of surface points carried by the velocity from the previous
     /// frame, with a patch at both ends, whose patch changed
     /// ([`crate::coherence`]); with debug outputs, when the method gives
@@ -581,6 +584,8 @@ impl FrameWriter<'_> {
             charts: g.atlas.chart_count,
             atlas_width: g.atlas.width,
             atlas_height: g.atlas.height,
+            atlas_fill: g.atlas.texels_in_charts() as f64
+                / (f64::from(g.atlas.width) * f64::from(g.atlas.height)).max(1.0),
             method_stats,
             ..Default::default()
         };
