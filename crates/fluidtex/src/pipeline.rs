@@ -272,10 +272,11 @@ pub fn run(
     let start = Instant::now();
     // Everything that can be refused without reading a frame, first.
     job.atlas.validate().map_err(PipelineError::AtlasParams)?;
-    let estimate = estimate_memory(&job.atlas, &method.channel_specs(), &job.outputs)
+    let specs = method.channel_specs();
+    let estimate = estimate_memory(&job.atlas, &specs, &job.outputs)
         .with_available(job.hooks.available_memory.or_else(available_memory));
     estimate.check()?;
-    let (mode, estimate) = write_mode(job, estimate, &method.channel_specs(), observer);
+    let (mode, estimate) = write_mode(job, estimate, &specs, observer);
     observer(Event::Memory(estimate));
     std::fs::create_dir_all(&job.out_dir).map_err(|e| PipelineError::Output {
         path: job.out_dir.clone(),
@@ -645,7 +646,7 @@ impl FrameWriter<'_> {
             &json,
         )?;
         files.commit()?;
-        save_state(job, self.guard, &method, number)?;
+        save_state(job, self.guard, method, number)?;
         if let Some(hook) = &job.hooks.after_frame {
             hook(number);
         }
@@ -719,7 +720,7 @@ fn parse_state(path: &Path, bytes: &[u8]) -> Result<SavedState, PipelineError> {
 fn save_state(
     job: &Job,
     guard: &InputGuard,
-    method: &MethodSnapshot,
+    method: MethodSnapshot,
     frame: i32,
 ) -> Result<(), PipelineError> {
     let saved = SavedState {
@@ -728,7 +729,7 @@ fn save_state(
         method: method.name.to_string(),
         last_frame: frame,
         checksum: crc32fast::hash(&method.state),
-        method_state: method.state.clone(),
+        method_state: method.state,
     };
     let bytes = postcard::to_allocvec(&saved).map_err(|e| PipelineError::Output {
         path: job.out_dir.join(STATE_FILE),

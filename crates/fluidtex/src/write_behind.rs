@@ -20,7 +20,7 @@
 //! parallel work (encoders, the OBJ formatter) already runs on rayon's
 //! pool, which both threads share.
 
-use std::sync::mpsc::{Receiver, SyncSender, TryRecvError};
+use std::sync::mpsc::{Receiver, SyncSender};
 
 /// Whether jobs run on the worker thread or in place.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -82,15 +82,7 @@ impl<J, R, E> Worker<'_, J, R, E> {
     /// The results that are in, oldest first, without waiting.
     pub fn ready(&mut self) -> Vec<Result<R, E>> {
         match &mut self.inner {
-            Inner::Behind { results, .. } => {
-                let mut out = Vec::new();
-                loop {
-                    match results.try_recv() {
-                        Ok(r) => out.push(r),
-                        Err(TryRecvError::Empty | TryRecvError::Disconnected) => return out,
-                    }
-                }
-            }
+            Inner::Behind { results, .. } => results.try_iter().collect(),
             Inner::Inline { results, .. } => std::mem::take(results),
         }
     }
@@ -163,6 +155,18 @@ mod tests {
     use std::sync::atomic::{AtomicUsize, Ordering};
     use std::sync::{Arc, Mutex};
 
+    /// Hands jobs `0..n` over as a frame loop does (collecting what is
+    /// ready after each), then every result still due.
+    fn submit_all<R, E>(w: &mut Worker<'_, u32, R, E>, n: u32) -> Vec<Result<R, E>> {
+        let mut got = Vec::new();
+        for j in 0..n {
+            w.submit(j);
+            got.extend(w.ready());
+        }
+        got.extend(w.finish());
+        got
+    }
+
     /// Results come back in submission order, all of them, in both modes,
     /// and are the same in both.
     #[test]
@@ -171,15 +175,7 @@ mod tests {
             scope(
                 mode,
                 |j: u32| Ok::<u32, String>(j * j),
-                |w| {
-                    let mut got = Vec::new();
-                    for j in 0..50 {
-                        w.submit(j);
-                        got.extend(w.ready());
-                    }
-                    got.extend(w.finish());
-                    got
-                },
+                |w| submit_all(w, 50),
             )
         };
         let expected: Vec<Result<u32, String>> = (0..50).map(|j| Ok(j * j)).collect();
@@ -204,15 +200,7 @@ mod tests {
                         Ok(j)
                     }
                 },
-                |w| {
-                    let mut got = Vec::new();
-                    for j in 0..8 {
-                        w.submit(j);
-                        got.extend(w.ready());
-                    }
-                    got.extend(w.finish());
-                    got
-                },
+                |w| submit_all(w, 8),
             );
             assert_eq!(*ran.lock().unwrap(), vec![0, 1, 2, 3], "{mode:?}");
             assert_eq!(
