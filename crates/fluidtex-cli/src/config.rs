@@ -14,7 +14,7 @@ use fluidtex::methods::atlas_check::AtlasCheckParams;
 use fluidtex::methods::dual_rest::DualRestParams;
 use fluidtex::methods::erosion::{ErosionParams, Falloff, Orientation, Placement, WeightMode};
 use fluidtex::methods::lapped_rigid::LappedRigidParams;
-use fluidtex::methods::optimization::OptimizationParams;
+use fluidtex::methods::optimization::{Histogram, OptimizationParams};
 use fluidtex::methods::registry::{MethodKind, MethodParams};
 use fluidtex::named::Named;
 use fluidtex::pipeline::OutputOptions;
@@ -381,10 +381,13 @@ pub struct RunFlags {
     /// optimization: neighbourhood widths of the passes, odd [33,17,9]
     #[arg(long, value_delimiter = ',')]
     pub sizes: Option<Vec<u32>>,
+    /// optimization: passes on carried frames, the last N of --sizes [2]
+    #[arg(long)]
+    pub passes_after_first: Option<u32>,
     /// optimization: the search compares a G x G subsample of each neighbourhood [9]
     #[arg(long)]
     pub search_grid: Option<u32>,
-    /// optimization: k-d tree candidates re-ranked by full distance [16]
+    /// optimization: k-d tree candidates re-ranked by full distance [8]
     #[arg(long)]
     pub rerank: Option<u32>,
     /// optimization: most search + averaging iterations per pass [3]
@@ -402,6 +405,9 @@ pub struct RunFlags {
     /// optimization: robust exponent of the texture energy (2: least squares) [0.8]
     #[arg(long)]
     pub robust: Option<f32>,
+    /// optimization: after each average, values take the exemplar's histogram (matched) or stay as averaged (paper) [matched]
+    #[arg(long, value_parser = named::<Histogram>())]
+    pub histogram: Option<Histogram>,
     #[command(flatten)]
     pub rigid: RigidFlags,
 }
@@ -485,6 +491,7 @@ flag_keys! {
     levels => optimization.levels: value,
     levels_after_first => optimization.levels_after_first: value,
     sizes => optimization.sizes: value,
+    passes_after_first => optimization.passes_after_first: value,
     search_grid => optimization.search_grid: value,
     rerank => optimization.rerank: value,
     iterations => optimization.iterations: value,
@@ -492,6 +499,7 @@ flag_keys! {
     coherence => optimization.coherence: value,
     orientation_iterations => optimization.orientation_iterations: value,
     robust => optimization.robust: value,
+    histogram => optimization.histogram: value,
     rigid.rigid_radius => lapped_rigid.radius: some,
     rigid.rigid_radius_fraction => lapped_rigid.radius_fraction: value,
     rigid.rigid_radius_edges => lapped_rigid.radius_edges: value,

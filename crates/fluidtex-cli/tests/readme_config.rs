@@ -341,6 +341,8 @@ fn documented_elsewhere(flag: &str) -> bool {
             "centre-spacing",
             "coherence",
             "robust",
+            "histogram",
+            "passes-after-first",
             "orientation-iterations",
             "preview-video",
             "prim",

@@ -75,6 +75,7 @@ mod tests {
         round_trip::<Orientation>();
         round_trip::<FeatureMethod>();
         round_trip::<ExemplarFilter>();
+        round_trip::<crate::methods::optimization::Histogram>();
     }
 
     #[test]

@@ -565,6 +565,11 @@ impl MetricsSink<'_> {
             );
         }
         let (texel_scale, anisotropy) = self.distortion(frame, result, view, set)?;
+        let texel_scale = if texel_scale.is_finite() {
+            texel_scale
+        } else {
+            shown_scale(result.exemplar_lod.as_deref())
+        };
         self.fidelity(k, frame, texel_scale, view, set)?;
         Ok(anisotropy)
     }
@@ -624,7 +629,7 @@ impl MetricsSink<'_> {
     }
 
     /// Exemplar fidelity (SWD) against a reference built once, at the
-    /// output's texel scale.
+    /// output's texel scale (exemplar texels per atlas texel).
     fn fidelity(
         &mut self,
         k: usize,
@@ -640,7 +645,8 @@ impl MetricsSink<'_> {
                 texel_scale
             } else {
                 self.notes.push(
-                    "fidelity: no exemplar uv, the exemplar is compared at its own scale".into(),
+                    "fidelity: no exemplar uv or level, the exemplar is compared at its own scale"
+                        .into(),
                 );
                 1.0
             };
@@ -852,6 +858,24 @@ impl MetricsSink<'_> {
             fidelity_scale: self.fidelity_scale,
         }
     }
+}
+
+/// Exemplar texels per atlas texel of an output without exemplar uv, from
+/// the mip levels it reports it shows (the median over chart texels); NaN
+/// without such levels.
+fn shown_scale(lod: Option<&[f32]>) -> f64 {
+    let mut levels: Vec<f32> = lod
+        .unwrap_or(&[])
+        .iter()
+        .copied()
+        .filter(|l| l.is_finite())
+        .collect();
+    if levels.is_empty() {
+        return f64::NAN;
+    }
+    let mid = levels.len() / 2;
+    let (_, median, _) = levels.select_nth_unstable_by(mid, f32::total_cmp);
+    f64::from(median.max(0.0)).exp2()
 }
 
 /// Judges every run's source switch share against the floor method's

@@ -20,6 +20,10 @@
 //! width w overlap about (1/spacing)² times, the quarter-width overlap of
 //! Kwatra et al. 2005.
 //!
+//! 4. with [`super::Histogram::Matched`] (the default, not the paper's):
+//!    every channel of s remapped onto the working exemplar's histogram
+//!    ([`super::histogram`]) before the next search.
+//!
 //! λ_k (Eq. 2's gradient weighting): `coherence` × (number of
 //! neighbourhoods covering k) × min(g_k / ḡ, 3), g_k the mean colour
 //! difference between the transported c at k and at its neighbours and ḡ
@@ -31,6 +35,7 @@ use std::time::Instant;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
+use super::histogram::Quantiles;
 use super::lattice::Level;
 use super::neighbourhood::{CellSample, Scratch, Window, build, fill_query};
 use super::search::{SearchIndex, WorkingExemplar};
@@ -56,6 +61,9 @@ pub struct LevelInput<'a> {
     /// Gauss–Newton steps of the sub-texel registration of each match
     /// ([`refine_shift`]); 0: the paper's integer matches.
     pub refine: u32,
+    /// Target histograms the values are remapped onto after every
+    /// averaging step ([`super::histogram`]); `None`: the paper's average.
+    pub histogram: Option<&'a Quantiles>,
 }
 
 /// Gauss–Newton steps of the sub-texel registration run by the method
@@ -81,6 +89,10 @@ pub struct PassReport {
     pub energies: Vec<(f64, f64)>,
     /// Matches that changed in the last search (0: converged).
     pub changed: usize,
+    /// Luminance contrast of the last predictions z_p over every member,
+    /// relative to the working exemplar's: below 1 where the matches
+    /// favour the exemplar's smooth regions.
+    pub prediction_contrast: f64,
 }
 
 impl PassReport {
@@ -398,6 +410,7 @@ pub fn optimise(input: &LevelInput<'_>, s: &mut [f32], times: &mut SolveTimes) -
     let lambda0 = input
         .transported
         .map(|c| gradient_weights(level, c, k, kc, input.coherence));
+    let sigma_ex = super::luminance_sigma(&ex.data, k, kc);
     let mut reports = Vec::new();
     for index in input.passes {
         let window: Window = index.window;
@@ -481,8 +494,12 @@ pub fn optimise(input: &LevelInput<'_>, s: &mut [f32], times: &mut SolveTimes) -
             });
             let after = texture_energy(&geo, &z, s, &weights, k, kc) + e_c(s);
             report.energies.push((before, after));
+            if let Some(q) = input.histogram {
+                q.apply(s);
+            }
             times.solve += t1.elapsed().as_secs_f64();
         }
+        report.prediction_contrast = super::luminance_sigma(&z, k, kc) / sigma_ex.max(1e-12);
         reports.push(report);
     }
     reports
