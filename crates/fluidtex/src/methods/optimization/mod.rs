@@ -382,6 +382,32 @@ impl Optimization {
         }
     }
 
+    /// A frame where nothing moved ([`is_still`]): the previous frame's
+    /// point values as they are. Re-synthesising them would change them
+    /// (the averaging and the histogram step are not idempotent), and a
+    /// still liquid must keep a still texture, bit for bit.
+    fn still_frame(
+        &mut self,
+        atlas: &crate::atlas::Atlas,
+        lattice: Lattice,
+        h: f32,
+        mut clock: StageClock,
+    ) -> FrameResult {
+        let mut result = FrameResult::default();
+        clock.lap("points");
+        let values = std::mem::take(&mut self.state.values);
+        self.atlas_output(atlas, &lattice, &values, h, &mut result);
+        self.state.values = values;
+        clock.lap("output");
+        self.lattice_stats(&lattice, h, None, &mut result.stats);
+        let stats = &mut result.stats;
+        stats.insert("transported".into(), true.into());
+        stats.insert("still".into(), true.into());
+        self.last_lattice = Some(lattice);
+        result.timings = clock.stages;
+        result
+    }
+
     /// A frame without surface: empty channels, and no state to carry.
     fn empty_frame(&mut self, atlas: &crate::atlas::Atlas, result: &mut FrameResult) {
         self.state.m = 0;
@@ -646,6 +672,19 @@ impl Optimization {
     }
 }
 
+/// Whether nothing moved since the previous frame: the same mesh, and a
+/// velocity of exactly zero on both frames (so transport is the identity).
+fn is_still(ctx: &FrameContext<'_>, velocity: &[Vec3]) -> bool {
+    let Some(prev) = ctx.previous else {
+        return false;
+    };
+    let zero = |v: &[Vec3]| v.iter().all(|&v| v == Vec3::ZERO);
+    prev.mesh.positions == ctx.mesh.positions
+        && prev.mesh.triangles == ctx.mesh.triangles
+        && zero(velocity)
+        && prev.mesh.velocity().is_some_and(zero)
+}
+
 /// The previous frame's texture carried to this frame's points.
 struct Transported {
     /// Every channel at every lattice point.
@@ -754,7 +793,10 @@ impl Method for Optimization {
         let m = steps_for(mesh, h);
         let lattice = Lattice::new(mesh, m);
 
-        let prev_lattice = self.previous_lattice(ctx);
+        let prev_lattice = match self.previous_lattice(ctx) {
+            Some(l) if is_still(ctx, velocity) => return Ok(self.still_frame(atlas, l, h, clock)),
+            other => other,
+        };
         let carried = prev_lattice.is_some();
         let synth_levels = if carried {
             self.params.levels_after_first
