@@ -529,3 +529,16 @@ fn source_switch_is_judged_against_advect_on_the_same_frames() {
             .any(|n| n.contains("advect was not run"))
     );
 }
+
+#[test]
+fn the_fidelity_scale_of_an_output_without_uv_is_its_median_reported_level() {
+    // Levels outside charts are NaN and do not count; the median of
+    // 1, 2, 2, 3, 5 is level 2, four exemplar texels per atlas texel.
+    let lod = [f32::NAN, 2.0, 1.0, f32::NAN, 5.0, 2.0, 3.0];
+    assert_eq!(shown_scale(Some(&lod)), 4.0);
+    // A magnified exemplar (negative level) is compared at its own scale.
+    assert_eq!(shown_scale(Some(&[-1.5, -0.5, -2.0])), 1.0);
+    // Nothing reported, or nothing inside a chart: no scale.
+    assert!(shown_scale(None).is_nan());
+    assert!(shown_scale(Some(&[f32::NAN, f32::NAN])).is_nan());
+}
