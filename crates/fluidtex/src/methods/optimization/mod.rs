@@ -81,12 +81,12 @@ pub struct OptimizationParams {
     pub sizes: Vec<u32>,
     /// Passes on frames that start from the transported texture: the last
     /// this many of `sizes` \[2], so 17² and 9² (every size when there are
-    /// fewer). A departure from the
-    /// paper, which runs every size: the transported texture already holds
-    /// the large structure the widest pass would re-synthesise, and that
-    /// pass costs as much as each of the others (on `dam-break`, dropping
-    /// it takes a carried frame from 11 s to 7–8 s with the same report
-    /// cells). `sizes.len()` restores the paper's.
+    /// fewer). A departure from the paper, which runs every size: the
+    /// transported texture already holds the large structure the widest
+    /// pass would re-synthesise, and that pass costs as much as each of the
+    /// others (dropping it takes a carried `dam-break` frame from 11 s to
+    /// 7–8 s; the `vortex` report cells stay as they were). `sizes.len()`
+    /// restores the paper's.
     pub passes_after_first: u32,
     /// Search grid g: the pixel neighbourhood compared is a g × g
     /// subsample of the w × w one \[9] (odd, 3..=15).
