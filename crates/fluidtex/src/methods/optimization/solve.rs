@@ -454,28 +454,11 @@ pub fn optimise(input: &LevelInput<'_>, s: &mut [f32], times: &mut SolveTimes) -
             let (sum, weight, count) = accumulate(&geo, &z, &weights, n, k);
             let e_t = texture_energy(&geo, &z, s, &weights, k, kc);
             // λ_k relative to the (weighted) neighbourhoods covering k.
-            let lambda: Option<Vec<f32>> = lambda0.as_ref().map(|l| {
-                l.iter()
-                    .zip(&weight)
-                    .zip(&count)
-                    .map(|((&l, &w), &c)| {
-                        let cover = if c > 0 { w / c as f64 } else { 1.0 };
-                        l * (c.max(1) as f64 * cover) as f32
-                    })
-                    .collect()
-            });
+            let lambda: Option<Vec<f32>> =
+                lambda0.as_ref().map(|l| covered_lambda(l, &weight, &count));
             let e_c = |values: &[f32]| -> f64 {
                 match (&lambda, input.transported) {
-                    (Some(l), Some(c)) => (0..n)
-                        .map(|v| {
-                            let mut e = 0.0f64;
-                            for ch in 0..kc {
-                                let d = (values[v * k + ch] - c[v * k + ch]) as f64;
-                                e += d * d;
-                            }
-                            e * l[v] as f64
-                        })
-                        .sum(),
+                    (Some(l), Some(c)) => coherence_energy(values, c, l, k, kc),
                     _ => 0.0,
                 }
             };
@@ -503,6 +486,34 @@ pub fn optimise(input: &LevelInput<'_>, s: &mut [f32], times: &mut SolveTimes) -
         reports.push(report);
     }
     reports
+}
+
+/// λ_k relative to the (robust-weighted) neighbourhoods covering k: the
+/// gradient weight times their number, scaled by their mean weight.
+fn covered_lambda(lambda0: &[f32], weight: &[f64], count: &[u32]) -> Vec<f32> {
+    lambda0
+        .iter()
+        .zip(weight)
+        .zip(count)
+        .map(|((&l, &w), &c)| {
+            let cover = if c > 0 { w / c as f64 } else { 1.0 };
+            l * (c.max(1) as f64 * cover) as f32
+        })
+        .collect()
+}
+
+/// E_c (Eq. 2): Σ_k λ_k ‖s(k) − c(k)‖² over the colour channels.
+fn coherence_energy(values: &[f32], c: &[f32], lambda: &[f32], k: usize, kc: usize) -> f64 {
+    (0..lambda.len())
+        .map(|v| {
+            let mut e = 0.0f64;
+            for ch in 0..kc {
+                let d = (values[v * k + ch] - c[v * k + ch]) as f64;
+                e += d * d;
+            }
+            e * lambda[v] as f64
+        })
+        .sum()
 }
 
 /// The exemplar neighbourhood nearest to each centre's current pixel
