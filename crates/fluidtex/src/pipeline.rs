@@ -305,6 +305,10 @@ pub fn run(
     let mut writer = FrameWriter {
         job,
         guard: &guard,
+        method: MethodInfo {
+            name: method.name(),
+            specs,
+        },
         // Previews are taken every n frames counted from the sequence's
         // first frame, so a resumed run writes the same previews.
         first_frame: source.frames().first().copied().unwrap_or(0),
@@ -479,11 +483,7 @@ impl FrameSink for FileSink<'_, '_, '_> {
             result,
             clock,
         } = frame;
-        let method = MethodSnapshot {
-            name: method.name(),
-            specs: method.channel_specs(),
-            state: method.save_state()?,
-        };
+        let state = method.save_state()?;
         // The per-texel uv, layer counts and mip levels are the evaluation's;
         // no file holds them, so they are not kept while the frame is written.
         self.writer.submit(WriteJob {
@@ -493,7 +493,7 @@ impl FrameSink for FileSink<'_, '_, '_> {
             source: result.source,
             method_stats: result.stats,
             clock: std::mem::take(clock),
-            method,
+            state,
         });
         let ready = self.writer.ready();
         self.report(ready)
@@ -519,13 +519,11 @@ impl FileSink<'_, '_, '_> {
     }
 }
 
-/// What the writer needs of the method after frame F, taken before the
-/// method moves on to F+1.
-struct MethodSnapshot {
+/// What the writer needs to know of the method: the same for every frame
+/// of a run.
+struct MethodInfo {
     name: &'static str,
     specs: Vec<ChannelSpec>,
-    /// [`Method::save_state`] after F, for `state.bin`.
-    state: Vec<u8>,
 }
 
 /// A filled frame on its way to the writer.
@@ -538,7 +536,9 @@ struct WriteJob {
     method_stats: crate::methods::MethodStats,
     /// Stages so far; the writer adds its own.
     clock: StageClock,
-    method: MethodSnapshot,
+    /// [`Method::save_state`] after this frame, taken before the method
+    /// moves on to the next, for `state.bin`.
+    state: Vec<u8>,
 }
 
 /// What the writer reports of a frame whose files and state are committed.
@@ -553,6 +553,7 @@ struct Written {
 struct FrameWriter<'a> {
     job: &'a Job,
     guard: &'a InputGuard,
+    method: MethodInfo,
     first_frame: i32,
     /// What the coherence measurement keeps of the frame before.
     coherence_prev: Option<CoherencePrevious>,
@@ -569,7 +570,7 @@ impl FrameWriter<'_> {
             source,
             method_stats,
             mut clock,
-            method,
+            state,
         } = w;
         // The time this frame waited for the writer is no stage of it.
         clock.restart();
@@ -578,7 +579,7 @@ impl FrameWriter<'_> {
         let mut warnings = Vec::new();
         let mut stats = FrameStats {
             frame: number,
-            method: method.name.to_string(),
+            method: self.method.name.to_string(),
             vertices: g.mesh.vertex_count(),
             triangles: g.mesh.triangle_count(),
             dropped_degenerate: g.report.dropped_degenerate,
@@ -594,7 +595,7 @@ impl FrameWriter<'_> {
         // then the state counts the frame; a failure before the state is
         // written leaves the frame uncounted and `--resume` redoes it.
         let mut files = Staging::new(Some(self.guard), job.hooks.write.as_ref());
-        self.write_frame(&mut files, &g, &method, &channels, source.as_deref())?;
+        self.write_frame(&mut files, &g, &channels, source.as_deref())?;
         clock.lap("write");
         if job.outputs.debug
             && let Some(ids) = &source
@@ -605,14 +606,14 @@ impl FrameWriter<'_> {
             {
                 self.coherence_prev = reload_coherence(
                     job,
-                    method.specs.first(),
+                    self.method.specs.first(),
                     prev,
                     last,
                     &self.coherence_settings,
                     &mut warnings,
                 );
             }
-            let current = WrittenTexels::of(&method.specs, &g.atlas, ids, &channels);
+            let current = WrittenTexels::of(&self.method.specs, &g.atlas, ids, &channels);
             if let (Some(before), Some(prev)) = (&self.coherence_prev, prev)
                 && before.number == prev.number
                 && let Some(c) = self.measure_coherence(&mut files, prev, before, &g, &current)?
@@ -646,7 +647,7 @@ impl FrameWriter<'_> {
             &json,
         )?;
         files.commit()?;
-        save_state(job, self.guard, method, number)?;
+        save_state(job, self.guard, self.method.name, state, number)?;
         if let Some(hook) = &job.hooks.after_frame {
             hook(number);
         }
@@ -720,16 +721,17 @@ fn parse_state(path: &Path, bytes: &[u8]) -> Result<SavedState, PipelineError> {
 fn save_state(
     job: &Job,
     guard: &InputGuard,
-    method: MethodSnapshot,
+    method: &str,
+    method_state: Vec<u8>,
     frame: i32,
 ) -> Result<(), PipelineError> {
     let saved = SavedState {
         version: STATE_VERSION,
         fingerprint: job.fingerprint.clone(),
-        method: method.name.to_string(),
+        method: method.to_string(),
         last_frame: frame,
-        checksum: crc32fast::hash(&method.state),
-        method_state: method.state,
+        checksum: crc32fast::hash(&method_state),
+        method_state,
     };
     let bytes = postcard::to_allocvec(&saved).map_err(|e| PipelineError::Output {
         path: job.out_dir.join(STATE_FILE),
@@ -1147,11 +1149,10 @@ impl FrameWriter<'_> {
         &self,
         files: &mut Staging<'_>,
         g: &FrameGeometry,
-        method: &MethodSnapshot,
         channels: &[Texture],
         source: Option<&[u32]>,
     ) -> Result<(), PipelineError> {
-        let colour_png = self.write_channels(files, g.number, method, channels)?;
+        let colour_png = self.write_channels(files, g.number, channels)?;
         let normals = g.uv_mesh_normals();
         self.write_meshes(files, g, &normals, colour_png.as_ref())?;
         self.write_patch_views(files, g, channels, source, &normals)
@@ -1163,11 +1164,11 @@ impl FrameWriter<'_> {
         &self,
         files: &mut Staging<'_>,
         number: i32,
-        method: &MethodSnapshot,
         channels: &[Texture],
     ) -> Result<Option<(String, Vec<u8>)>, PipelineError> {
         let tag = frame_tag(number);
         let dir = &self.job.out_dir;
+        let method = &self.method;
         let specs = &method.specs;
         if specs.len() != channels.len() {
             return Err(PipelineError::Output {
