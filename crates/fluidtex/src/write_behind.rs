@@ -211,30 +211,34 @@ mod tests {
         }
     }
 
+    /// A job that takes `ms` milliseconds, then counts itself in `finished`.
+    fn slow_counted_job(
+        ms: u64,
+        finished: &Arc<AtomicUsize>,
+    ) -> impl FnMut(u32) -> Result<(), ()> + Send + use<> {
+        let counter = Arc::clone(finished);
+        move |_| {
+            std::thread::sleep(std::time::Duration::from_millis(ms));
+            counter.fetch_add(1, Ordering::SeqCst);
+            Ok(())
+        }
+    }
+
     /// Behind, at most one job is in the worker's hands while the caller
     /// goes on: when a hand-over returns, every job before the one just
     /// handed over has finished.
     #[test]
     fn a_hand_over_waits_for_the_job_before() {
         let finished = Arc::new(AtomicUsize::new(0));
-        let counter = Arc::clone(&finished);
-        scope(
-            Mode::Behind,
-            move |_: u32| {
-                std::thread::sleep(std::time::Duration::from_millis(5));
-                counter.fetch_add(1, Ordering::SeqCst);
-                Ok::<(), ()>(())
-            },
-            |w| {
-                for j in 0..6 {
-                    w.submit(j);
-                    let done = finished.load(Ordering::SeqCst);
-                    assert!(done >= j as usize, "job {j}: only {done} finished");
-                }
-                w.finish();
-                assert_eq!(finished.load(Ordering::SeqCst), 6);
-            },
-        );
+        scope(Mode::Behind, slow_counted_job(5, &finished), |w| {
+            for j in 0..6 {
+                w.submit(j);
+                let done = finished.load(Ordering::SeqCst);
+                assert!(done >= j as usize, "job {j}: only {done} finished");
+            }
+            w.finish();
+            assert_eq!(finished.load(Ordering::SeqCst), 6);
+        });
     }
 
     /// An early return from the body (an error of the frame loop) still
@@ -242,20 +246,11 @@ mod tests {
     #[test]
     fn an_early_return_lets_the_last_job_finish() {
         let finished = Arc::new(AtomicUsize::new(0));
-        let counter = Arc::clone(&finished);
-        let out: Result<(), &str> = scope(
-            Mode::Behind,
-            move |_: u32| {
-                std::thread::sleep(std::time::Duration::from_millis(20));
-                counter.fetch_add(1, Ordering::SeqCst);
-                Ok::<(), ()>(())
-            },
-            |w| {
-                w.submit(0);
-                w.submit(1);
-                Err("the loop failed")
-            },
-        );
+        let out: Result<(), &str> = scope(Mode::Behind, slow_counted_job(20, &finished), |w| {
+            w.submit(0);
+            w.submit(1);
+            Err("the loop failed")
+        });
         assert_eq!(out, Err("the loop failed"));
         assert_eq!(finished.load(Ordering::SeqCst), 2);
     }
