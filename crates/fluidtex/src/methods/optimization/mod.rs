@@ -790,13 +790,12 @@ impl Method for Optimization {
 
         // 1. Points and hierarchy.
         let (h, spacing_rule) = self.spacing(mesh, atlas);
-        let m = steps_for(mesh, h);
-        let lattice = Lattice::new(mesh, m);
-
         let prev_lattice = match self.previous_lattice(ctx) {
             Some(l) if is_still(ctx, velocity) => return Ok(self.still_frame(atlas, l, h, clock)),
             other => other,
         };
+        let m = steps_for(mesh, h);
+        let lattice = Lattice::new(mesh, m);
         let carried = prev_lattice.is_some();
         let synth_levels = if carried {
             self.params.levels_after_first
