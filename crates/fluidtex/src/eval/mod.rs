@@ -565,12 +565,11 @@ impl MetricsSink<'_> {
             );
         }
         let (texel_scale, anisotropy) = self.distortion(frame, result, view, set)?;
-        let texel_scale = if texel_scale.is_finite() {
-            texel_scale
-        } else {
-            shown_scale(result.exemplar_lod.as_deref())
+        let shown = Shown {
+            texel_scale,
+            lod: result.exemplar_lod.as_deref(),
         };
-        self.fidelity(k, frame, texel_scale, view, set)?;
+        self.fidelity(k, frame, shown, view, set)?;
         Ok(anisotropy)
     }
 
@@ -634,13 +633,17 @@ impl MetricsSink<'_> {
         &mut self,
         k: usize,
         frame: &PreparedFrame,
-        texel_scale: f64,
+        shown: Shown<'_>,
         view: &AtlasView<'_>,
         set: &mut impl FnMut(Metric, f64),
     ) -> Result<(), EvalError> {
         let number = frame.number;
         let exemplar = self.exemplar;
         if self.fidelity_scale.is_nan() {
+            let texel_scale = match shown.texel_scale {
+                s if s.is_finite() => s,
+                _ => shown_scale(shown.lod),
+            };
             let s = if texel_scale.is_finite() && texel_scale > 0.0 {
                 texel_scale
             } else {
@@ -858,6 +861,13 @@ impl MetricsSink<'_> {
             fidelity_scale: self.fidelity_scale,
         }
     }
+}
+
+/// The scale a frame shows the exemplar at: exemplar texels per atlas
+/// texel from its exemplar uv (NaN without), else the mip levels it reports.
+struct Shown<'a> {
+    texel_scale: f64,
+    lod: Option<&'a [f32]>,
 }
 
 /// Exemplar texels per atlas texel of an output without exemplar uv, from
