@@ -58,6 +58,11 @@ pub struct PatchShape {
 /// frame of any flow stretches it.
 pub const MAX_SPLIT_ROUNDS: usize = 6;
 
+/// An edge midpoint farther than this fraction of r from the next surface
+/// lies over a gap of the surface and is not split (the default far
+/// distance of Sec. 4, r/4).
+pub const GAP_FRACTION: f32 = 0.25;
+
 /// One deformable patch.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Patch {
@@ -213,9 +218,15 @@ impl Patch {
                 .retain(|t| t.iter().all(|&v| keep[v as usize]));
             self.compact();
         }
-        let far = shape.far_distance;
+        // A midpoint over a gap of the surface (a patch stretched across two
+        // droplets) has nothing to land on, so its edge is left whole. The
+        // gap is at most the default far distance r/4 even when a user keeps
+        // far vertices (`far_fraction` up to 10): otherwise every such edge
+        // finds *some* surface within 10 r, is split at every frame, and the
+        // patch grows without bound (tens of GB within 16 frames).
+        let gap = shape.far_distance.min(GAP_FRACTION * shape.radius);
         if self.refine(shape.split_length, |q| {
-            next.closest(q, far).map(|h| h.point)
+            next.closest(q, gap).map(|h| h.point)
         }) {
             still = false;
         }

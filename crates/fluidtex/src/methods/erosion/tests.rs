@@ -1138,3 +1138,76 @@ fn refinement_leaves_an_edge_whole_where_its_midpoint_has_no_surface() {
     assert!(!patch.refine(0.15, |_| None));
     assert_eq!(patch, before);
 }
+
+#[test]
+fn a_patch_spread_over_two_droplets_stops_growing_when_far_vertices_are_kept() {
+    // Two islands of surface (droplets) 1.6 apart, at rest. The patch's
+    // vertices are spread over both and far vertices are kept (far distance
+    // 10 r): an edge across the gap has its midpoint 0.8 from any surface.
+    let mut positions = Vec::new();
+    let mut triangles = Vec::new();
+    for dx in [-1.0f32, 1.0] {
+        let island = grid(4, 0.1);
+        let base = positions.len() as u32;
+        positions.extend(
+            island
+                .positions
+                .iter()
+                .map(|q| *q + Vec3::new(dx, 0.0, 0.0)),
+        );
+        triangles.extend(island.triangles.iter().map(|t| t.map(|v| v + base)));
+    }
+    let rest = vec![Vec3::ZERO; positions.len()];
+    let next = TriMesh::new(positions, triangles).with_velocity(rest);
+    let index = SurfaceIndex::new(&next);
+    let flow = crate::surface::velocity::FlowInterval {
+        from: crate::surface::velocity::FlowFrame {
+            mesh: &next,
+            index: &index,
+            velocity: next.velocity().expect("velocity"),
+        },
+        to: None,
+        dt: 1.0 / 24.0,
+        substeps: 1,
+        search_hint: 0.1,
+    };
+    let mut keep_far = shape(0.5);
+    keep_far.far_distance = 5.0;
+    keep_far.split_length = 0.15;
+    let mut patch = create_on(
+        &grid(20, 0.1),
+        SurfacePoint::new(421, [0.2, 0.3, 0.5]),
+        &shape(0.5),
+        0.0,
+    );
+    for q in &mut patch.positions {
+        q.x *= 4.0;
+    }
+    let mut control = patch.clone();
+    let counts: Vec<usize> = (0..4)
+        .map(|_| {
+            assert!(patch.advect(&flow, &index, &keep_far));
+            patch.triangles.len()
+        })
+        .collect();
+    assert!(counts[0] > 0);
+    assert_eq!(
+        counts[1..],
+        [counts[0]; 3],
+        "grew frame after frame: {counts:?}"
+    );
+    // Every vertex lies on an island, none in the gap.
+    assert!(patch.positions.iter().all(|q| q.x.abs() >= 0.8 - 1e-5));
+    // Control: projecting midpoints within the far distance, as before, an
+    // edge across the gap is split again at every call.
+    let project = |q: Vec3| index.closest(q, keep_far.far_distance).map(|h| h.point);
+    let mut grown = Vec::new();
+    for _ in 0..3 {
+        control.refine(keep_far.split_length, project);
+        grown.push(control.triangles.len());
+    }
+    assert!(
+        grown[2] > grown[1] && grown[1] > grown[0],
+        "the control should grow: {grown:?}"
+    );
+}
