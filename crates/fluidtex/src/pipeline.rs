@@ -201,8 +201,8 @@ pub struct FrameStats {
     /// was covered.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub source_switch_share: Option<f64>,
-    /// Of the same points with a patch at the previous frame, the share
-    /// whose patch is gone, switched or over a hole
+    /// Of the same points with a patch at either frame, the share whose
+    /// patch changed: switched, now over a hole, or come from one
     /// ([`crate::metrics::SourceSwitch::changed_share`]): what compares a
     /// method that leaves holes with one that fills them.
     #[serde(skip_serializing_if = "Option::is_none")]

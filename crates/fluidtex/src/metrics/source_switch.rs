@@ -20,8 +20,13 @@
 //! patches differ in *where* a point can switch: where a patch stops
 //! covering, the first shows a hole (not counted) and the second a new
 //! patch (a switch). [`SourceSwitch::lost`] counts the points of the first
-//! kind, so the two can be compared on the same footing
-//! ([`SourceSwitch::changed_share`]).
+//! kind, and [`SourceSwitch::gained`] the reverse (a hole at t, a patch at
+//! t+1: a coverage edge that does not move with the flow, seen from the
+//! hole's side), so the two can be compared on the same footing
+//! ([`SourceSwitch::changed_share`]). Both directions count: a point carried
+//! by the flow stays on the same side of a border that rides the flow, so a
+//! method whose borders flicker shows the flicker both ways, and counting
+//! only one way would halve it for the method that leaves holes.
 
 use super::{MetricsError, SOURCE_OUTSIDE, SOURCE_UNCOVERED};
 
@@ -35,6 +40,9 @@ pub struct SourceSwitch {
     /// Points with a patch at t that land on an uncovered texel (a hole)
     /// at t+1; not in `covered`.
     pub lost: usize,
+    /// Points on an uncovered texel (a hole) at t that land on a patch at
+    /// t+1; not in `covered`.
+    pub gained: usize,
 }
 
 impl SourceSwitch {
@@ -47,16 +55,16 @@ impl SourceSwitch {
         }
     }
 
-    /// Share of the points with a patch at t whose patch is gone at t+1,
-    /// switched or lost: (switched + lost) / (covered + lost) (NaN when no
-    /// such point). Equal to [`SourceSwitch::share`] for a method that
-    /// leaves no hole.
+    /// Share of the points with a patch at either end whose patch changed:
+    /// switched, lost or gained, (switched + lost + gained) / (covered +
+    /// lost + gained) (NaN when no such point). Equal to
+    /// [`SourceSwitch::share`] for a method that leaves no hole.
     pub fn changed_share(&self) -> f64 {
-        let n = self.covered + self.lost;
+        let n = self.covered + self.lost + self.gained;
         if n == 0 {
             f64::NAN
         } else {
-            (self.switched + self.lost) as f64 / n as f64
+            (self.switched + self.lost + self.gained) as f64 / n as f64
         }
     }
 }
@@ -81,6 +89,7 @@ pub fn source_switch(before: &[u32], after: &[u32]) -> Result<SourceSwitch, Metr
         covered: 0,
         switched: 0,
         lost: 0,
+        gained: 0,
     };
     for (&a, &b) in before.iter().zip(after) {
         if is_patch(a) && is_patch(b) {
@@ -88,6 +97,8 @@ pub fn source_switch(before: &[u32], after: &[u32]) -> Result<SourceSwitch, Metr
             out.switched += usize::from(a != b);
         } else if is_patch(a) && b == SOURCE_UNCOVERED {
             out.lost += 1;
+        } else if a == SOURCE_UNCOVERED && is_patch(b) {
+            out.gained += 1;
         }
     }
     Ok(out)
@@ -99,8 +110,30 @@ mod tests {
 
     #[test]
     fn only_points_covered_at_both_ends_count() {
-        let before = [1, 1, 2, 2, SOURCE_OUTSIDE, 3, SOURCE_UNCOVERED, 4, 6];
-        let after = [1, 2, 2, 3, 1, SOURCE_UNCOVERED, 5, 4, SOURCE_OUTSIDE];
+        let before = [
+            1,
+            1,
+            2,
+            2,
+            SOURCE_OUTSIDE,
+            3,
+            SOURCE_UNCOVERED,
+            4,
+            6,
+            SOURCE_UNCOVERED,
+        ];
+        let after = [
+            1,
+            2,
+            2,
+            3,
+            1,
+            SOURCE_UNCOVERED,
+            5,
+            4,
+            SOURCE_OUTSIDE,
+            SOURCE_OUTSIDE,
+        ];
         let s = source_switch(&before, &after).expect("same lengths");
         assert_eq!(
             s,
@@ -108,11 +141,14 @@ mod tests {
                 covered: 5,
                 switched: 2,
                 lost: 1,
+                gained: 1,
             }
         );
         assert_eq!(s.share(), 0.4);
-        // A point that leaves every chart is not lost: it has no texel.
-        assert_eq!(s.changed_share(), 0.5);
+        // A point that leaves every chart is not lost (it has no texel), nor
+        // is one that comes from outside every chart gained; a hole that
+        // leaves every chart is neither.
+        assert_eq!(s.changed_share(), 4.0 / 7.0);
         let no_holes = source_switch(&[1, 2], &[1, 3]).expect("same lengths");
         assert_eq!(no_holes.changed_share(), no_holes.share());
         let none = source_switch(&[SOURCE_OUTSIDE], &[1]).expect("same lengths");
