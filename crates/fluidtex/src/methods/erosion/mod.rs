@@ -34,7 +34,7 @@ use serde::{Deserialize, Serialize};
 
 use self::erode::ErosionTest;
 use self::fill::{Candidates, FillBuffers, FillContext, LocateTolerance};
-use self::patch::{FrameSurface, Patch, PatchShape};
+use self::patch::{CarryTable, FrameSurface, Patch, PatchShape, carry_vertex};
 pub use self::update::Placement;
 use super::{
     ChannelSpec, FrameContext, FrameResult, Method, MethodError, StageClock, Stat, StatsExt,
@@ -802,8 +802,14 @@ impl Erosion {
                     method: self.name(),
                 },
             )?;
+            let table = CarryTable::new(&self.state.patches, &flow, ctx.index, shape);
             self.state.patches.par_iter_mut().for_each(|p| {
-                if !p.advect(&flow, ctx.index, shape) {
+                let carry = |x| {
+                    table
+                        .get(x)
+                        .unwrap_or_else(|| carry_vertex(x, &flow, ctx.index, shape))
+                };
+                if !p.advect_with(carry, ctx.index, shape) {
                     p.triangles.clear();
                 }
             });

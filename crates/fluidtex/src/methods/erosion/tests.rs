@@ -1211,3 +1211,60 @@ fn a_patch_spread_over_two_droplets_stops_growing_when_far_vertices_are_kept() {
         "the control should grow: {grown:?}"
     );
 }
+
+#[test]
+fn overlapping_patches_carry_each_shared_vertex_once_with_the_same_result() {
+    use super::patch::{Carry, CarryTable, carry_vertex};
+    // A rotating plane; two patches made on the same frame overlap and hold
+    // copies of the same fluid vertices.
+    let mesh = crate::methods::test_clip::grid(20, 0.1, |p| Vec3::new(-p.y, p.x, 0.0) * 2.0);
+    let index = SurfaceIndex::new(&mesh);
+    let flow = crate::surface::velocity::FlowInterval {
+        from: crate::surface::velocity::FlowFrame {
+            mesh: &mesh,
+            index: &index,
+            velocity: mesh.velocity().expect("velocity"),
+        },
+        to: None,
+        dt: 1.0 / 24.0,
+        substeps: 1,
+        search_hint: 0.1,
+    };
+    let sh = shape(0.5);
+    let at = |x: f32, y: f32| {
+        index
+            .closest(Vec3::new(x, y, 0.0), 1.0)
+            .expect("hit")
+            .location
+    };
+    let mut b = create_on(&mesh, at(0.55, 0.2), &sh, 1.1);
+    b.id = 1;
+    let patches = vec![create_on(&mesh, at(0.3, 0.1), &sh, 0.4), b];
+    let total: usize = patches.iter().map(|p| p.positions.len()).sum();
+    let table = CarryTable::new(&patches, &flow, &index, &sh);
+    assert!(
+        table.len() < total,
+        "{} distinct of {total}: the patches share vertices",
+        table.len()
+    );
+    let mut moved = 0;
+    for p in &patches {
+        for &x in &p.positions {
+            let want = carry_vertex(x, &flow, &index, &sh);
+            assert_eq!(table.get(x), Some(want));
+            moved += usize::from(matches!(want, Carry::To(q) if q != x));
+        }
+    }
+    assert!(moved > 0, "the flow moves the vertices");
+    assert_eq!(table.get(Vec3::new(7.0, 7.0, 7.0)), None);
+    // Carrying through the table is carrying vertex by vertex, to the bit.
+    for p in &patches {
+        let mut direct = p.clone();
+        let mut shared = p.clone();
+        let kept = direct.advect(&flow, &index, &sh);
+        let kept_shared = shared.advect_with(|x| table.get(x).expect("in the table"), &index, &sh);
+        assert_eq!(kept, kept_shared);
+        assert_eq!(direct, shared);
+        assert_ne!(direct.positions, p.positions);
+    }
+}
