@@ -1160,17 +1160,7 @@ fn a_patch_spread_over_two_droplets_stops_growing_when_far_vertices_are_kept() {
     let rest = vec![Vec3::ZERO; positions.len()];
     let next = TriMesh::new(positions, triangles).with_velocity(rest);
     let index = SurfaceIndex::new(&next);
-    let flow = crate::surface::velocity::FlowInterval {
-        from: crate::surface::velocity::FlowFrame {
-            mesh: &next,
-            index: &index,
-            velocity: next.velocity().expect("velocity"),
-        },
-        to: None,
-        dt: 1.0 / 24.0,
-        substeps: 1,
-        search_hint: 0.1,
-    };
+    let flow = last_frame_flow(&next, &index);
     let mut keep_far = shape(0.5);
     keep_far.far_distance = 5.0;
     keep_far.split_length = 0.15;
@@ -1219,17 +1209,7 @@ fn overlapping_patches_carry_each_shared_vertex_once_with_the_same_result() {
     // copies of the same fluid vertices.
     let mesh = crate::methods::test_clip::grid(20, 0.1, |p| Vec3::new(-p.y, p.x, 0.0) * 2.0);
     let index = SurfaceIndex::new(&mesh);
-    let flow = crate::surface::velocity::FlowInterval {
-        from: crate::surface::velocity::FlowFrame {
-            mesh: &mesh,
-            index: &index,
-            velocity: mesh.velocity().expect("velocity"),
-        },
-        to: None,
-        dt: 1.0 / 24.0,
-        substeps: 1,
-        search_hint: 0.1,
-    };
+    let flow = last_frame_flow(&mesh, &index);
     let sh = shape(0.5);
     let at = |x: f32, y: f32| {
         index
@@ -1266,5 +1246,24 @@ fn overlapping_patches_carry_each_shared_vertex_once_with_the_same_result() {
         assert_eq!(kept, kept_shared);
         assert_eq!(direct, shared);
         assert_ne!(direct.positions, p.positions);
+    }
+}
+
+/// The flow of `mesh` (its own velocity, no next frame) over one frame at
+/// 24 fps, one RK4 step.
+fn last_frame_flow<'a>(
+    mesh: &'a TriMesh,
+    index: &'a SurfaceIndex,
+) -> crate::surface::velocity::FlowInterval<'a> {
+    crate::surface::velocity::FlowInterval {
+        from: crate::surface::velocity::FlowFrame {
+            mesh,
+            index,
+            velocity: mesh.velocity().expect("velocity"),
+        },
+        to: None,
+        dt: 1.0 / 24.0,
+        substeps: 1,
+        search_hint: 0.1,
     }
 }
