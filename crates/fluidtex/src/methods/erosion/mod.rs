@@ -34,7 +34,7 @@ use serde::{Deserialize, Serialize};
 
 use self::erode::ErosionTest;
 use self::fill::{Candidates, FillBuffers, FillContext, LocateTolerance};
-use self::patch::{CarryTable, FrameSurface, Patch, PatchShape, carry_vertex};
+use self::patch::{CarryTable, FrameSurface, Patch, PatchShape};
 pub use self::update::Placement;
 use super::{
     ChannelSpec, FrameContext, FrameResult, Method, MethodError, StageClock, Stat, StatsExt,
@@ -802,14 +802,9 @@ impl Erosion {
                     method: self.name(),
                 },
             )?;
-            let table = CarryTable::new(&self.state.patches, &flow, ctx.index, shape);
+            let table = CarryTable::new(&self.state.patches, flow, ctx.index, *shape);
             self.state.patches.par_iter_mut().for_each(|p| {
-                let carry = |x| {
-                    table
-                        .get(x)
-                        .unwrap_or_else(|| carry_vertex(x, &flow, ctx.index, shape))
-                };
-                if !p.advect_with(carry, ctx.index, shape) {
+                if !p.advect(|x| table.carry(x), ctx.index, shape) {
                     p.triangles.clear();
                 }
             });

@@ -106,20 +106,23 @@ pub fn carry_vertex(
 /// so each distinct position is carried once and every patch looks its
 /// vertices up: the same results, to the bit, for a half to three quarters
 /// less RK4 and projection work.
-pub struct CarryTable {
+pub struct CarryTable<'a> {
     /// Distinct positions (as bits), sorted.
     keys: Vec<[u32; 3]>,
     carries: Vec<Carry>,
+    flow: FlowInterval<'a>,
+    next: &'a SurfaceIndex,
+    shape: PatchShape,
 }
 
-impl CarryTable {
+impl<'a> CarryTable<'a> {
     /// Carries every distinct vertex position of `patches` (in parallel).
     pub fn new(
         patches: &[Patch],
-        flow: &FlowInterval<'_>,
-        next: &SurfaceIndex,
-        shape: &PatchShape,
-    ) -> CarryTable {
+        flow: FlowInterval<'a>,
+        next: &'a SurfaceIndex,
+        shape: PatchShape,
+    ) -> CarryTable<'a> {
         use rayon::prelude::*;
         let mut keys: Vec<[u32; 3]> = patches
             .par_iter()
@@ -129,9 +132,25 @@ impl CarryTable {
         keys.dedup();
         let carries = keys
             .par_iter()
-            .map(|k| carry_vertex(Vec3::from_array(k.map(f32::from_bits)), flow, next, shape))
+            .map(|k| {
+                let x = Vec3::from_array(k.map(f32::from_bits));
+                carry_vertex(x, &flow, next, &shape)
+            })
             .collect();
-        CarryTable { keys, carries }
+        CarryTable {
+            keys,
+            carries,
+            flow,
+            next,
+            shape,
+        }
+    }
+
+    /// The carry of a vertex at `x`: from the table, or computed for a
+    /// position the table was not built from.
+    pub fn carry(&self, x: Vec3) -> Carry {
+        self.get(x)
+            .unwrap_or_else(|| carry_vertex(x, &self.flow, self.next, &self.shape))
     }
 
     /// The carry of a vertex at `x`; `None` for a position the table was not
@@ -279,23 +298,14 @@ impl Patch {
         Some(patch)
     }
 
-    /// Advects every vertex through `flow` (RK4), projects it onto the next
-    /// frame's surface and removes vertices that end farther than
-    /// `shape.far_distance` from it, with their triangles (Sec. 4). Returns
-    /// false when nothing is left (the patch is then deleted).
+    /// Moves every vertex where `carry` says ([`carry_vertex`]: advected
+    /// through the flow by RK4 and projected onto the next frame's surface,
+    /// or removed, with its triangles, when it ends farther than
+    /// `shape.far_distance` from it; Sec. 4), then refines the stretched
+    /// edges. Returns false when nothing is left (the patch is then
+    /// deleted). The method passes [`CarryTable::carry`], shared by every
+    /// patch of the frame.
     pub fn advect(
-        &mut self,
-        flow: &FlowInterval<'_>,
-        next: &SurfaceIndex,
-        shape: &PatchShape,
-    ) -> bool {
-        self.advect_with(|x| carry_vertex(x, flow, next, shape), next, shape)
-    }
-
-    /// [`Patch::advect`] with each vertex's [`Carry`] given by `carry`
-    /// (the same function of the position, looked up in a table shared by
-    /// every patch: see [`CarryTable`]).
-    pub fn advect_with(
         &mut self,
         carry: impl Fn(Vec3) -> Carry,
         next: &SurfaceIndex,

@@ -10,7 +10,7 @@ use rand::{Rng, SeedableRng};
 use super::distortion::distortion;
 use super::erode::ErosionTest;
 use super::fill::{Candidates, FillBuffers, FillContext, LocateTolerance, TriFrame};
-use super::patch::{FrameSurface, Patch, PatchShape};
+use super::patch::{Carry, CarryTable, FrameSurface, Patch, PatchShape, carry_vertex};
 use super::*;
 use crate::atlas::{Atlas, AtlasParams};
 use crate::exemplar::{Exemplar, builtin_pebbles};
@@ -1176,7 +1176,11 @@ fn a_patch_spread_over_two_droplets_stops_growing_when_far_vertices_are_kept() {
     let mut control = patch.clone();
     let counts: Vec<usize> = (0..4)
         .map(|_| {
-            assert!(patch.advect(&flow, &index, &keep_far));
+            assert!(patch.advect(
+                |x| carry_vertex(x, &flow, &index, &keep_far),
+                &index,
+                &keep_far
+            ));
             patch.triangles.len()
         })
         .collect();
@@ -1204,7 +1208,6 @@ fn a_patch_spread_over_two_droplets_stops_growing_when_far_vertices_are_kept() {
 
 #[test]
 fn overlapping_patches_carry_each_shared_vertex_once_with_the_same_result() {
-    use super::patch::{Carry, CarryTable, carry_vertex};
     // A rotating plane; two patches made on the same frame overlap and hold
     // copies of the same fluid vertices.
     let mesh = crate::methods::test_clip::grid(20, 0.1, |p| Vec3::new(-p.y, p.x, 0.0) * 2.0);
@@ -1221,7 +1224,7 @@ fn overlapping_patches_carry_each_shared_vertex_once_with_the_same_result() {
     b.id = 1;
     let patches = vec![create_on(&mesh, at(0.3, 0.1), &sh, 0.4), b];
     let total: usize = patches.iter().map(|p| p.positions.len()).sum();
-    let table = CarryTable::new(&patches, &flow, &index, &sh);
+    let table = CarryTable::new(&patches, flow, &index, sh);
     assert!(
         table.len() < total,
         "{} distinct of {total}: the patches share vertices",
@@ -1232,17 +1235,23 @@ fn overlapping_patches_carry_each_shared_vertex_once_with_the_same_result() {
         for &x in &p.positions {
             let want = carry_vertex(x, &flow, &index, &sh);
             assert_eq!(table.get(x), Some(want));
+            assert_eq!(table.carry(x), want);
             moved += usize::from(matches!(want, Carry::To(q) if q != x));
         }
     }
     assert!(moved > 0, "the flow moves the vertices");
-    assert_eq!(table.get(Vec3::new(7.0, 7.0, 7.0)), None);
+    let elsewhere = Vec3::new(7.0, 7.0, 7.0);
+    assert_eq!(table.get(elsewhere), None);
+    assert_eq!(
+        table.carry(elsewhere),
+        carry_vertex(elsewhere, &flow, &index, &sh)
+    );
     // Carrying through the table is carrying vertex by vertex, to the bit.
     for p in &patches {
         let mut direct = p.clone();
         let mut shared = p.clone();
-        let kept = direct.advect(&flow, &index, &sh);
-        let kept_shared = shared.advect_with(|x| table.get(x).expect("in the table"), &index, &sh);
+        let kept = direct.advect(|x| carry_vertex(x, &flow, &index, &sh), &index, &sh);
+        let kept_shared = shared.advect(|x| table.get(x).expect("in the table"), &index, &sh);
         assert_eq!(kept, kept_shared);
         assert_eq!(direct, shared);
         assert_ne!(direct.positions, p.positions);
