@@ -17,6 +17,8 @@
 //! from its creation on (`Falloff` in the method's parameters; the paper's
 //! reach stays selectable).
 
+use glam::Vec2;
+
 use crate::exemplar::FeatureMap;
 
 /// The uv distance at which the paper's D(u, v) reaches 0: the edge of the
@@ -97,8 +99,84 @@ impl ErosionTest {
     }
 }
 
+/// What the erosion test says of every point of one patch triangle,
+/// whatever the feature value there ([`ErosionTest::triangle_verdict`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Verdict {
+    /// Some points may be kept and others eroded: test each.
+    Test,
+    /// Every point is kept.
+    Kept,
+    /// Every point is eroded.
+    Eroded,
+}
+
+/// Slack, in units of the test's left-hand side, between a verdict's bound
+/// and the per-texel test: far above the float error of that test (≈ 1e-6),
+/// so a verdict never disagrees with it.
+const VERDICT_MARGIN: f32 = 1e-4;
+
+impl ErosionTest {
+    /// The verdict for a patch triangle with rest uvs `uv` and vertex
+    /// weights `w`, for any point of it (its uv and w are convex
+    /// combinations of the corners') and any feature value in \[0, 1\] (the
+    /// map's range, kept by every mip level). The left-hand side grows with
+    /// F_m + D, and D is concave where positive: over the triangle D is
+    /// least at a corner and greatest at the point nearest the centre. So
+    /// the test holds everywhere when it holds for F_m = 0, the least D and
+    /// the least w, and fails everywhere when it fails for F_m = 1, the
+    /// greatest D and the greatest w. A non-finite corner gives
+    /// [`Verdict::Test`].
+    pub fn triangle_verdict(&self, uv: [Vec2; 3], w: [f32; 3]) -> Verdict {
+        if !uv.iter().all(|p| p.is_finite()) || !w.iter().all(|v| v.is_finite()) {
+            return Verdict::Test;
+        }
+        let d_least = uv
+            .iter()
+            .map(|p| falloff_with_reach(p.x, p.y, self.inv_reach))
+            .fold(f32::INFINITY, f32::min);
+        let nearest = distance_to_triangle(Vec2::splat(0.5), uv);
+        let d_greatest = (1.0 - nearest * self.inv_reach).max(0.0);
+        let w_least = w[0].min(w[1]).min(w[2]);
+        let w_greatest = w[0].max(w[1]).max(w[2]);
+        let bound = |f: f32, d: f32| (f + d).max(0.0).sqrt() * self.inv_max_norm - self.epsilon;
+        if bound(0.0, d_least) - VERDICT_MARGIN >= 1.0 - w_least {
+            Verdict::Kept
+        } else if bound(1.0, d_greatest) + VERDICT_MARGIN < 1.0 - w_greatest {
+            Verdict::Eroded
+        } else {
+            Verdict::Test
+        }
+    }
+}
+
+/// Distance from `p` to the triangle `t` in the plane (0 inside; a
+/// collapsed triangle is its longest edge).
+fn distance_to_triangle(p: Vec2, t: [Vec2; 3]) -> f32 {
+    let side = |a: Vec2, b: Vec2| (b - a).perp_dot(p - a);
+    let s = [side(t[0], t[1]), side(t[1], t[2]), side(t[2], t[0])];
+    if s.iter().all(|&v| v > 0.0) || s.iter().all(|&v| v < 0.0) {
+        return 0.0;
+    }
+    let to_segment = |a: Vec2, b: Vec2| {
+        let e = b - a;
+        let len2 = e.length_squared();
+        let k = if len2 > 0.0 {
+            ((p - a).dot(e) / len2).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        (a + e * k - p).length()
+    };
+    to_segment(t[0], t[1])
+        .min(to_segment(t[1], t[2]))
+        .min(to_segment(t[2], t[0]))
+}
+
 #[cfg(test)]
 mod tests {
+    use rand::{Rng, SeedableRng};
+    use rand_pcg::Pcg64;
     use serde::Deserialize;
 
     use super::*;
@@ -163,6 +241,95 @@ mod tests {
             assert!(!t.eroded(f, 0.5, 0.5, 1.0));
             assert!(t.eroded(f, 0.5, 0.5, 0.0));
         }
+    }
+
+    /// A point of triangle `t` at random barycentrics, as the fill forms it.
+    fn point_in(rng: &mut Pcg64, t: [Vec2; 3], w: [f32; 3]) -> (Vec2, f32) {
+        let b: [f32; 3] = std::array::from_fn(|_| rng.random::<f32>());
+        let s = b[0] + b[1] + b[2];
+        let b = b.map(|v| v / s);
+        (
+            t[0] * b[0] + t[1] * b[1] + t[2] * b[2],
+            w[0] * b[0] + w[1] * b[1] + w[2] * b[2],
+        )
+    }
+
+    #[test]
+    fn a_triangle_verdict_agrees_with_the_test_at_every_point() {
+        let mut rng = Pcg64::seed_from_u64(11);
+        let mut seen = [0usize; 3];
+        for case in 0..3000 {
+            let test = ErosionTest {
+                inv_max_norm: 1.0 / rng.random_range(0.8f32..1.6),
+                epsilon: rng.random_range(0.0f32..0.3),
+                inv_reach: 1.0 / rng.random_range(0.2f32..0.6),
+            };
+            // Small triangles anywhere in the patch, weights from 0 to 1.
+            let centre = Vec2::new(rng.random(), rng.random());
+            let size = rng.random_range(0.005f32..0.2);
+            let t: [Vec2; 3] = std::array::from_fn(|_| {
+                centre + Vec2::new(rng.random::<f32>() - 0.5, rng.random::<f32>() - 0.5) * size
+            });
+            let base = rng.random::<f32>();
+            let w: [f32; 3] =
+                std::array::from_fn(|_| (base + rng.random_range(-0.1f32..0.1)).clamp(0.0, 1.0));
+            let verdict = test.triangle_verdict(t, w);
+            seen[verdict as usize] += 1;
+            if verdict == Verdict::Test {
+                continue;
+            }
+            for _ in 0..200 {
+                let (uv, wp) = point_in(&mut rng, t, w);
+                // The extremes of F_m as well as values between.
+                let f = match rng.random_range(0..4) {
+                    0 => 0.0,
+                    1 => 1.0,
+                    _ => rng.random::<f32>(),
+                };
+                let eroded = test.eroded(f, uv.x, uv.y, wp);
+                assert_eq!(
+                    eroded,
+                    verdict == Verdict::Eroded,
+                    "case {case}: {t:?} {w:?}"
+                );
+            }
+        }
+        // Every verdict occurs, so the agreement above is tested on each.
+        assert!(seen.iter().all(|&n| n > 200), "{seen:?}");
+    }
+
+    #[test]
+    fn verdicts_of_known_triangles() {
+        let test = ErosionTest::new(2f32.sqrt(), 0.1);
+        let near_centre = [
+            Vec2::new(0.45, 0.45),
+            Vec2::new(0.55, 0.45),
+            Vec2::new(0.5, 0.55),
+        ];
+        assert_eq!(test.triangle_verdict(near_centre, [1.0; 3]), Verdict::Kept);
+        assert_eq!(
+            test.triangle_verdict(near_centre, [0.0; 3]),
+            Verdict::Eroded
+        );
+        // At w = 0.3 a texel with F_m = 1 survives and one with F_m = 0 does not.
+        assert!(!test.eroded(1.0, 0.5, 0.5, 0.3) && test.eroded(0.0, 0.5, 0.5, 0.3));
+        assert_eq!(test.triangle_verdict(near_centre, [0.3; 3]), Verdict::Test);
+        // The centre lies inside this triangle though no corner is near it:
+        // D reaches 1 there, which a bound from the corners alone would miss.
+        let around = [
+            Vec2::new(0.0, 0.0),
+            Vec2::new(1.0, 0.0),
+            Vec2::new(0.5, 1.0),
+        ];
+        assert_eq!(test.triangle_verdict(around, [0.2; 3]), Verdict::Test);
+        assert!(!test.eroded(1.0, 0.5, 0.5, 0.2) && test.eroded(1.0, 0.0, 0.0, 0.2));
+        // Non-finite corners are always tested; the disabled test keeps all.
+        let nan = [Vec2::NAN, Vec2::ZERO, Vec2::ONE];
+        assert_eq!(test.triangle_verdict(nan, [1.0; 3]), Verdict::Test);
+        assert_eq!(
+            ErosionTest::never().triangle_verdict(near_centre, [0.0; 3]),
+            Verdict::Kept
+        );
     }
 
     #[test]

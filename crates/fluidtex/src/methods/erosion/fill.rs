@@ -23,7 +23,7 @@
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
-use super::erode::ErosionTest;
+use super::erode::{ErosionTest, Verdict};
 use super::exemplars::MultiFill;
 use super::feature_levels::FeatureLevelSampler;
 use super::patch::Patch;
@@ -171,6 +171,22 @@ impl Candidates {
         let all: Vec<(u32, (u32, u32))> = per_patch.into_iter().flatten().collect();
         Candidates(TriangleLists::build(&all, mesh.triangle_count()))
     }
+
+    /// The candidates without the patches that cannot show on a fluid
+    /// triangle because every one of their triangles listed there is
+    /// wholly eroded (`verdicts` from [`erosion_verdicts`]). Whichever of
+    /// those triangles would hold a texel, the lapped decision passes the
+    /// patch by, so the lapped fill's result is unchanged; the blended fill,
+    /// which shows eroded layers too, must keep them.
+    pub fn without_eroded(self, verdicts: &[Vec<Verdict>]) -> Candidates {
+        let eroded = |&(i, j): &(u32, u32)| {
+            verdicts.get(i as usize).and_then(|v| v.get(j as usize)) == Some(&Verdict::Eroded)
+        };
+        Candidates(
+            self.0
+                .retain_runs(|a, b| a.0 == b.0, |run| !run.iter().all(eroded)),
+        )
+    }
 }
 
 /// Everything the fill reads.
@@ -186,6 +202,23 @@ pub struct FillContext<'a> {
     /// and erosion test ([`Patch::exemplar`]); `None`: every patch reads
     /// `exemplar`, `feature` and `test`.
     pub multi: Option<&'a MultiFill<'a>>,
+    /// Per patch triangle (indexed like `frames`), what the erosion test
+    /// says of all its points ([`erosion_verdicts`]); a triangle not listed
+    /// (an empty slice) is tested texel by texel.
+    pub verdicts: &'a [Vec<Verdict>],
+}
+
+/// Where a surface point lies in a patch.
+#[derive(Clone, Copy, Debug)]
+struct Located {
+    /// The patch triangle that holds it.
+    triangle: u32,
+    /// Patch (exemplar) uv.
+    uv: Vec2,
+    /// Interpolated weight w.
+    w: f32,
+    /// Feature-map level of the triangle.
+    lod: f32,
 }
 
 /// What a texel resolved to.
@@ -208,6 +241,19 @@ impl FillContext<'_> {
         x: Vec3,
         n: Vec3,
     ) -> Option<(Vec2, f32, f32)> {
+        self.locate_triangle(i, tris, x, n)
+            .map(|l| (l.uv, l.w, l.lod))
+    }
+
+    /// [`FillContext::locate`], with the patch triangle that holds `x`.
+    #[inline]
+    fn locate_triangle(
+        &self,
+        i: u32,
+        tris: impl Iterator<Item = u32>,
+        x: Vec3,
+        n: Vec3,
+    ) -> Option<Located> {
         let frames = &self.frames[i as usize];
         let mut best: Option<(u32, [f32; 3], f32)> = None;
         for j in tris {
@@ -239,7 +285,39 @@ impl FillContext<'_> {
             + patch.weight[t[1] as usize] * b[1]
             + patch.weight[t[2] as usize] * b[2];
         let lod = patch.lod.get(j as usize).copied().unwrap_or(0.0);
-        Some((uv, w, lod))
+        Some(Located {
+            triangle: j,
+            uv,
+            w,
+            lod,
+        })
+    }
+
+    /// The lapped decision for patch `i` at `x` among the listed patch
+    /// triangles: its uv when it holds `x` and its texel there survives
+    /// erosion. A triangle whose [`Verdict`] is known skips the feature
+    /// lookup; the answer is the same either way.
+    #[inline]
+    fn hit(&self, i: u32, tris: impl Iterator<Item = u32>, x: Vec3, n: Vec3) -> Option<Hit> {
+        let l = self.locate_triangle(i, tris, x, n)?;
+        let verdict = self.verdict(i, l.triangle);
+        let kept = match verdict {
+            Verdict::Kept => true,
+            Verdict::Eroded => false,
+            Verdict::Test => self.kept(i, l.uv, l.w, l.lod),
+        };
+        kept.then_some(Hit { patch: i, uv: l.uv })
+    }
+
+    /// The verdict of triangle `j` of patch `i` ([`Verdict::Test`] when
+    /// none was computed).
+    #[inline]
+    fn verdict(&self, i: u32, j: u32) -> Verdict {
+        self.verdicts
+            .get(i as usize)
+            .and_then(|v| v.get(j as usize))
+            .copied()
+            .unwrap_or(Verdict::Test)
     }
 
     /// The exemplar patch `i` (index in the patch list) shows.
@@ -260,7 +338,15 @@ impl FillContext<'_> {
     /// [`super::feature_levels`]).
     #[inline]
     pub fn kept(&self, i: u32, uv: Vec2, w: f32, lod: f32) -> bool {
-        let (feature, test) = match self.multi {
+        let (feature, test) = self.erosion_of(i);
+        let f = feature.sample(uv.x, uv.y, lod);
+        !test.eroded(f, uv.x, uv.y, w)
+    }
+
+    /// The feature map and erosion test of patch `i`.
+    #[inline]
+    fn erosion_of(&self, i: u32) -> (&FeatureLevelSampler<'_>, ErosionTest) {
+        match self.multi {
             None => (self.feature, self.test),
             Some(m) => {
                 let e = self.patches.get(i as usize).map_or(0, |p| p.exemplar) as usize;
@@ -269,21 +355,42 @@ impl FillContext<'_> {
                     _ => (self.feature, self.test),
                 }
             }
-        };
-        let f = feature.sample(uv.x, uv.y, lod);
-        !test.eroded(f, uv.x, uv.y, w)
+        }
     }
+}
 
+/// Per patch triangle of `ctx` (indexed like its frames), what the erosion
+/// test says of all its points ([`ErosionTest::triangle_verdict`]): for
+/// [`FillContext::verdicts`]. Computed once per frame, it lets the fill
+/// skip the feature lookup on triangles wholly kept and pass over patches
+/// wholly eroded ([`Candidates::without_eroded`]).
+pub fn erosion_verdicts(ctx: &FillContext<'_>) -> Vec<Vec<Verdict>> {
+    ctx.patches
+        .par_iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let (_, test) = ctx.erosion_of(i as u32);
+            p.triangles
+                .iter()
+                .map(|t| {
+                    let uv = t.map(|v| p.rest[v as usize]);
+                    let w = t.map(|v| p.weight[v as usize]);
+                    test.triangle_verdict(uv, w)
+                })
+                .collect()
+        })
+        .collect()
+}
+
+impl FillContext<'_> {
     /// The lapped decision for one surface point: the first patch, in the
     /// candidate order (oldest first), that contains the point and whose
     /// texel there is not eroded.
     #[inline]
     pub fn resolve(&self, candidates: &[(u32, u32)], x: Vec3, n: Vec3) -> Option<Hit> {
-        candidates.chunk_by(|a, b| a.0 == b.0).find_map(|group| {
-            let i = group[0].0;
-            let (uv, w, lod) = self.locate(i, group.iter().map(|c| c.1), x, n)?;
-            self.kept(i, uv, w, lod).then_some(Hit { patch: i, uv })
-        })
+        candidates
+            .chunk_by(|a, b| a.0 == b.0)
+            .find_map(|group| self.hit(group[0].0, group.iter().map(|c| c.1), x, n))
     }
 }
 
@@ -398,10 +505,7 @@ impl FillContext<'_> {
     /// pruned candidates.
     #[inline]
     fn resolve_in_span(&self, cands: &[SpanCandidate], k: u32, x: Vec3, n: Vec3) -> Option<Hit> {
-        patch_groups(cands, k).find_map(|(i, tris)| {
-            let (uv, w, lod) = self.locate(i, tris, x, n)?;
-            self.kept(i, uv, w, lod).then_some(Hit { patch: i, uv })
-        })
+        patch_groups(cands, k).find_map(|(i, tris)| self.hit(i, tris, x, n))
     }
 }
 

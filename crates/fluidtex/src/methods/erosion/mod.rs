@@ -627,7 +627,7 @@ impl Erosion {
         let exemplar = Arc::clone(&self.exemplar);
         let uncovered = {
             let frames = fill::patch_frames(&self.state.patches);
-            let fill_ctx = FillContext {
+            let unjudged = FillContext {
                 mesh,
                 patches: &self.state.patches,
                 frames: &frames,
@@ -636,6 +636,12 @@ impl Erosion {
                 test,
                 tolerance,
                 multi: multi_fill.as_ref(),
+                verdicts: &[],
+            };
+            let verdicts = fill::erosion_verdicts(&unjudged);
+            let fill_ctx = FillContext {
+                verdicts: &verdicts,
+                ..unjudged
             };
             self.fill(ctx, &fill_ctx, out, counts, &mut blended)
         };
@@ -651,6 +657,7 @@ impl Erosion {
             test,
             tolerance,
             multi: multi_fill.as_ref(),
+            verdicts: &[],
         };
         let (seed, random) = (self.seed, self.params.random_rotation);
         let rotation = move |at| rotation_for(seed, random, location_key(at));
@@ -770,6 +777,7 @@ impl Erosion {
             blended.used = Some(outcome.used);
             outcome.uncovered
         } else {
+            let candidates = candidates.without_eroded(fill_ctx.verdicts);
             fill::fill(fill_ctx, ctx.atlas, &candidates, out)
         }
     }

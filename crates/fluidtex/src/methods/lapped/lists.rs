@@ -53,6 +53,31 @@ impl<T> TriangleLists<T> {
         &self.entries[self.offsets[f] as usize..self.offsets[f + 1] as usize]
     }
 
+    /// The lists with, in each, only the runs of consecutive entries
+    /// (`same` holding between neighbours) that `keep` accepts, in order.
+    pub fn retain_runs(
+        &self,
+        same: impl Fn(&T, &T) -> bool,
+        keep: impl Fn(&[T]) -> bool,
+    ) -> TriangleLists<T>
+    where
+        T: Copy,
+    {
+        let mut offsets = Vec::with_capacity(self.offsets.len());
+        let mut entries = Vec::with_capacity(self.entries.len());
+        offsets.push(0);
+        for f in 0..self.offsets.len().saturating_sub(1) {
+            for run in self.of(f as u32).chunk_by(&same) {
+                if keep(run) {
+                    entries.extend_from_slice(run);
+                }
+            }
+            // The lists hold fewer entries than the u32 offsets they came with.
+            offsets.push(entries.len() as u32);
+        }
+        TriangleLists { offsets, entries }
+    }
+
     /// Total number of (triangle, entry) pairs (a cost indicator).
     pub fn len(&self) -> usize {
         self.entries.len()
@@ -66,6 +91,30 @@ impl<T> TriangleLists<T> {
 #[cfg(test)]
 mod tests {
     use super::TriangleLists;
+
+    #[test]
+    fn retained_runs_keep_their_order_and_drop_whole() {
+        // Entries (patch, triangle); runs are consecutive entries of one patch.
+        let pairs = [
+            (0, (1, 0)),
+            (0, (1, 1)),
+            (0, (2, 0)),
+            (0, (1, 2)),
+            (1, (2, 5)),
+            (2, (3, 0)),
+        ];
+        let lists = TriangleLists::build(&pairs, 3);
+        // Drop the runs of patch 1 (both runs in list 0); patch 2 stays.
+        let kept = lists.retain_runs(|a, b| a.0 == b.0, |run| run[0].0 != 1);
+        assert_eq!(kept.of(0), &[(2, 0)]);
+        assert_eq!(kept.of(1), &[(2, 5)]);
+        assert_eq!(kept.of(2), &[(3, 0)]);
+        assert_eq!(kept.len(), 3);
+        // A run is judged whole: keep runs holding any triangle 1.
+        let any_one = lists.retain_runs(|a, b| a.0 == b.0, |run| run.iter().any(|e| e.1 == 1));
+        assert_eq!(any_one.of(0), &[(1, 0), (1, 1)]);
+        assert!(any_one.of(1).is_empty() && any_one.of(2).is_empty());
+    }
 
     #[test]
     fn groups_by_triangle_keeping_push_order() {
