@@ -111,10 +111,13 @@ pub fn texel_lod(
     if s == OUTSIDE || s == UNCOVERED || !p.is_finite() {
         return None;
     }
+    // Squared lengths until the one square root at the end: the square
+    // root is monotone and correctly rounded, so the min and max below pick
+    // the same lengths, bit for bit, at a quarter of the roots.
     let step = |q: Option<usize>| {
         let q = q?;
         let o = *uv.get(q)?;
-        (source.get(q) == Some(&s) && o.is_finite()).then(|| ((o - p) * texels).length())
+        (source.get(q) == Some(&s) && o.is_finite()).then(|| ((o - p) * texels).length_squared())
     };
     let axis =
         |forward: Option<usize>, backward: Option<usize>| match (step(forward), step(backward)) {
@@ -127,7 +130,8 @@ pub fn texel_lod(
         (Some(a), Some(b)) => a.max(b),
         (Some(a), None) | (None, Some(a)) => a,
         (None, None) => return Some(0.0),
-    };
+    }
+    .sqrt();
     // Below one texel (and for zero-length steps, log2 = −inf) the
     // exemplar is magnified: level 0.
     Some(if longest > 1.0 { longest.log2() } else { 0.0 })
