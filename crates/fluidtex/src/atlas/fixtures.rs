@@ -1,6 +1,7 @@
 //! Procedural closed surfaces for atlas tests and `examples/atlas_bench.rs`:
 //! a geodesic sphere, a torus, and a liquid-like blob (a sphere displaced by
-//! smooth seeded noise, with detached droplets). Closed surfaces are the
+//! smooth seeded noise, with detached droplets), alone or in a splash of
+//! many small droplets. Closed surfaces are the
 //! hard case for charting: none of them can be flattened in one piece.
 
 use std::collections::BTreeMap;
@@ -153,6 +154,32 @@ pub fn liquid_blob(triangles: u32, seed: u64) -> TriMesh {
         let centre = dir * rng.random_range(1.6..2.2);
         let radius = rng.random_range(0.08..0.2);
         let drop = icosphere(drop_freq);
+        let base = mesh.positions.len() as u32;
+        mesh.positions
+            .extend(drop.positions.iter().map(|p| centre + *p * radius));
+        mesh.triangles
+            .extend(drop.triangles.iter().map(|t| t.map(|v| v + base)));
+    }
+    mesh
+}
+
+/// A splashy frame: [`liquid_blob`] of about `triangles` triangles plus
+/// `droplets` small spheres (80 or 180 triangles, radius 0.03–0.15) in a
+/// shell around it, the many small charts a splash from another simulator
+/// gives the packer.
+pub fn splash(triangles: u32, droplets: u32, seed: u64) -> TriMesh {
+    let mut mesh = liquid_blob(triangles, seed);
+    let mut rng = Pcg64::seed_from_u64(seed ^ 0x5eed);
+    for _ in 0..droplets {
+        let dir = Vec3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        )
+        .normalize_or(Vec3::Z);
+        let centre = dir * rng.random_range(1.5..3.0);
+        let radius = rng.random_range(0.03..0.15);
+        let drop = icosphere(rng.random_range(2..=3));
         let base = mesh.positions.len() as u32;
         mesh.positions
             .extend(drop.positions.iter().map(|p| centre + *p * radius));

@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 
 use glam::{DVec2, Vec3};
 
-use super::fixtures::{icosphere, liquid_blob, torus};
+use super::fixtures::{self, icosphere, liquid_blob, torus};
 use super::*;
 use crate::mesh::TriMesh;
 
@@ -559,4 +559,16 @@ fn messy_fluid_mesh_still_gives_a_valid_atlas() {
     assert_eq!(stats.overlapping_texels, 0);
     assert_eq!(stats.zero_area_triangles, 1);
     assert!(atlas.uv_mesh.uvs.iter().all(|uv| uv.is_finite()));
+}
+
+#[test]
+fn splash_of_small_charts_is_packed_validly() {
+    // Hundreds of droplet charts, many of them dropped into holes under
+    // the skyline: the texel-level no-overlap and gutter checks.
+    let mesh = fixtures::splash(3000, 30, 5);
+    let atlas = build(&mesh, 512);
+    assert!(atlas.chart_count > 150, "{} charts", atlas.chart_count);
+    assert_valid(&mesh, &atlas, 4);
+    let stats = atlas.stretch_stats(&mesh).expect("same mesh");
+    assert_eq!(stats.overlapping_texels, 0);
 }

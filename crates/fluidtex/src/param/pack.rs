@@ -7,17 +7,28 @@
 //! becomes, per column, the interval of rows its footprint touches
 //! (`lo..hi`, widened by a small margin for fixed-point snapping), so the
 //! outline covers both every texel the rasterizer can claim and the chart's
-//! geometry. Charts, largest first, drop onto a skyline (per atlas column,
-//! the first free row): a chart placed at column offset x lands at
-//! `y = max_i(sky[x+i] − lo[i])`, so its lower outline nests into the upper
-//! outline of what lies below, and the skyline then rises to the chart's
-//! upper outline dilated by the gutter. Each of the four quarter turns and
-//! every column offset is tried; the lowest resulting bottom edge wins
-//! (ties: smaller quarter turn, then smaller x). The scale is then searched
+//! geometry. Charts, largest box first, drop to the lowest free place: per
+//! atlas column the packer keeps the occupied row runs (placed charts
+//! dilated by the gutter), and a chart placed at column offset x lands at
+//! the lowest `y` at which no column's `lo[i] + y .. hi[i] + y` meets a
+//! run. That is the skyline ("horizon") placement, `y = max_i(sky[x+i] −
+//! lo[i])`, where the columns have no holes, so a chart's lower outline
+//! nests into the upper outline of what lies below; and where an earlier
+//! chart's overhang left free rows under the skyline, a small chart drops
+//! into that hole instead of on top. On splashy frames (hundreds of small
+//! droplet charts next to a few long sheets) the holes are where the fill
+//! was lost: dam-break frames 10–20 at 1024² went from 49–60 % to 68–78 %
+//! of the atlas in charts, our liquid blob from 69.5 % to 78 %. Each of the
+//! four quarter turns and every column offset is tried; the lowest
+//! resulting bottom edge wins (ties: smaller quarter turn, then smaller x).
+//! A per-column lower bound (the start of the lowest free run tall enough
+//! for each outline column, kept per power-of-√2 height) rules out most
+//! offsets before any run is searched. The scale is then searched
 //! (secant steps on `used height ∝ s²`, bracketed by bisection, to 1%) for
 //! the largest s whose packing fits the atlas height. Dropping charts
 //! against a "horizon" is the packing idea of Lévy et al. 2002; here the
-//! horizon is per texel column and every offset and quarter turn is tried.
+//! horizon is per texel column, keeps its holes, and every offset and
+//! quarter turn is tried.
 //!
 //! Atlases wider than 2048 texels pack on a grid of c×c-texel cells
 //! (c = ⌈W / 2048⌉, 3 at 6144²), outlines rounded out to whole cells, so
@@ -28,13 +39,20 @@
 //! rectangle-pack packs rectangles too. Chart outlines are blobs: on the
 //! liquid-like test surface their minimum-area rectangles are 27% empty,
 //! so rectangle packing plus the gutter would land near the 60%
-//! fill floor at 1024², where nesting outlines reaches 67%. A per-column
-//! skyline is what nesting needs, and no rectangle allocator exposes one.
+//! fill floor at 1024², where nesting outlines reached 67% on a skyline and
+//! 78% with its holes filled. Per-column free runs are what nesting needs,
+//! and no rectangle allocator exposes them.
+//!
+//! **Cost.** The hole search makes packing 2–4× slower than the skyline
+//! alone (one thread, dam-break frames 10–20 at 1024²: 0.86 s → 2.6 s for
+//! the eleven frames; 6144², frame 14: 0.15 s → 1.1 s); the cost is bounded
+//! by the grid, not the atlas, as before.
 //!
 //! **Gutter.** With gutter G, the footprints of two charts are at least G
 //! texels apart in x or y, so at least G texels free of any chart lie
-//! between their texels: the skyline rises to `hi + G` over the chart's
-//! columns widened by G on both sides (G rounded up to whole cells). A
+//! between their texels: a placed chart occupies rows `lo − G .. hi + G`
+//! over its columns widened by G on both sides (G rounded up to whole
+//! cells), and a new chart's own outline must miss those runs. A
 //! margin of ⌈G/2⌉ texels is kept free along the atlas border so dilation
 //! has room and wrap-around filtering does not bleed.
 
@@ -120,6 +138,8 @@ struct Profile {
     hi: Vec<i32>,
     /// `hi` dilated by the gutter in x and y; index j is column j − gutter.
     top: Vec<i32>,
+    /// `lo` dilated likewise (i32::MAX where `top` is i32::MIN).
+    low: Vec<i32>,
     /// Lowest occupied cell row + 1.
     bottom: i32,
     /// Height of the chart's box in cells.
@@ -173,13 +193,14 @@ pub fn pack(charts: &[FlatChart], params: &PackParams) -> Result<Packing, PackEr
         return Err(too_many);
     }
     let prepared: Vec<Prepared> = charts.par_iter().map(prepare).collect();
-    // Largest first (by longer side), index on ties: independent of scale.
+    // Largest box first, index on ties: independent of scale. (Box area
+    // rather than the longer side: long thin sheets then come after the
+    // compact charts of similar extent, whose holes they can line;
+    // measured 70.7 % against 69.4 % mean fill on dam-break frames 10–20.)
     let mut order: Vec<usize> = (0..prepared.len()).collect();
+    let key = |p: &Prepared| p.size.x * p.size.y;
     order.sort_by(|&a, &b| {
-        let (sa, sb) = (
-            prepared[a].size.max_element(),
-            prepared[b].size.max_element(),
-        );
+        let (sa, sb) = (key(&prepared[a]), key(&prepared[b]));
         sb.total_cmp(&sa).then(a.cmp(&b))
     });
     let largest = prepared
@@ -329,32 +350,78 @@ fn pack_at(
             vec![p0, p1, p2, p3]
         })
         .collect();
+    place(&profiles, order, grid)
+}
+
+/// Drops the charts, in `order`, each at the lowest free place of any of
+/// its outlines (`profiles[chart][quarter]`); see [`pack_at`].
+fn place(profiles: &[Vec<Profile>], order: &[usize], grid: Grid) -> Option<(Vec<Placed>, i32)> {
     let (g, margin, width) = (grid.gutter, grid.margin, grid.cols);
-    let mut sky = vec![margin; width as usize];
+    let mut space = Space::new(width, margin);
     let mut placed = vec![
         Placed {
             quarter: 0,
             x: 0,
             y: 0
         };
-        prepared.len()
+        profiles.len()
     ];
+    let w = width as usize;
     let mut bottom = margin;
     for &c in order {
         // (score, quarter, x, y)
         let mut best: Option<(i32, usize, i32, i32)> = None;
         for (q, prof) in profiles[c].iter().enumerate() {
             let bw = prof.lo.len() as i32;
+            let levels: Vec<usize> = prof
+                .lo
+                .iter()
+                .zip(&prof.hi)
+                .map(|(&lo, &hi)| level(hi - lo))
+                .collect();
+            // The column that last ruled an offset out: tried first at the
+            // next offset, where it mostly does so again (neighbouring
+            // columns are alike). Only the work depends on it.
+            let (mut hint_floor, mut hint_fit) = (0usize, 0usize);
             for x in margin..=width - margin - bw {
                 let bound = best.map_or(i32::MAX, |b| b.0) - prof.bottom;
+                let floor_at = |i: usize| -> i32 {
+                    let (lo, hi) = (prof.lo[i], prof.hi[i]);
+                    if lo < hi {
+                        space.floor[levels[i] * w + x as usize + i] - lo
+                    } else {
+                        i32::MIN
+                    }
+                };
+                if floor_at(hint_floor) >= bound {
+                    continue;
+                }
+                // No row below the lowest free run tall enough for each
+                // column: a lower bound, which rules most offsets out.
+                let mut floor = margin;
+                for i in 0..prof.lo.len() {
+                    floor = floor.max(floor_at(i));
+                    if floor >= bound {
+                        hint_floor = i;
+                        break;
+                    }
+                }
+                if floor >= bound {
+                    continue;
+                }
+                // On top of everything (the skyline), the cheap case.
                 let mut y = margin;
                 for (i, (&lo, &hi)) in prof.lo.iter().zip(&prof.hi).enumerate() {
                     if lo < hi {
-                        y = y.max(sky[(x + i as i32) as usize] - lo);
+                        y = y.max(space.sky[(x + i as i32) as usize] - lo);
                         if y >= bound {
                             break;
                         }
                     }
+                }
+                // Lower, in a hole under the skyline, where there is one.
+                if floor < y.min(bound) {
+                    y = y.min(space.lowest_fit(prof, x, floor, y.min(bound), &mut hint_fit));
                 }
                 if y < bound {
                     best = Some((y + prof.bottom, q, x, y));
@@ -363,11 +430,10 @@ fn pack_at(
         }
         let (score, q, x, y) = best?;
         let prof = &profiles[c][q];
-        for (j, &t) in prof.top.iter().enumerate() {
+        for (j, (&l, &t)) in prof.low.iter().zip(&prof.top).enumerate() {
             let col = x - g + j as i32;
             if (0..width).contains(&col) && t > i32::MIN {
-                let s = &mut sky[col as usize];
-                *s = (*s).max(y + t);
+                space.occupy(col, y + l, y + t);
             }
         }
         placed[c] = Placed {
@@ -378,6 +444,112 @@ fn pack_at(
         bottom = bottom.max(score);
     }
     Some((placed, bottom))
+}
+
+/// Levels of [`Space::floor`]: free runs of at least 1, 2, 3, 4, 6, 8, 12,
+/// … rows (two per octave), up to 2^12 rows.
+const LEVELS: usize = 25;
+
+/// The level of a run of `h` rows: the highest k with `h ≥ 2^(k/2)` (k
+/// even) or `h ≥ 1.5 · 2^((k−1)/2)` (k odd), capped.
+fn level(h: i32) -> usize {
+    let h = h.max(1) as u32;
+    let m = 31 - h.leading_zeros();
+    let k = 2 * m as usize + usize::from(2 * h >= 3 << m);
+    k.min(LEVELS - 1)
+}
+
+/// The free space of a packing, per grid column: the occupied row
+/// intervals (charts dilated by the gutter), sorted and merged, and the
+/// skyline (the end of the last one).
+struct Space {
+    margin: i32,
+    occupied: Vec<Vec<(i32, i32)>>,
+    sky: Vec<i32>,
+    /// Per column and level k: the first row of the lowest free run at
+    /// least 2^k rows tall (the skyline where no hole is).
+    /// Index `k · width + column`, so that neighbouring columns of one
+    /// level lie next to each other.
+    floor: Vec<i32>,
+}
+
+impl Space {
+    fn new(width: i32, margin: i32) -> Space {
+        Space {
+            margin,
+            occupied: vec![Vec::new(); width as usize],
+            sky: vec![margin; width as usize],
+            floor: vec![margin; LEVELS * width as usize],
+        }
+    }
+
+    /// Marks rows `a..b` of column `col` occupied.
+    fn occupy(&mut self, col: i32, a: i32, b: i32) {
+        let runs = &mut self.occupied[col as usize];
+        // Runs that overlap or touch a..b merge with it.
+        let first = runs.partition_point(|&(_, e)| e < a);
+        let mut last = first;
+        let (mut a, mut b) = (a, b);
+        while last < runs.len() && runs[last].0 <= b {
+            a = a.min(runs[last].0);
+            b = b.max(runs[last].1);
+            last += 1;
+        }
+        runs.splice(first..last, [(a, b)]);
+        let w = self.sky.len();
+        let sky = &mut self.sky[col as usize];
+        *sky = (*sky).max(b);
+        let mut floor = [*sky; LEVELS];
+        // Free runs from the bottom up: margin..first start, then between runs.
+        let mut free_from = self.margin;
+        for &(a, b) in runs.iter() {
+            if a > free_from {
+                let k = level(a - free_from);
+                for f in &mut floor[..=k] {
+                    *f = (*f).min(free_from);
+                }
+            }
+            free_from = free_from.max(b);
+        }
+        for (k, f) in floor.into_iter().enumerate() {
+            self.floor[k * w + col as usize] = f;
+        }
+    }
+
+    /// The lowest row offset y (≥ the margin) at which the outline `prof`
+    /// at column offset `x` touches no occupied run; `bound` or more when
+    /// there is none below `bound`.
+    fn lowest_fit(&self, prof: &Profile, x: i32, start: i32, bound: i32, hint: &mut usize) -> i32 {
+        // Each step lifts the outline just clear of a run that blocks it,
+        // and every lower offset up to there is blocked by that same run,
+        // so the result is the lowest fit whatever the column order; the
+        // order starts at `hint`, the column that last ended a search.
+        let n = prof.lo.len();
+        let first = (*hint).min(n - 1);
+        let mut y = start;
+        loop {
+            let mut moved = false;
+            for i in (first..n).chain(0..first) {
+                let (lo, hi) = (prof.lo[i], prof.hi[i]);
+                if lo >= hi {
+                    continue;
+                }
+                let runs = &self.occupied[x as usize + i];
+                let k = runs.partition_point(|&(_, e)| e <= y + lo);
+                if k < runs.len() && runs[k].0 < y + hi {
+                    y = runs[k].1 - lo;
+                    moved = true;
+                    if y >= bound {
+                        *hint = i;
+                        return y;
+                    }
+                }
+            }
+            if !moved {
+                return y;
+            }
+        }
+    }
 }
 
 /// `⌊x⌋` for |x| < 2³¹ without a libm call (no SSE4.1 rounding baseline).
@@ -461,6 +633,7 @@ fn profile(p: &Prepared, s: f64, q: u8, grid: Grid) -> Profile {
 fn finish_profile(lo: Vec<i32>, hi: Vec<i32>, rows: i32, gutter: i32) -> Profile {
     let g = gutter as usize;
     let mut top = vec![i32::MIN; lo.len() + 2 * g];
+    let mut low = vec![i32::MAX; lo.len() + 2 * g];
     let mut bottom = 1;
     for (i, (&l, &h)) in lo.iter().zip(&hi).enumerate() {
         if l < h {
@@ -468,12 +641,16 @@ fn finish_profile(lo: Vec<i32>, hi: Vec<i32>, rows: i32, gutter: i32) -> Profile
             for t in &mut top[i..=i + 2 * g] {
                 *t = (*t).max(h + gutter);
             }
+            for t in &mut low[i..=i + 2 * g] {
+                *t = (*t).min(l - gutter);
+            }
         }
     }
     Profile {
         lo,
         hi,
         top,
+        low,
         bottom,
         rows,
     }
@@ -633,13 +810,16 @@ pub fn normalised(texel: DVec2, width: u32, height: u32) -> Vec2 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::atlas::fixtures::liquid_blob;
+    use crate::atlas::fixtures::{liquid_blob, splash};
     use crate::mesh::Topology;
     use crate::param::charts::{ChartParams, segment};
     use crate::param::flatten::flatten_chart;
 
     fn charts() -> Vec<FlatChart> {
-        let mesh = liquid_blob(3000, 4);
+        charts_of(&liquid_blob(3000, 4))
+    }
+
+    fn charts_of(mesh: &crate::mesh::TriMesh) -> Vec<FlatChart> {
         let topo = Topology::new(mesh.positions.len(), &mesh.triangles);
         let params = ChartParams::default();
         let seg = segment(&mesh.positions, &mesh.triangles, &topo, &params);
@@ -666,6 +846,7 @@ mod tests {
                     let direct = profile(&p, 37.0, q + 2, grid);
                     assert_eq!((&derived.lo, &derived.hi), (&direct.lo, &direct.hi));
                     assert_eq!(derived.top, direct.top);
+                    assert_eq!(derived.low, direct.low);
                 }
             }
         }
@@ -713,5 +894,168 @@ mod tests {
         );
         assert!((p.area - 4.0).abs() < 1e-5);
         assert_eq!(p.boundary.len(), 4);
+    }
+
+    /// An outline from per-column `lo..hi` (cells).
+    fn outline(cols: &[(i32, i32)], rows: i32, gutter: i32) -> Profile {
+        let lo = cols.iter().map(|c| c.0).collect();
+        let hi = cols.iter().map(|c| c.1).collect();
+        finish_profile(lo, hi, rows, gutter)
+    }
+
+    #[test]
+    fn a_small_chart_drops_into_the_hole_under_an_overhang() {
+        // An arch as wide as the atlas: legs 3 columns wide and 20 rows
+        // tall, a bar of 5 rows across. The free rows between the legs lie
+        // under the skyline; a skyline-only packer puts the 4×4 square on
+        // top (y = 1 + 20 + 2 = 23), the hole search puts it under the bar.
+        let g = 2;
+        let grid = Grid {
+            cell: 1,
+            gutter: g,
+            margin: 1,
+            cols: 32,
+            rows: 200,
+        };
+        let arch: Vec<(i32, i32)> = (0..30)
+            .map(|i| {
+                if (3..27).contains(&i) {
+                    (15, 20)
+                } else {
+                    (0, 20)
+                }
+            })
+            .collect();
+        let profiles = vec![
+            vec![outline(&arch, 20, g)],
+            vec![outline(&[(0, 4); 4], 4, g)],
+        ];
+        let (placed, bottom) = place(&profiles, &[0, 1], grid).expect("fits");
+        assert_eq!((placed[0].x, placed[0].y), (1, 1));
+        // Leftmost lowest: right of the left leg and the gutter, at the margin.
+        assert_eq!((placed[1].x, placed[1].y), (1 + 3 + g, 1));
+        assert_eq!(bottom, 1 + 20);
+    }
+
+    /// A small xorshift generator: test outlines without a seed dependency.
+    fn xorshift(state: &mut u64) -> u64 {
+        *state ^= *state << 13;
+        *state ^= *state >> 7;
+        *state ^= *state << 17;
+        *state
+    }
+
+    #[test]
+    fn random_outlines_never_overlap_nor_come_within_the_gutter() {
+        for (seed, g) in [(1u64, 0), (2, 1), (3, 2), (4, 4)] {
+            let mut state = seed * 0x9e37_79b9_7f4a_7c15;
+            let mut next = |n: u64| (xorshift(&mut state) % n) as i32;
+            let grid = Grid {
+                cell: 1,
+                gutter: g,
+                margin: 2,
+                cols: 80,
+                rows: 100_000,
+            };
+            // Ragged outlines, some with empty columns, big and small
+            // mixed, so that holes open under overhangs and get filled.
+            let profiles: Vec<Vec<Profile>> = (0..160)
+                .map(|k| {
+                    let w = 1 + next(if k < 20 { 30 } else { 8 });
+                    let rows = 1 + next(if k < 20 { 24 } else { 8 });
+                    let cols: Vec<(i32, i32)> = (0..w)
+                        .map(|_| {
+                            if w > 2 && next(7) == 0 {
+                                return (i32::MAX, i32::MIN);
+                            }
+                            let lo = next(rows as u64);
+                            (lo, lo + 1 + next((rows - lo) as u64))
+                        })
+                        .collect();
+                    let p0 = outline(&cols, rows, g);
+                    let p2 = half_turn(&p0, g);
+                    vec![p0, p2]
+                })
+                .collect();
+            let order: Vec<usize> = (0..profiles.len()).collect();
+            let (placed, bottom) = place(&profiles, &order, grid).expect("fits");
+            // Paint every chart's cells; each cell within the gutter of a
+            // chart cell holds that chart or nothing.
+            let (w, h) = (grid.cols, bottom + grid.margin);
+            let mut owner = vec![usize::MAX; (w * h) as usize];
+            let mut holes_used = 0;
+            for (c, pl) in placed.iter().enumerate() {
+                let p = &profiles[c][pl.quarter as usize];
+                for (i, (&lo, &hi)) in p.lo.iter().zip(&p.hi).enumerate() {
+                    if lo >= hi {
+                        continue;
+                    }
+                    let x = pl.x + i as i32;
+                    for y in pl.y + lo..pl.y + hi {
+                        assert!(x >= grid.margin && x < w - grid.margin && y >= grid.margin);
+                        assert!(y < bottom, "chart {c} below the reported bottom");
+                        let cell = &mut owner[(y * w + x) as usize];
+                        assert_eq!(
+                            *cell,
+                            usize::MAX,
+                            "seed {seed}: chart {c} overlaps {}",
+                            *cell
+                        );
+                        *cell = c;
+                    }
+                }
+            }
+            for y in 0..h {
+                for x in 0..w {
+                    let c = owner[(y * w + x) as usize];
+                    if c == usize::MAX {
+                        continue;
+                    }
+                    for yy in (y - g).max(0)..=(y + g).min(h - 1) {
+                        for xx in (x - g).max(0)..=(x + g).min(w - 1) {
+                            let o = owner[(yy * w + xx) as usize];
+                            assert!(
+                                o == usize::MAX || o == c,
+                                "seed {seed}, gutter {g}: charts {c} and {o} closer than the gutter at ({x},{y})"
+                            );
+                        }
+                    }
+                }
+            }
+            // Some chart sits under the cells of a chart placed before it
+            // (impossible on a skyline: the holes are in use, so the test
+            // covers them).
+            for (c, pl) in placed.iter().enumerate() {
+                let p = &profiles[c][pl.quarter as usize];
+                let under = p.lo.iter().zip(&p.hi).enumerate().any(|(i, (&lo, &hi))| {
+                    let x = pl.x + i as i32;
+                    lo < hi
+                        && (pl.y + hi..h).any(|y| {
+                            let o = owner[(y * w + x) as usize];
+                            o != usize::MAX && o < c
+                        })
+                });
+                holes_used += under as usize;
+            }
+            assert!(holes_used > 0, "seed {seed}: no chart went into a hole");
+        }
+    }
+
+    #[test]
+    fn holes_lift_the_fill_of_a_splash() {
+        // A blob and 40 droplets: 333 charts, most of them small.
+        let charts = charts_of(&splash(8000, 40, 3));
+        let params = PackParams {
+            width: 512,
+            height: 512,
+            gutter: 4,
+            allow_rotation: true,
+        };
+        let packing = pack(&charts, &params).expect("packs");
+        let area: f64 = charts.iter().map(|c| prepare(c).area).sum();
+        let share = area * packing.scale.powi(2) / (512.0 * 512.0);
+        // Share of the atlas covered by chart area. The skyline packer
+        // without holes reached 0.532 here, the hole search 0.615.
+        assert!(share >= 0.58, "chart area share {share:.3}");
     }
 }
