@@ -221,7 +221,9 @@ fn liquid_blob_meets_the_fill_and_stretch_targets() {
     assert_valid(&mesh, &atlas, 4);
     let stats = atlas.stretch_stats(&mesh).expect("same mesh");
     assert_eq!(stats.overlapping_texels, 0);
-    assert!(stats.fill_ratio >= 0.60, "fill {}", stats.fill_ratio);
+    // 69.5 % when charts only stacked on the skyline, 78.1 % with its
+    // holes filled (issue 12 asks ≥ 60 % on every frame).
+    assert!(stats.fill_ratio >= 0.74, "fill {}", stats.fill_ratio);
     assert!(stats.p95 <= 2.0, "p95 stretch {}", stats.p95);
     assert!(stats.p50 >= 1.0 && stats.p50 <= stats.p95 && stats.p95 <= stats.max);
 }

@@ -377,7 +377,7 @@ fn place(profiles: &[Vec<Profile>], order: &[usize], grid: Grid) -> Option<(Vec<
                 .lo
                 .iter()
                 .zip(&prof.hi)
-                .map(|(&lo, &hi)| level(hi - lo))
+                .map(|(&lo, &hi)| if lo < hi { level(hi - lo) } else { 0 })
                 .collect();
             // The column that last ruled an offset out: tried first at the
             // next offset, where it mostly does so again (neighbouring
