@@ -948,7 +948,7 @@ mod tests {
     #[test]
     fn random_outlines_never_overlap_nor_come_within_the_gutter() {
         for (seed, g) in [(1u64, 0), (2, 1), (3, 2), (4, 4)] {
-            let mut state = seed * 0x9e37_79b9_7f4a_7c15;
+            let mut state = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15);
             let mut next = |n: u64| (xorshift(&mut state) % n) as i32;
             let grid = Grid {
                 cell: 1,
