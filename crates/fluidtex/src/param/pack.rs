@@ -926,7 +926,7 @@ mod tests {
                 }
             })
             .collect();
-        let profiles = vec![
+        let profiles = [
             vec![outline(&arch, 20, g)],
             vec![outline(&[(0, 4); 4], 4, g)],
         ];
