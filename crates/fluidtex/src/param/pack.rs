@@ -116,7 +116,7 @@ const MAX_ATTEMPTS: u32 = 12;
 /// cells of `⌈W / MAX_GRID⌉²` texels, which bounds the packing cost
 /// independently of the atlas size (at 6144², 3×3-texel cells lose about one
 /// texel per chart side).
-const MAX_GRID: u32 = 2048;
+const MAX_GRID: u32 = 1024;
 
 /// A chart turned to its minimum-area rectangle, origin at its box corner,
 /// in world units.
@@ -366,68 +366,21 @@ fn place(profiles: &[Vec<Profile>], order: &[usize], grid: Grid) -> Option<(Vec<
         };
         profiles.len()
     ];
-    let w = width as usize;
     let mut bottom = margin;
     for &c in order {
-        // (score, quarter, x, y)
-        let mut best: Option<(i32, usize, i32, i32)> = None;
-        for (q, prof) in profiles[c].iter().enumerate() {
-            let bw = prof.lo.len() as i32;
-            let levels: Vec<usize> = prof
-                .lo
-                .iter()
-                .zip(&prof.hi)
-                .map(|(&lo, &hi)| if lo < hi { level(hi - lo) } else { 0 })
-                .collect();
-            // The column that last ruled an offset out: tried first at the
-            // next offset, where it mostly does so again (neighbouring
-            // columns are alike). Only the work depends on it.
-            let (mut hint_floor, mut hint_fit) = (0usize, 0usize);
-            for x in margin..=width - margin - bw {
-                let bound = best.map_or(i32::MAX, |b| b.0) - prof.bottom;
-                let floor_at = |i: usize| -> i32 {
-                    let (lo, hi) = (prof.lo[i], prof.hi[i]);
-                    if lo < hi {
-                        space.floor[levels[i] * w + x as usize + i] - lo
-                    } else {
-                        i32::MIN
-                    }
-                };
-                if floor_at(hint_floor) >= bound {
-                    continue;
-                }
-                // No row below the lowest free run tall enough for each
-                // column: a lower bound, which rules most offsets out.
-                let mut floor = margin;
-                for i in 0..prof.lo.len() {
-                    floor = floor.max(floor_at(i));
-                    if floor >= bound {
-                        hint_floor = i;
-                        break;
-                    }
-                }
-                if floor >= bound {
-                    continue;
-                }
-                // On top of everything (the skyline), the cheap case.
-                let mut y = margin;
-                for (i, (&lo, &hi)) in prof.lo.iter().zip(&prof.hi).enumerate() {
-                    if lo < hi {
-                        y = y.max(space.sky[(x + i as i32) as usize] - lo);
-                        if y >= bound {
-                            break;
-                        }
-                    }
-                }
-                // Lower, in a hole under the skyline, where there is one.
-                if floor < y.min(bound) {
-                    y = y.min(space.lowest_fit(prof, x, floor, y.min(bound), &mut hint_fit));
-                }
-                if y < bound {
-                    best = Some((y + prof.bottom, q, x, y));
-                }
-            }
-        }
+        // Each quarter turn on its own core. Each search returns its lowest
+        // score and, among equals, the smallest x; the smallest score, then
+        // the smaller quarter turn, wins: the choice the turns made one after
+        // the other would make, whatever the thread count.
+        let found: Vec<Option<(i32, i32, i32)>> = profiles[c]
+            .par_iter()
+            .map(|prof| lowest_place(prof, &space, grid))
+            .collect();
+        let best = found
+            .iter()
+            .enumerate()
+            .filter_map(|(q, f)| f.map(|(score, x, y)| (score, q, x, y)))
+            .min_by_key(|&(score, q, _, _)| (score, q));
         let (score, q, x, y) = best?;
         let prof = &profiles[c][q];
         for (j, (&l, &t)) in prof.low.iter().zip(&prof.top).enumerate() {
@@ -444,6 +397,70 @@ fn place(profiles: &[Vec<Profile>], order: &[usize], grid: Grid) -> Option<(Vec<
         bottom = bottom.max(score);
     }
     Some((placed, bottom))
+}
+
+/// The lowest place of outline `prof` in `space`: (score = bottom edge, x,
+/// y), the smallest x among equal scores; `None` where it fits nowhere.
+fn lowest_place(prof: &Profile, space: &Space, grid: Grid) -> Option<(i32, i32, i32)> {
+    let (margin, width) = (grid.margin, grid.cols);
+    let w = width as usize;
+    let bw = prof.lo.len() as i32;
+    let levels: Vec<usize> = prof
+        .lo
+        .iter()
+        .zip(&prof.hi)
+        .map(|(&lo, &hi)| if lo < hi { level(hi - lo) } else { 0 })
+        .collect();
+    // The column that last ruled an offset out: tried first at the next
+    // offset, where it mostly does so again (neighbouring columns are
+    // alike). Only the work depends on it.
+    let (mut hint_floor, mut hint_fit) = (0usize, 0usize);
+    let mut best: Option<(i32, i32, i32)> = None;
+    for x in margin..=width - margin - bw {
+        let bound = best.map_or(i32::MAX, |b| b.0) - prof.bottom;
+        let floor_at = |i: usize| -> i32 {
+            let (lo, hi) = (prof.lo[i], prof.hi[i]);
+            if lo < hi {
+                space.floor[levels[i] * w + x as usize + i] - lo
+            } else {
+                i32::MIN
+            }
+        };
+        if floor_at(hint_floor) >= bound {
+            continue;
+        }
+        // No row below the lowest free run tall enough for each column: a
+        // lower bound, which rules most offsets out.
+        let mut floor = margin;
+        for i in 0..prof.lo.len() {
+            floor = floor.max(floor_at(i));
+            if floor >= bound {
+                hint_floor = i;
+                break;
+            }
+        }
+        if floor >= bound {
+            continue;
+        }
+        // On top of everything (the skyline), the cheap case.
+        let mut y = margin;
+        for (i, (&lo, &hi)) in prof.lo.iter().zip(&prof.hi).enumerate() {
+            if lo < hi {
+                y = y.max(space.sky[(x + i as i32) as usize] - lo);
+                if y >= bound {
+                    break;
+                }
+            }
+        }
+        // Lower, in a hole under the skyline, where there is one.
+        if floor < y.min(bound) {
+            y = y.min(space.lowest_fit(prof, x, floor, y.min(bound), &mut hint_fit));
+        }
+        if y < bound {
+            best = Some((y + prof.bottom, x, y));
+        }
+    }
+    best
 }
 
 /// Levels of [`Space::floor`]: free runs of at least 1, 2, 3, 4, 6, 8, 12,
