@@ -121,14 +121,8 @@ pub fn liquid_blob(triangles: u32, seed: u64) -> TriMesh {
     let mut mesh = icosphere(main_freq);
     let waves: Vec<(Vec3, f32, f32, f32)> = (0..7)
         .map(|_| {
-            let dir = Vec3::new(
-                rng.random_range(-1.0..1.0),
-                rng.random_range(-1.0..1.0),
-                rng.random_range(-1.0..1.0),
-            )
-            .normalize_or(Vec3::X);
             (
-                dir,
+                random_direction(&mut rng, Vec3::X),
                 rng.random_range(1.5..4.5),
                 rng.random_range(0.0..std::f32::consts::TAU),
                 rng.random_range(0.02..0.07),
@@ -145,20 +139,9 @@ pub fn liquid_blob(triangles: u32, seed: u64) -> TriMesh {
     let drop_tris = (triangles as f32 * 0.1 / 8.0).max(20.0);
     let drop_freq = ((drop_tris / 20.0).sqrt().round() as u32).max(1);
     for _ in 0..8 {
-        let dir = Vec3::new(
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-        )
-        .normalize_or(Vec3::Y);
-        let centre = dir * rng.random_range(1.6..2.2);
+        let centre = random_direction(&mut rng, Vec3::Y) * rng.random_range(1.6..2.2);
         let radius = rng.random_range(0.08..0.2);
-        let drop = icosphere(drop_freq);
-        let base = mesh.positions.len() as u32;
-        mesh.positions
-            .extend(drop.positions.iter().map(|p| centre + *p * radius));
-        mesh.triangles
-            .extend(drop.triangles.iter().map(|t| t.map(|v| v + base)));
+        append_sphere(&mut mesh, &icosphere(drop_freq), centre, radius);
     }
     mesh
 }
@@ -171,22 +154,35 @@ pub fn splash(triangles: u32, droplets: u32, seed: u64) -> TriMesh {
     let mut mesh = liquid_blob(triangles, seed);
     let mut rng = Pcg64::seed_from_u64(seed ^ 0x5eed);
     for _ in 0..droplets {
-        let dir = Vec3::new(
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-        )
-        .normalize_or(Vec3::Z);
-        let centre = dir * rng.random_range(1.5..3.0);
+        let centre = random_direction(&mut rng, Vec3::Z) * rng.random_range(1.5..3.0);
         let radius = rng.random_range(0.03..0.15);
-        let drop = icosphere(rng.random_range(2..=3));
-        let base = mesh.positions.len() as u32;
-        mesh.positions
-            .extend(drop.positions.iter().map(|p| centre + *p * radius));
-        mesh.triangles
-            .extend(drop.triangles.iter().map(|t| t.map(|v| v + base)));
+        append_sphere(
+            &mut mesh,
+            &icosphere(rng.random_range(2..=3)),
+            centre,
+            radius,
+        );
     }
     mesh
+}
+
+/// A direction from a uniform draw in the cube (`fallback` if it is ~0).
+fn random_direction(rng: &mut Pcg64, fallback: Vec3) -> Vec3 {
+    Vec3::new(
+        rng.random_range(-1.0..1.0),
+        rng.random_range(-1.0..1.0),
+        rng.random_range(-1.0..1.0),
+    )
+    .normalize_or(fallback)
+}
+
+/// Appends `sphere` (a unit sphere) scaled by `radius` at `centre`.
+fn append_sphere(mesh: &mut TriMesh, sphere: &TriMesh, centre: Vec3, radius: f32) {
+    let base = mesh.positions.len() as u32;
+    mesh.positions
+        .extend(sphere.positions.iter().map(|p| centre + *p * radius));
+    mesh.triangles
+        .extend(sphere.triangles.iter().map(|t| t.map(|v| v + base)));
 }
 
 #[cfg(test)]
