@@ -85,11 +85,13 @@ impl ErosionTest {
     /// Left-hand side of the test: normalised sqrt(F_m + D) − ε.
     #[inline]
     pub fn lhs(&self, feature: f32, u: f32, v: f32) -> f32 {
-        (feature + falloff_with_reach(u, v, self.inv_reach))
-            .max(0.0)
-            .sqrt()
-            * self.inv_max_norm
-            - self.epsilon
+        self.lhs_of_sum(feature + falloff_with_reach(u, v, self.inv_reach))
+    }
+
+    /// The left-hand side for F_m + D = `sum`.
+    #[inline]
+    fn lhs_of_sum(&self, sum: f32) -> f32 {
+        sum.max(0.0).sqrt() * self.inv_max_norm - self.epsilon
     }
 
     /// True when the texel is eroded (rejected) for weight `w`.
@@ -139,10 +141,9 @@ impl ErosionTest {
         let d_greatest = (1.0 - nearest * self.inv_reach).max(0.0);
         let w_least = w[0].min(w[1]).min(w[2]);
         let w_greatest = w[0].max(w[1]).max(w[2]);
-        let bound = |f: f32, d: f32| (f + d).max(0.0).sqrt() * self.inv_max_norm - self.epsilon;
-        if bound(0.0, d_least) - VERDICT_MARGIN >= 1.0 - w_least {
+        if self.lhs_of_sum(d_least) - VERDICT_MARGIN >= 1.0 - w_least {
             Verdict::Kept
-        } else if bound(1.0, d_greatest) + VERDICT_MARGIN < 1.0 - w_greatest {
+        } else if self.lhs_of_sum(1.0 + d_greatest) + VERDICT_MARGIN < 1.0 - w_greatest {
             Verdict::Eroded
         } else {
             Verdict::Test

@@ -174,7 +174,7 @@ impl Candidates {
 
     /// The candidates without the patches that cannot show on a fluid
     /// triangle because every one of their triangles listed there is
-    /// wholly eroded (`verdicts` from [`erosion_verdicts`]). Whichever of
+    /// wholly eroded (`verdicts` from [`FillContext::erosion_verdicts`]). Whichever of
     /// those triangles would hold a texel, the lapped decision passes the
     /// patch by, so the lapped fill's result is unchanged; the blended fill,
     /// which shows eroded layers too, must keep them.
@@ -203,7 +203,7 @@ pub struct FillContext<'a> {
     /// `exemplar`, `feature` and `test`.
     pub multi: Option<&'a MultiFill<'a>>,
     /// Per patch triangle (indexed like `frames`), what the erosion test
-    /// says of all its points ([`erosion_verdicts`]); a triangle not listed
+    /// says of all its points ([`FillContext::erosion_verdicts`]); a triangle not listed
     /// (an empty slice) is tested texel by texel.
     pub verdicts: &'a [Vec<Verdict>],
 }
@@ -357,32 +357,30 @@ impl FillContext<'_> {
             }
         }
     }
-}
 
-/// Per patch triangle of `ctx` (indexed like its frames), what the erosion
-/// test says of all its points ([`ErosionTest::triangle_verdict`]): for
-/// [`FillContext::verdicts`]. Computed once per frame, it lets the fill
-/// skip the feature lookup on triangles wholly kept and pass over patches
-/// wholly eroded ([`Candidates::without_eroded`]).
-pub fn erosion_verdicts(ctx: &FillContext<'_>) -> Vec<Vec<Verdict>> {
-    ctx.patches
-        .par_iter()
-        .enumerate()
-        .map(|(i, p)| {
-            let (_, test) = ctx.erosion_of(i as u32);
-            p.triangles
-                .iter()
-                .map(|t| {
-                    let uv = t.map(|v| p.rest[v as usize]);
-                    let w = t.map(|v| p.weight[v as usize]);
-                    test.triangle_verdict(uv, w)
-                })
-                .collect()
-        })
-        .collect()
-}
+    /// Per patch triangle (indexed like the frames), what the erosion test
+    /// says of all its points ([`ErosionTest::triangle_verdict`]): for
+    /// [`FillContext::verdicts`]. Computed once per frame, it lets the fill
+    /// skip the feature lookup on triangles wholly kept and pass over
+    /// patches wholly eroded ([`Candidates::without_eroded`]).
+    pub fn erosion_verdicts(&self) -> Vec<Vec<Verdict>> {
+        self.patches
+            .par_iter()
+            .enumerate()
+            .map(|(i, p)| {
+                let (_, test) = self.erosion_of(i as u32);
+                p.triangles
+                    .iter()
+                    .map(|t| {
+                        let uv = t.map(|v| p.rest[v as usize]);
+                        let w = t.map(|v| p.weight[v as usize]);
+                        test.triangle_verdict(uv, w)
+                    })
+                    .collect()
+            })
+            .collect()
+    }
 
-impl FillContext<'_> {
     /// The lapped decision for one surface point: the first patch, in the
     /// candidate order (oldest first), that contains the point and whose
     /// texel there is not eroded.

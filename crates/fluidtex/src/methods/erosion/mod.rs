@@ -638,7 +638,7 @@ impl Erosion {
                 multi: multi_fill.as_ref(),
                 verdicts: &[],
             };
-            let verdicts = fill::erosion_verdicts(&unjudged);
+            let verdicts = unjudged.erosion_verdicts();
             let fill_ctx = FillContext {
                 verdicts: &verdicts,
                 ..unjudged
