@@ -349,6 +349,28 @@ impl Atlas {
 
     /// Barycentrics (w.r.t. the INPUT triangle's corners, so SurfacePoint{triangle, bary} works on the input mesh) of the texel centres of a span, computed incrementally (affine in x).
     pub fn span_barycentrics(&self, span: &Span) -> impl Iterator<Item = (u32, [f32; 3])> + '_ {
+        let (start, step) = self.span_affine(span);
+        let x0 = span.x0;
+        (x0..span.x1).map(move |x| {
+            let k = (x - x0) as f32;
+            let mut bary = [0.0f32; 3];
+            for i in 0..3 {
+                bary[i] = (start[i] + k * step[i]).clamp(0.0, 1.0);
+            }
+            (x, bary)
+        })
+    }
+
+    /// The change of the barycentrics of [`Atlas::span_barycentrics`] from
+    /// one texel of a span to the next (before clamping): the same for
+    /// every span of a triangle.
+    pub fn barycentric_step(&self, span: &Span) -> [f32; 3] {
+        self.span_affine(span).1
+    }
+
+    /// Unclamped barycentrics of a span's first texel centre and their
+    /// change per texel, from the exact fixed-point edge functions.
+    fn span_affine(&self, span: &Span) -> ([f32; 3], [f32; 3]) {
         let sub = rasterize::SUBTEXEL;
         let p = self
             .uv_mesh
@@ -379,15 +401,7 @@ impl Atlas {
                 step[k] = ((-(b[1] - a[1]) * sub) as f64 / area2) as f32;
             }
         }
-        let x0 = span.x0;
-        (x0..span.x1).map(move |x| {
-            let k = (x - x0) as f32;
-            let mut bary = [0.0f32; 3];
-            for i in 0..3 {
-                bary[i] = (start[i] + k * step[i]).clamp(0.0, 1.0);
-            }
-            (x, bary)
-        })
+        (start, step)
     }
 
     /// Triangle per texel, u32::MAX outside charts (row-major), for tests, debug and metrics.

@@ -302,6 +302,13 @@ fn triangle_map_and_barycentrics_agree_with_spans() {
         for s in &band.spans {
             assert!(s.y >= band.y0 && s.y < band.y1 && s.x0 < s.x1 && s.x1 <= atlas.width);
             let corners = texel_corners(&atlas, s.triangle as usize);
+            // The barycentric step moves the point one texel to the right.
+            let step = atlas.barycentric_step(s);
+            let moved = corners[0] * step[0] as f64
+                + corners[1] * step[1] as f64
+                + corners[2] * step[2] as f64;
+            assert!(moved.distance(DVec2::X) < 1e-3, "step moves by {moved}");
+            assert!(step.iter().sum::<f32>().abs() < 1e-5);
             for (x, bary) in atlas.span_barycentrics(s) {
                 assert_eq!(map[(s.y * atlas.width + x) as usize], s.triangle);
                 covered += 1;

@@ -31,7 +31,7 @@ use crate::atlas::{Atlas, Band};
 use crate::exemplar::Exemplar;
 use crate::mesh::TriMesh;
 pub(crate) use crate::methods::lapped::BandTexel;
-use crate::methods::lapped::bands::for_each_span;
+use crate::methods::lapped::bands::{SpanTexels, for_each_span};
 use crate::methods::lapped::{BandResult, TexelBuffers, TriangleLists, fill_bands};
 use crate::surface::SurfaceIndex;
 
@@ -422,78 +422,126 @@ pub(crate) struct SpanCandidate {
     pub(crate) hi: u32,
 }
 
-/// Narrows `list` to the candidates that may contain some texel of a span
-/// of `n` texels from `p_first` to `p_last`. Along a span the surface point
-/// is affine in the texel index, and so are a triangle's barycentrics and
-/// plane distance: each acceptance condition of [`FillContext::locate`]
-/// holds on an interval, found from the values at both ends. The intervals
-/// are widened by a texel, so they only prune; every texel is still decided
-/// by the exact per-texel test.
-pub(crate) fn span_candidates(
-    ctx: &FillContext<'_>,
-    list: &[(u32, u32)],
-    p_first: Vec3,
-    p_last: Vec3,
-    n: u32,
-    out: &mut Vec<SpanCandidate>,
-) {
-    out.clear();
-    let last = n.saturating_sub(1) as f32;
-    let step = if n > 1 {
-        (p_last - p_first) / last
-    } else {
-        Vec3::ZERO
-    };
-    let tol = ctx.tolerance;
-    let bary_min = tol.min_bary - 1e-4;
-    let plane_min = -tol.max_plane_distance - 1e-4;
-    for &(i, j) in list {
-        let Some(frame) = ctx.frames[i as usize][j as usize] else {
-            continue;
-        };
-        let (b, h) = frame.locate(p_first);
-        // Per-texel increments of the three barycentrics and the plane distance.
-        let (d1, d2, dh) = (
-            frame.d1.dot(step),
-            frame.d2.dot(step),
-            frame.normal.dot(step),
-        );
-        let conditions = [
-            (b[0], -d1 - d2, bary_min),
-            (b[1], d1, bary_min),
-            (b[2], d2, bary_min),
-            (h, dh, plane_min),
-            (-h, -dh, plane_min),
-        ];
-        let (mut lo, mut hi) = (0.0f32, last);
-        for (g0, dg, c) in conditions {
-            // g0 + dg k >= c
-            if dg.abs() < 1e-12 {
-                if g0 < c {
-                    hi = -1.0;
-                }
-            } else {
-                let k = (c - g0) / dg;
-                if dg > 0.0 {
-                    lo = lo.max(k - 1.0);
-                } else {
-                    hi = hi.min(k + 1.0);
-                }
-            }
-            if lo > hi {
-                break;
-            }
+/// The span pruning of one fluid triangle. Along a span the surface point
+/// is affine in the texel index, and so are a candidate triangle's
+/// barycentrics and plane distance: each acceptance condition of
+/// [`FillContext::locate`] holds on an interval of texels, found from its
+/// value at the span's first texel and its change per texel. Over a fluid
+/// triangle those quantities are affine in the triangle's barycentrics, so
+/// [`SpanPruner::prepare`] takes them at the three corners and their change
+/// per texel once per triangle, and [`SpanPruner::prune`] only interpolates
+/// per span (no projection and no division per span and candidate). The
+/// intervals are widened by a texel, and the bounds by a small slack, so
+/// they only prune; every texel is still decided by the exact per-texel test.
+#[derive(Default)]
+pub(crate) struct SpanPruner {
+    /// The fluid triangle prepared for (`None`: none yet).
+    triangle: Option<u32>,
+    lines: Vec<CandidateLines>,
+}
+
+/// One candidate patch triangle on the prepared fluid triangle: the
+/// acceptance quantities (l1, l2, plane distance) at the fluid triangle's
+/// corners, and each condition's change per texel with its reciprocal.
+#[derive(Clone, Copy, Debug)]
+struct CandidateLines {
+    patch: u32,
+    tri: u32,
+    /// `at_corners[q][c]`: quantity q (l1, l2, h) at corner c.
+    at_corners: [[f32; 3]; 3],
+    /// Per condition (b0, b1, b2, h, −h): change per texel and 1 / change
+    /// (0 where the change is negligible).
+    slope: [f32; 5],
+    inverse: [f32; 5],
+}
+
+impl SpanPruner {
+    /// Prepares the candidates `list` of the span's fluid triangle, unless
+    /// they are prepared already (spans come grouped by triangle). A
+    /// candidate facing away from the triangle is dropped here: the
+    /// per-texel test rejects it at every texel of the triangle.
+    fn prepare(&mut self, ctx: &FillContext<'_>, list: &[(u32, u32)], span: &SpanTexels<'_>) {
+        if self.triangle == Some(span.triangle) {
+            return;
         }
-        if lo <= hi && hi >= 0.0 && lo <= last {
-            // Saturating casts; widen outwards by rounding lo down and hi up.
-            let lo = lo.max(0.0) as u32;
-            let hi = (hi.min(last) + 0.999_999) as u32;
-            out.push(SpanCandidate {
+        self.triangle = Some(span.triangle);
+        self.lines.clear();
+        let s = span.bary_step;
+        for &(i, j) in list {
+            let Some(frame) = ctx.frames[i as usize][j as usize] else {
+                continue;
+            };
+            if frame.normal.dot(span.normal) <= 0.0 {
+                continue;
+            }
+            let at = span.corners.map(|q| frame.locate(q));
+            let at_corners = [
+                at.map(|(b, _)| b[1]),
+                at.map(|(b, _)| b[2]),
+                at.map(|(_, h)| h),
+            ];
+            let [d1, d2, dh] = at_corners.map(|q| q[0] * s[0] + q[1] * s[1] + q[2] * s[2]);
+            let slope = [-d1 - d2, d1, d2, dh, -dh];
+            let inverse = slope.map(|d| if d.abs() < 1e-12 { 0.0 } else { 1.0 / d });
+            self.lines.push(CandidateLines {
                 patch: i,
                 tri: j,
-                lo,
-                hi: hi.min(n.saturating_sub(1)),
+                at_corners,
+                slope,
+                inverse,
             });
+        }
+    }
+
+    /// The prepared candidates that may contain some texel of a span of `n`
+    /// texels whose first texel has barycentrics `first`, each with the
+    /// texel range where it may, into `out`.
+    fn prune(
+        &self,
+        tolerance: LocateTolerance,
+        first: [f32; 3],
+        n: u32,
+        out: &mut Vec<SpanCandidate>,
+    ) {
+        out.clear();
+        let last = n.saturating_sub(1) as f32;
+        let bary_min = tolerance.min_bary - 1e-4;
+        let plane_min = -tolerance.max_plane_distance - 1e-4;
+        let bounds = [bary_min, bary_min, bary_min, plane_min, plane_min];
+        let at = |q: [f32; 3]| q[0] * first[0] + q[1] * first[1] + q[2] * first[2];
+        for line in &self.lines {
+            let [l1, l2, h] = line.at_corners.map(at);
+            let start = [1.0 - l1 - l2, l1, l2, h, -h];
+            let (mut lo, mut hi) = (0.0f32, last);
+            for c in 0..5 {
+                // start + slope k >= bound
+                if line.inverse[c] == 0.0 {
+                    if start[c] < bounds[c] {
+                        hi = -1.0;
+                    }
+                } else {
+                    let k = (bounds[c] - start[c]) * line.inverse[c];
+                    if line.slope[c] > 0.0 {
+                        lo = lo.max(k - 1.0);
+                    } else {
+                        hi = hi.min(k + 1.0);
+                    }
+                }
+                if lo > hi {
+                    break;
+                }
+            }
+            if lo <= hi && hi >= 0.0 && lo <= last {
+                // Saturating casts; widen outwards by rounding lo down and hi up.
+                let lo = lo.max(0.0) as u32;
+                let hi = (hi.min(last) + 0.999_999) as u32;
+                out.push(SpanCandidate {
+                    patch: line.patch,
+                    tri: line.tri,
+                    lo,
+                    hi: hi.min(n.saturating_sub(1)),
+                });
+            }
         }
     }
 }
@@ -523,7 +571,7 @@ pub(crate) fn patch_groups(
 }
 
 /// Visits every chart texel of `band` in texel order, with the span's
-/// candidates pruned by [`span_candidates`]: the walk the lapped and the
+/// candidates pruned by [`SpanPruner`]: the walk the lapped and the
 /// blended fills share.
 pub(crate) fn walk_band(
     ctx: &FillContext<'_>,
@@ -533,10 +581,15 @@ pub(crate) fn walk_band(
     mut visit: impl FnMut(&BandTexel, &[SpanCandidate]),
 ) {
     let mut cands = Vec::new();
+    let mut pruner = SpanPruner::default();
     for_each_span(ctx.mesh, atlas, band, |span| {
-        let (first, last) = span.ends();
-        let list = candidates.of(span.triangle);
-        span_candidates(ctx, list, first, last, span.len(), &mut cands);
+        pruner.prepare(ctx, candidates.of(span.triangle), span);
+        pruner.prune(
+            ctx.tolerance,
+            span.first_barycentrics(),
+            span.len(),
+            &mut cands,
+        );
         for texel in span.texels() {
             visit(&texel, &cands);
         }

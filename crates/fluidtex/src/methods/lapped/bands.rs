@@ -210,7 +210,11 @@ pub struct SpanTexels<'a> {
     pub triangle: u32,
     /// Unit normal of the fluid triangle.
     pub normal: Vec3,
-    corners: [Vec3; 3],
+    /// Corners of the fluid triangle.
+    pub corners: [Vec3; 3],
+    /// Change of the barycentrics from one texel to the next
+    /// ([`Atlas::barycentric_step`]).
+    pub bary_step: [f32; 3],
     /// Band texel index of the span row's first texel.
     row: usize,
     /// (x, barycentrics) of each texel, left to right; never empty.
@@ -249,11 +253,9 @@ impl SpanTexels<'_> {
         self.texels.is_empty()
     }
 
-    /// Surface points of the first and the last texel.
-    pub fn ends(&self) -> (Vec3, Vec3) {
-        let first = self.texels.first().map_or([1.0, 0.0, 0.0], |t| t.1);
-        let last = self.texels.last().map_or(first, |t| t.1);
-        (self.point(first), self.point(last))
+    /// Barycentrics of the first texel.
+    pub fn first_barycentrics(&self) -> [f32; 3] {
+        self.texels.first().map_or([1.0, 0.0, 0.0], |t| t.1)
     }
 
     /// The span's texels, left to right.
@@ -282,6 +284,8 @@ pub fn for_each_span(
     let w = atlas.width as usize;
     let base = band.y0 as usize * w;
     let mut texels: Vec<(u32, [f32; 3])> = Vec::new();
+    // Spans come grouped by triangle, and the step is the triangle's.
+    let mut step: Option<(u32, [f32; 3])> = None;
     for span in &band.spans {
         texels.clear();
         texels.extend(atlas.span_barycentrics(span));
@@ -295,6 +299,14 @@ pub fn for_each_span(
             triangle: f,
             normal: (b - a).cross(c - a).normalize_or_zero(),
             corners,
+            bary_step: match step {
+                Some((g, s)) if g == f => s,
+                _ => {
+                    let s = atlas.barycentric_step(span);
+                    step = Some((f, s));
+                    s
+                }
+            },
             row: span.y as usize * w - base,
             texels: &texels,
         });
