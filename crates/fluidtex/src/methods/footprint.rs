@@ -19,15 +19,24 @@
 //!
 //! Magnified texels (`lod` ≤ 0) keep the fill's bilinear value untouched,
 //! so an exemplar shown at or above its resolution gives the same atlas as
-//! without the pass. Rows are processed in parallel, each writing only its
-//! own row from read-only uv and sources: bit-identical for any thread
-//! count.
+//! without the pass. Bands of rows are processed in parallel, each writing
+//! only its own rows from read-only uv and sources, tile by tile (for cache
+//! reuse; a texel's result does not depend on the visiting order):
+//! bit-identical for any thread count.
 
 use glam::Vec2;
 use rayon::prelude::*;
 
 use super::erosion::fill::{FillBuffers, OUTSIDE, UNCOVERED};
 use crate::exemplar::{Exemplar, ExemplarFilter};
+
+/// Texels are visited in tiles of this many rows (a band per task) ...
+const TILE_ROWS: usize = 16;
+/// ... and this many columns: a tile's texels lie on a few fluid
+/// triangles and read a few small regions of the exemplar, which stay in
+/// cache while the tile's rows revisit them; a whole atlas row between two
+/// visits of the same region would have evicted them.
+const TILE_COLUMNS: usize = 64;
 
 /// Re-samples every covered texel of `out` at the level of its uv
 /// footprint when `exemplar.filter` is [`ExemplarFilter::Trilinear`], and
@@ -66,28 +75,38 @@ pub fn apply_footprint_filtering_by<'e>(
         return Some(lods);
     }
     let (source, uv) = (source.as_slice(), uv.as_slice());
+    let filter_texel = |x: usize, y: usize, value: &mut [f32], lod_out: &mut f32| {
+        let s = source[y * w + x];
+        if s == OUTSIDE || s == UNCOVERED {
+            return;
+        }
+        let exemplar = exemplar_of(s);
+        let (ew, eh) = exemplar.size();
+        let texels = Vec2::new(ew as f32, eh as f32);
+        let Some(lod) = texel_lod(source, uv, w, x, y, texels) else {
+            return;
+        };
+        *lod_out = lod;
+        // Every covered texel: the fill may have deferred its values to
+        // this pass; at lod 0 this is the fill's own bilinear read, bit
+        // for bit.
+        let p = uv[y * w + x];
+        exemplar.sample_all_lod(p.x, p.y, lod, value);
+    };
     values
-        .par_chunks_mut(w * c)
-        .zip(lods.par_chunks_mut(w))
+        .par_chunks_mut(TILE_ROWS * w * c)
+        .zip(lods.par_chunks_mut(TILE_ROWS * w))
         .enumerate()
-        .for_each(|(y, (row, row_lod))| {
-            for (x, lod_out) in row_lod.iter_mut().enumerate() {
-                let s = source[y * w + x];
-                if s == OUTSIDE || s == UNCOVERED {
-                    continue;
+        .for_each(|(band, (values, lods))| {
+            let rows = lods.len() / w;
+            for x0 in (0..w).step_by(TILE_COLUMNS) {
+                for r in 0..rows {
+                    for x in x0..(x0 + TILE_COLUMNS).min(w) {
+                        let t = r * w + x;
+                        let value = &mut values[t * c..(t + 1) * c];
+                        filter_texel(x, band * TILE_ROWS + r, value, &mut lods[t]);
+                    }
                 }
-                let exemplar = exemplar_of(s);
-                let (ew, eh) = exemplar.size();
-                let texels = Vec2::new(ew as f32, eh as f32);
-                let Some(lod) = texel_lod(source, uv, w, x, y, texels) else {
-                    continue;
-                };
-                *lod_out = lod;
-                // Every covered texel: the fill may have deferred its
-                // values to this pass; at lod 0 this is the fill's own
-                // bilinear read, bit for bit.
-                let p = uv[y * w + x];
-                exemplar.sample_all_lod(p.x, p.y, lod, &mut row[x * c..(x + 1) * c]);
             }
         });
     Some(lods)
