@@ -2,9 +2,11 @@
 //! colour first, then every extra channel (displacement, roughness, ...)
 //! under its own name, each in the sample format it was read in.
 
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::{Exemplar, SampleFormat};
+use crate::texture::Texture;
 
 /// How an atlas channel is written.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -55,4 +57,48 @@ pub fn exemplar_channels(e: &Exemplar) -> Vec<ChannelSpec> {
         format: c.format.into(),
     }));
     specs
+}
+
+/// Splits a `width` × `height` atlas of interleaved values (every channel
+/// of `exemplar` per texel, colour first, as [`Exemplar::sample_all`]
+/// writes them) into one texture per exemplar texture. An exemplar with
+/// colour only hands its buffer over as it is: at 6144² that saves a copy
+/// of 450 MB per frame.
+pub fn split_interleaved(
+    width: u32,
+    height: u32,
+    values: Vec<f32>,
+    exemplar: &Exemplar,
+) -> Vec<Texture> {
+    let mut layout = vec![exemplar.colour.channels];
+    layout.extend(exemplar.channels.iter().map(|c| c.texture.channels));
+    let total = layout.iter().sum::<usize>().max(1);
+    if layout.len() == 1 {
+        let channels = layout[0];
+        return vec![Texture {
+            width,
+            height,
+            channels,
+            data: values,
+        }];
+    }
+    let texels = values.len() / total;
+    let mut offset = 0;
+    layout
+        .into_iter()
+        .map(|k| {
+            let mut data = vec![0.0f32; texels * k];
+            data.par_chunks_mut(k.max(1))
+                .zip(values.par_chunks(total))
+                .with_min_len(1 << 12)
+                .for_each(|(o, texel)| o.copy_from_slice(&texel[offset..offset + k]));
+            offset += k;
+            Texture {
+                width,
+                height,
+                channels: k,
+                data,
+            }
+        })
+        .collect()
 }

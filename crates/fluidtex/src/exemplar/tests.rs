@@ -71,6 +71,40 @@ fn sample_all_at_texel_centres_returns_texels_exactly() {
     }
 }
 
+/// Interleaved atlas values split back into the exemplar's textures: the
+/// colour and the extra channel of each texel land in their own texture
+/// (a shifted offset would swap them), and a colour-only exemplar keeps the
+/// very buffer it was given.
+#[test]
+fn interleaved_values_split_into_the_exemplar_textures() {
+    let e = two_channel_exemplar(4, 3);
+    let values: Vec<f32> = (0..12 * 4).map(|i| i as f32).collect();
+    let split = super::channels::split_interleaved(4, 3, values.clone(), &e);
+    assert_eq!(split.len(), 2);
+    assert_eq!((split[0].channels, split[1].channels), (3, 1));
+    for t in 0..12 {
+        assert_eq!(&split[0].data[t * 3..t * 3 + 3], &values[t * 4..t * 4 + 3]);
+        assert_eq!(split[1].data[t], values[t * 4 + 3]);
+    }
+    let colour_only = Exemplar::new(
+        ramp(4, 3, 3, 0.0),
+        SampleFormat::U8,
+        Vec::new(),
+        flat_feature(4, 3, 0.5),
+    )
+    .expect("valid exemplar");
+    let values: Vec<f32> = (0..12 * 3).map(|i| i as f32 * 0.5).collect();
+    let pointer = values.as_ptr();
+    let split = super::channels::split_interleaved(4, 3, values, &colour_only);
+    assert_eq!(split.len(), 1);
+    assert_eq!(
+        (split[0].width, split[0].height, split[0].channels),
+        (4, 3, 3)
+    );
+    assert_eq!(split[0].data.as_ptr(), pointer, "moved, not copied");
+    assert_eq!(split[0].data[7], 3.5);
+}
+
 #[test]
 fn sample_all_wraps_around() {
     for (w, h) in [(8, 4), (5, 3)] {

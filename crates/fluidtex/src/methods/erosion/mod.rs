@@ -42,7 +42,6 @@ use super::{
 };
 use crate::exemplar::Exemplar;
 use crate::surface::poisson::sample_mesh;
-use crate::texture::Texture;
 
 /// Parameters of the erosion method. Defaults follow DESIGN §1 and the
 /// 2021 paper; every field is also a config key and a CLI flag.
@@ -482,7 +481,12 @@ impl Method for Erosion {
             .flatten();
         clock.lap("exemplar filter");
         let mut result = FrameResult {
-            channels: split_channels(&out, &self.exemplar),
+            channels: crate::exemplar::channels::split_interleaved(
+                out.width,
+                out.height,
+                std::mem::take(&mut out.values),
+                &self.exemplar,
+            ),
             exemplar_lod,
             ..Default::default()
         };
@@ -971,29 +975,4 @@ pub fn median_edge_length(mesh: &crate::mesh::TriMesh) -> f32 {
     let mid = lengths.len() / 2;
     let (_, m, _) = lengths.select_nth_unstable_by(mid, f32::total_cmp);
     *m
-}
-
-/// De-interleaves the fill's values into one texture per exemplar channel.
-fn split_channels(out: &FillBuffers, exemplar: &Exemplar) -> Vec<Texture> {
-    let mut layout = vec![exemplar.colour.channels];
-    layout.extend(exemplar.channels.iter().map(|c| c.texture.channels));
-    let total = out.channels;
-    let mut offset = 0;
-    layout
-        .into_iter()
-        .map(|k| {
-            let data: Vec<f32> = out
-                .values
-                .par_chunks(total)
-                .flat_map_iter(|texel| texel[offset..offset + k].iter().copied())
-                .collect();
-            offset += k;
-            Texture {
-                width: out.width,
-                height: out.height,
-                channels: k,
-                data,
-            }
-        })
-        .collect()
 }

@@ -738,7 +738,12 @@ impl LappedRigid {
             ..
         } = out;
         FrameResult {
-            channels: split_channels(width, height, &values, &self.exemplar),
+            channels: crate::exemplar::channels::split_interleaved(
+                width,
+                height,
+                values,
+                &self.exemplar,
+            ),
             exemplar_lod: filtered.then_some(lod),
             stats,
             source: Some(source),
@@ -909,28 +914,4 @@ fn texels_per_exemplar(source: &[u32], trackers: &[Tracker], count: usize) -> Ve
         }
     }
     out
-}
-
-/// De-interleaves the composite into one texture per exemplar channel.
-fn split_channels(width: u32, height: u32, values: &[f32], exemplar: &Exemplar) -> Vec<Texture> {
-    let mut layout = vec![exemplar.colour.channels];
-    layout.extend(exemplar.channels.iter().map(|c| c.texture.channels));
-    let total = exemplar.total_channels().max(1);
-    let mut offset = 0;
-    layout
-        .into_iter()
-        .map(|k| {
-            let data: Vec<f32> = values
-                .par_chunks(total)
-                .flat_map_iter(|texel| texel[offset..offset + k].iter().copied())
-                .collect();
-            offset += k;
-            Texture {
-                width,
-                height,
-                channels: k,
-                data,
-            }
-        })
-        .collect()
 }
