@@ -911,8 +911,10 @@ fn written_grey(colour: &Texture, format: ChannelFormat) -> Vec<f32> {
         ChannelFormat::Exr => colour.data.clone(),
     };
     let texture = Texture {
+        width: colour.width,
+        height: colour.height,
+        channels: colour.channels,
         data,
-        ..colour.clone()
     };
     crate::metrics::luminance(&texture)
 }
