@@ -57,23 +57,20 @@ fn report(name: &str, mesh: &TriMesh, side: u32) {
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let blob = args.first().map(String::as_str) == Some("blob");
-    let threads = match args.first().map(String::as_str) {
-        Some("blob") => number(&args, 3, 0),
-        Some("splash") => number(&args, 4, 0),
-        _ => number(&args, 4, 0),
-    };
+    let mode = args.first().map(String::as_str);
+    // The thread count is the last argument: 4th for the blob, 5th otherwise.
+    let threads = number(&args, if mode == Some("blob") { 3 } else { 4 }, 0);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads as usize)
         .build()
         .expect("thread pool");
     pool.install(|| {
-        if blob {
+        if mode == Some("blob") {
             let (tris, side) = (number(&args, 1, 20_000), number(&args, 2, 1024));
             report("blob", &fixtures::liquid_blob(tris, 7), side);
             return;
         }
-        if args.first().map(String::as_str) == Some("splash") {
+        if mode == Some("splash") {
             let (tris, drops, side) = (
                 number(&args, 1, 8000),
                 number(&args, 2, 40),

@@ -349,7 +349,7 @@ impl Atlas {
 
     /// Barycentrics (w.r.t. the INPUT triangle's corners, so SurfacePoint{triangle, bary} works on the input mesh) of the texel centres of a span, computed incrementally (affine in x).
     pub fn span_barycentrics(&self, span: &Span) -> impl Iterator<Item = (u32, [f32; 3])> + '_ {
-        let (start, step) = self.span_affine(span);
+        let (start, step) = self.span_affine(span.triangle, span.x0, span.y);
         let x0 = span.x0;
         (x0..span.x1).map(move |x| {
             let k = (x - x0) as f32;
@@ -362,20 +362,21 @@ impl Atlas {
     }
 
     /// The change of the barycentrics of [`Atlas::span_barycentrics`] from
-    /// one texel of a span to the next (before clamping): the same for
-    /// every span of a triangle.
-    pub fn barycentric_step(&self, span: &Span) -> [f32; 3] {
-        self.span_affine(span).1
+    /// one texel of a span of `triangle` to the next (before clamping): the
+    /// triangle's, whichever span.
+    pub fn barycentric_step(&self, triangle: u32) -> [f32; 3] {
+        self.span_affine(triangle, 0, 0).1
     }
 
-    /// Unclamped barycentrics of a span's first texel centre and their
-    /// change per texel, from the exact fixed-point edge functions.
-    fn span_affine(&self, span: &Span) -> ([f32; 3], [f32; 3]) {
+    /// Unclamped barycentrics of the centre of texel (`x0`, `y`) on
+    /// `triangle` and their change per texel to the right, from the exact
+    /// fixed-point edge functions.
+    fn span_affine(&self, triangle: u32, x0: u32, y: u32) -> ([f32; 3], [f32; 3]) {
         let sub = rasterize::SUBTEXEL;
         let p = self
             .uv_mesh
             .triangles
-            .get(span.triangle as usize)
+            .get(triangle as usize)
             .map(|t| {
                 t.map(|v| {
                     let f = self.fixed.get(v as usize).copied().unwrap_or([0, 0]);
@@ -387,10 +388,7 @@ impl Atlas {
             (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
         };
         let area2 = edge(p[0], p[1], p[2]) as f64;
-        let c = [
-            span.x0 as i64 * sub + sub / 2,
-            span.y as i64 * sub + sub / 2,
-        ];
+        let c = [x0 as i64 * sub + sub / 2, y as i64 * sub + sub / 2];
         let mut start = [0.0f32; 3];
         let mut step = [0.0f32; 3];
         if area2 != 0.0 {

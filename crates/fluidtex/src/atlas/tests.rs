@@ -303,7 +303,7 @@ fn triangle_map_and_barycentrics_agree_with_spans() {
             assert!(s.y >= band.y0 && s.y < band.y1 && s.x0 < s.x1 && s.x1 <= atlas.width);
             let corners = texel_corners(&atlas, s.triangle as usize);
             // The barycentric step moves the point one texel to the right.
-            let step = atlas.barycentric_step(s);
+            let step = atlas.barycentric_step(s.triangle);
             let moved = corners[0] * step[0] as f64
                 + corners[1] * step[1] as f64
                 + corners[2] * step[2] as f64;

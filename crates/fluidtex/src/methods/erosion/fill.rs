@@ -460,13 +460,19 @@ impl SpanPruner {
     /// they are prepared already (spans come grouped by triangle). A
     /// candidate facing away from the triangle is dropped here: the
     /// per-texel test rejects it at every texel of the triangle.
-    fn prepare(&mut self, ctx: &FillContext<'_>, list: &[(u32, u32)], span: &SpanTexels<'_>) {
+    fn prepare(
+        &mut self,
+        ctx: &FillContext<'_>,
+        atlas: &Atlas,
+        list: &[(u32, u32)],
+        span: &SpanTexels<'_>,
+    ) {
         if self.triangle == Some(span.triangle) {
             return;
         }
         self.triangle = Some(span.triangle);
         self.lines.clear();
-        let s = span.bary_step;
+        let s = atlas.barycentric_step(span.triangle);
         for &(i, j) in list {
             let Some(frame) = ctx.frames[i as usize][j as usize] else {
                 continue;
@@ -583,7 +589,7 @@ pub(crate) fn walk_band(
     let mut cands = Vec::new();
     let mut pruner = SpanPruner::default();
     for_each_span(ctx.mesh, atlas, band, |span| {
-        pruner.prepare(ctx, candidates.of(span.triangle), span);
+        pruner.prepare(ctx, atlas, candidates.of(span.triangle), span);
         pruner.prune(
             ctx.tolerance,
             span.first_barycentrics(),

@@ -212,9 +212,6 @@ pub struct SpanTexels<'a> {
     pub normal: Vec3,
     /// Corners of the fluid triangle.
     pub corners: [Vec3; 3],
-    /// Change of the barycentrics from one texel to the next
-    /// ([`Atlas::barycentric_step`]).
-    pub bary_step: [f32; 3],
     /// Band texel index of the span row's first texel.
     row: usize,
     /// (x, barycentrics) of each texel, left to right; never empty.
@@ -284,8 +281,6 @@ pub fn for_each_span(
     let w = atlas.width as usize;
     let base = band.y0 as usize * w;
     let mut texels: Vec<(u32, [f32; 3])> = Vec::new();
-    // Spans come grouped by triangle, and the step is the triangle's.
-    let mut step: Option<(u32, [f32; 3])> = None;
     for span in &band.spans {
         texels.clear();
         texels.extend(atlas.span_barycentrics(span));
@@ -299,14 +294,6 @@ pub fn for_each_span(
             triangle: f,
             normal: (b - a).cross(c - a).normalize_or_zero(),
             corners,
-            bary_step: match step {
-                Some((g, s)) if g == f => s,
-                _ => {
-                    let s = atlas.barycentric_step(span);
-                    step = Some((f, s));
-                    s
-                }
-            },
             row: span.y as usize * w - base,
             texels: &texels,
         });
