@@ -16,6 +16,7 @@ use fluidtex::methods::erosion::{ErosionParams, Falloff, Orientation, Placement,
 use fluidtex::methods::lapped_rigid::LappedRigidParams;
 use fluidtex::methods::optimization::{Histogram, OptimizationParams};
 use fluidtex::methods::registry::{MethodKind, MethodParams};
+use fluidtex::methods::tone::Tone;
 use fluidtex::named::Named;
 use fluidtex::pipeline::OutputOptions;
 use serde::{Deserialize, Serialize};
@@ -342,6 +343,9 @@ pub struct RunFlags {
     /// Distortion at which erosion starts: Q_T = 1 below it, then falls linearly to 0 at δ_max [1.5; 1: the paper's Eq. 1]
     #[arg(long)]
     pub delta_onset: Option<f32>,
+    /// Erosion: per frame, move each channel's mean to the exemplar's (mean), also match its contrast (match), or keep the paper's composite (off) [mean]
+    #[arg(long, value_parser = named::<Tone>())]
+    pub tone: Option<Tone>,
     /// dual-rest: frames between two resets of a layer [24]
     #[arg(long)]
     pub period: Option<u32>,
@@ -478,6 +482,7 @@ flag_keys! {
     orientation => erosion.orientation: value,
     radius_edges => erosion.radius_edges: value,
     split_edges => erosion.split_edges: value,
+    tone => erosion.tone: value,
     period => dual_rest.period: value,
     no_obj => outputs.obj: off,
     no_glb => outputs.glb: off,
@@ -999,6 +1004,7 @@ mod tests {
                 "none",
                 "distance",
                 "histogram",
+                "off",
                 "3,3,3",
             ]
             .iter()

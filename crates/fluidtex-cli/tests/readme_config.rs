@@ -224,6 +224,7 @@ fn keys_set_by(flag: &str, takes_value: bool, keys: &BTreeSet<String>) -> BTreeS
             "none",
             "distance",
             "histogram",
+            "off",
             "7,7,7",
             "a,b,c",
         ]

@@ -20,6 +20,8 @@
 //!   whether methods use it ([`ExemplarFilter`]).
 //! - [`set`]: several exemplars on one surface, with the patch's choice
 //!   among them ([`ExemplarSet`], [`ExemplarSelect`]).
+//! - [`tone`]: the per-channel mean and per-level variance the sampler
+//!   shows, the reference of the methods' tone matching.
 
 pub mod channels;
 pub mod feature;
@@ -27,6 +29,7 @@ pub mod mip;
 pub mod pebbles;
 mod sampling;
 pub mod set;
+pub mod tone;
 
 use std::path::{Path, PathBuf};
 

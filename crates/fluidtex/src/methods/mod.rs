@@ -23,6 +23,7 @@ pub mod lapped;
 pub mod lapped_rigid;
 pub mod optimization;
 pub mod registry;
+pub mod tone;
 
 #[cfg(test)]
 mod multi_tests;

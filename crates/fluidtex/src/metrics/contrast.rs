@@ -36,6 +36,7 @@
 
 use super::{MetricsError, check_len, check_texture, luminance};
 use crate::exemplar::mip_levels;
+use crate::exemplar::tone::r2_points;
 use crate::texture::{Texture, Wrap};
 
 /// Levels between two entries of [`exemplar_sigma_by_lod`].
@@ -63,16 +64,7 @@ pub fn exemplar_sigma_by_lod(exemplar: &Texture) -> Vec<f32> {
     // is the luminance of the colour pyramid.
     let levels = mip_levels(&grey);
     let top = (levels.len() - 1) as f32;
-    // R2 sequence (the plastic number's powers): evenly spread in [0, 1)²,
-    // so the sub-texel offsets are evenly spread at every level.
-    let g = 1.324_717_957_244_746f64;
-    let (a1, a2) = (1.0 / g, 1.0 / (g * g));
-    let positions: Vec<(f32, f32)> = (0..SIGMA_SAMPLES)
-        .map(|n| {
-            let n = n as f64;
-            ((0.5 + a1 * n).fract() as f32, (0.5 + a2 * n).fract() as f32)
-        })
-        .collect();
+    let positions = r2_points(SIGMA_SAMPLES);
     let sampled = |lod: f32| {
         let k = lod as usize;
         let t = lod - k as f32;

@@ -36,11 +36,13 @@ use self::erode::ErosionTest;
 use self::fill::{Candidates, FillBuffers, FillContext, LocateTolerance};
 use self::patch::{CarryTable, FrameSurface, Patch, PatchShape};
 pub use self::update::Placement;
+use super::tone::{self, Tone, ToneMap};
 use super::{
     ChannelSpec, FrameContext, FrameResult, Method, MethodError, StageClock, Stat, StatsExt,
     check_range,
 };
 use crate::exemplar::Exemplar;
+use crate::exemplar::tone::ExemplarTone;
 use crate::surface::poisson::sample_mesh;
 
 /// Parameters of the erosion method. Defaults follow DESIGN §1 and the
@@ -105,6 +107,14 @@ pub struct ErosionParams {
     /// curved surface whose middle leaves the surface, so its coverage
     /// flickers as the fluid is re-meshed (see [`Patch::refine`]).
     pub split_edges: f32,
+    /// Per frame, each channel's mean over the covered texels is moved to
+    /// the exemplar's \[mean]; `match` also matches its contrast to the
+    /// exemplar's as shown (see [`crate::methods::tone`]): the
+    /// feature-guided compositing of Sec. 5.1–5.2 shows high-feature texels
+    /// more often than the exemplar has them. `off` leaves the composite as
+    /// the paper makes it. Only the erosion method itself; the baselines
+    /// are never matched.
+    pub tone: Tone,
 }
 
 /// How the vertex weights w_V of Eq. 3 evolve from frame to frame.
@@ -173,6 +183,7 @@ impl Default for ErosionParams {
             up_axis: [0.0, 1.0, 0.0],
             radius_edges: 4.0,
             split_edges: 2.0,
+            tone: Tone::Mean,
         }
     }
 }
@@ -299,6 +310,9 @@ pub struct Erosion {
     dropped_by_reset: usize,
     /// Several exemplars per surface; `None`: one (`exemplar`).
     multi: Option<exemplars::Multi>,
+    /// Each exemplar's statistics, measured on the first frame that
+    /// matches its tone.
+    tones: Option<Vec<ExemplarTone>>,
 }
 
 pub(crate) use crate::seed::mix;
@@ -349,6 +363,7 @@ impl Erosion {
             state: ErosionState::default(),
             dropped_by_reset: 0,
             multi: None,
+            tones: None,
         })
     }
 
@@ -393,6 +408,44 @@ impl Erosion {
             Falloff::Footprint => footprint.clamp(1e-3, erode::PAPER_REACH),
         };
         ErosionTest::with_reach(feature, self.params.epsilon, reach)
+    }
+
+    /// Matches the tone of the composite in `out` as the parameters say
+    /// (the erosion method only; see [`crate::methods::tone`]), with `lods`
+    /// the footprint pass's levels and `by_id` the exemplar of each patch
+    /// id (several exemplars). Returns the maps applied, one per exemplar;
+    /// none when nothing was matched.
+    fn match_tone(
+        &mut self,
+        out: &mut FillBuffers,
+        lods: Option<&[f32]>,
+        by_id: Option<&[u32]>,
+    ) -> Vec<ToneMap> {
+        if self.variant != Variant::Erode || self.params.tone == Tone::Off {
+            return Vec::new();
+        }
+        let exemplars = match &self.multi {
+            Some(m) => m.set.exemplars(),
+            None => std::slice::from_ref(&self.exemplar),
+        };
+        let tones = self
+            .tones
+            .get_or_insert_with(|| exemplars.iter().map(|e| ExemplarTone::of(e)).collect());
+        let exemplar_of = |s: u32| {
+            by_id
+                .zip((s as usize).checked_sub(1))
+                .and_then(|(b, i)| b.get(i))
+                .map_or(0, |&e| e as usize)
+        };
+        tone::match_tone(
+            self.params.tone,
+            &mut out.values,
+            out.channels,
+            &out.source,
+            lods,
+            exemplar_of,
+            tones,
+        )
     }
 
     fn shape(
@@ -480,6 +533,8 @@ impl Method for Erosion {
             })
             .flatten();
         clock.lap("exemplar filter");
+        let tone = self.match_tone(&mut out, exemplar_lod.as_deref(), by_id.as_deref());
+        clock.lap("tone");
         let mut result = FrameResult {
             channels: crate::exemplar::channels::split_interleaved(
                 out.width,
@@ -491,6 +546,16 @@ impl Method for Erosion {
             ..Default::default()
         };
         self.record_stats(&mut result.stats, &out, counts);
+        if !tone.is_empty() {
+            let gains: Vec<&[f64]> = tone.iter().map(|m| m.gain.as_slice()).collect();
+            let means: Vec<&[f64]> = tone.iter().map(|m| m.mean.as_slice()).collect();
+            result
+                .stats
+                .insert("tone_gain".into(), serde_json::json!(gains));
+            result
+                .stats
+                .insert("tone_mean_before".into(), serde_json::json!(means));
+        }
         if let (Some(m), Some(by_id)) = (&self.multi, &by_id) {
             let texels = exemplars::texels_per_exemplar(&out.source, by_id, m.set.len());
             result.stats.insert("exemplar_texels".into(), texels.into());

@@ -399,8 +399,45 @@ fn fill_against_brute_force(name: &str, frames: i32) -> [usize; 3] {
 fn every_chart_texel_has_one_source_and_the_exemplar_value_there() {
     let c = scene("differential-rotation", 12, 3, 96);
     let ex = exemplar();
-    let mut method = Erosion::new(ErosionParams::default(), Arc::clone(&ex), 3).expect("params");
-    for (k, r) in step_all(&mut method, &c).iter().enumerate() {
+    let params = ErosionParams {
+        tone: Tone::Off,
+        ..ErosionParams::default()
+    };
+    let mut method = Erosion::new(params, Arc::clone(&ex), 3).expect("params");
+    let frames = step_all(&mut method, &c);
+    // The default tone (`mean`) shifts each channel by one number per
+    // frame, so that the covered texels' mean is the exemplar's.
+    let mut shifted = Erosion::new(ErosionParams::default(), Arc::clone(&ex), 3).expect("params");
+    let target = crate::exemplar::tone::ExemplarTone::of(&ex).mean;
+    for (k, (r, s)) in frames.iter().zip(step_all(&mut shifted, &c)).enumerate() {
+        assert_eq!(r.source, s.source, "the tone changes no source");
+        let covered: Vec<usize> = sources(r)
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| **s != SOURCE_OUTSIDE && **s != SOURCE_UNCOVERED)
+            .map(|(t, _)| t)
+            .collect();
+        for ch in 0..3 {
+            let (before, after) = (&r.channels[0].data, &s.channels[0].data);
+            let shift = after[covered[0] * 3 + ch] - before[covered[0] * 3 + ch];
+            let mut mean = 0.0f64;
+            for &t in &covered {
+                let d = after[t * 3 + ch] - before[t * 3 + ch];
+                assert!(
+                    (d - shift).abs() < 1e-6,
+                    "frame {k} texel {t}: shift {d} vs {shift}"
+                );
+                mean += f64::from(after[t * 3 + ch]);
+            }
+            mean /= covered.len() as f64;
+            assert!(
+                (mean - target[ch]).abs() < 1e-5,
+                "frame {k} channel {ch}: {mean}"
+            );
+            assert!(shift.abs() > 1e-4, "frame {k}: the composite was biased");
+        }
+    }
+    for (k, r) in frames.iter().enumerate() {
         let source = sources(r);
         let uv = r.uv.as_deref().expect("uv");
         let lod = r.exemplar_lod.as_deref().expect("mip levels");
