@@ -1,5 +1,6 @@
-//! Test support: a few frames of a scene with everything a
-//! [`FrameContext`] borrows, built once, for the methods' unit tests.
+//! Test support for the methods' unit tests: a few frames of a scene with
+//! everything a [`FrameContext`] borrows, built once, and small grey
+//! exemplars.
 
 use glam::Vec3;
 
@@ -91,4 +92,25 @@ pub(crate) fn grid(n: usize, cell: f32, v: impl Fn(Vec3) -> Vec3) -> TriMesh {
     }
     let velocity = positions.iter().map(|&p| v(p)).collect();
     TriMesh::new(positions, triangles).with_velocity(velocity)
+}
+
+/// A `size`² one-channel exemplar with `value(x, y)` at texel (x, y) and a
+/// flat feature map.
+pub(crate) fn grey_exemplar(
+    size: u32,
+    value: impl Fn(u32, u32) -> f32,
+) -> crate::exemplar::Exemplar {
+    use crate::exemplar::{Exemplar, FeatureMap, FeatureOrigin, SampleFormat};
+    use crate::texture::Texture;
+    let data = (0..size * size)
+        .map(|i| value(i % size, i / size))
+        .collect();
+    let colour = Texture::from_data(size, size, 1, data).expect("sizes match");
+    let feature = FeatureMap::new(
+        Texture::filled(size, size, 1, 0.5),
+        FeatureOrigin::Builtin,
+        "test",
+    )
+    .expect("valid");
+    Exemplar::new(colour, SampleFormat::U8, Vec::new(), feature).expect("valid exemplar")
 }

@@ -10,22 +10,12 @@ use std::sync::Arc;
 use glam::{Mat2, Vec2};
 
 use super::*;
-use crate::exemplar::{ExemplarFilter, FeatureMap, FeatureOrigin, SampleFormat};
-use crate::texture::Texture;
+use crate::exemplar::ExemplarFilter;
+use crate::methods::test_clip::grey_exemplar;
 
 /// A `size`² grey checker of `square`-texel squares, 0 and 1.
 fn checker(size: u32, square: u32) -> Exemplar {
-    let data = (0..size * size)
-        .map(|i| (((i % size) / square + (i / size) / square) % 2) as f32)
-        .collect();
-    let colour = Texture::from_data(size, size, 1, data).expect("sizes");
-    let feature = FeatureMap::new(
-        Texture::filled(size, size, 1, 0.5),
-        FeatureOrigin::Builtin,
-        "test",
-    )
-    .expect("valid");
-    Exemplar::new(colour, SampleFormat::U8, Vec::new(), feature).expect("valid")
+    grey_exemplar(size, |x, y| ((x / square + y / square) % 2) as f32)
 }
 
 /// Fill buffers of a `w × h` atlas covered by source 1 with the affine uv

@@ -2,22 +2,8 @@ use rand::{Rng, SeedableRng};
 
 use super::*;
 use crate::exemplar::tone::{ExemplarTone, TONE_LOD_STEP};
-use crate::exemplar::{Exemplar, FeatureMap, FeatureOrigin, SampleFormat, builtin_pebbles};
-use crate::texture::Texture;
-
-fn grey_exemplar(size: u32, value: impl Fn(u32, u32) -> f32) -> Exemplar {
-    let data = (0..size * size)
-        .map(|i| value(i % size, i / size))
-        .collect();
-    let colour = Texture::from_data(size, size, 1, data).expect("sizes match");
-    let feature = FeatureMap::new(
-        Texture::filled(size, size, 1, 0.5),
-        FeatureOrigin::Builtin,
-        "test",
-    )
-    .expect("valid");
-    Exemplar::new(colour, SampleFormat::F32, Vec::new(), feature).expect("valid exemplar")
-}
+use crate::exemplar::{Exemplar, builtin_pebbles};
+use crate::methods::test_clip::grey_exemplar;
 
 /// Per-channel mean and population variance of the covered texels.
 fn stats(
