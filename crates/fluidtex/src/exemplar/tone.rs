@@ -5,7 +5,7 @@
 //! honest mosaic of exemplar samples, each read at its texel's level at an
 //! unrelated position, has the exemplar's mean (every level keeps it) and
 //! the texel-weighted mean of the per-level variances (the same argument as
-//! the contrast metric's reference, [`crate::metrics::contrast`]).
+//! the contrast metric's reference, [`crate::metrics::shown_sigma`]).
 //!
 //! The variances are measured with the lookup the methods make,
 //! [`Exemplar::sample_all_lod`], at [`TONE_SAMPLES`] fixed, evenly spread
