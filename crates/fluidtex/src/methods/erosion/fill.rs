@@ -81,11 +81,11 @@ impl TriFrame {
     /// beyond the same plane of the tolerance prism (the prism and the
     /// triangle are convex, so one separating plane suffices).
     #[inline]
-    pub fn may_cover(&self, mesh: &TriMesh, f: u32, tolerance: LocateTolerance) -> bool {
-        if mesh.triangle_cross(f as usize).dot(self.normal) <= 0.0 {
+    pub fn may_cover(&self, fluid: &FluidTriangle, tolerance: LocateTolerance) -> bool {
+        if fluid.cross.dot(self.normal) <= 0.0 {
             return false;
         }
-        let corners = mesh.corners(f as usize).map(|q| self.locate(q));
+        let corners = fluid.corners.map(|q| self.locate(q));
         let d = tolerance.max_plane_distance;
         if corners.iter().all(|(_, h)| *h > d) || corners.iter().all(|(_, h)| *h < -d) {
             return false;
@@ -99,6 +99,49 @@ impl TriFrame {
         let d = x - self.origin;
         let (l1, l2) = (self.d1.dot(d), self.d2.dot(d));
         ([1.0 - l1 - l2, l1, l2], self.normal.dot(d))
+    }
+}
+
+/// A fluid triangle's corners and edge cross product, side by side: the
+/// candidate search tests each fluid triangle against every patch triangle
+/// whose box it meets, and gathering them through the index buffer each
+/// time cost more than the test itself at the papers' mesh sizes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FluidTriangle {
+    pub corners: [Vec3; 3],
+    /// (b − a) × (c − a), as [`TriMesh::triangle_cross`].
+    pub cross: Vec3,
+}
+
+/// [`FluidTriangle`]s of one frame's mesh, by triangle index.
+pub struct FluidTriangles(Vec<FluidTriangle>);
+
+impl FluidTriangles {
+    pub fn new(mesh: &TriMesh) -> FluidTriangles {
+        FluidTriangles(
+            (0..mesh.triangle_count())
+                .into_par_iter()
+                .map(|t| FluidTriangle {
+                    corners: mesh.corners(t),
+                    cross: mesh.triangle_cross(t),
+                })
+                .collect(),
+        )
+    }
+
+    /// Triangle `f` (the BVH only yields indices of the mesh it was built
+    /// on, which this was built from too).
+    #[inline]
+    pub fn get(&self, f: u32) -> Option<&FluidTriangle> {
+        self.0.get(f as usize)
+    }
+
+    pub fn len(&self) -> usize {
+        self.0.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
     }
 }
 
@@ -140,7 +183,7 @@ impl Candidates {
     /// prism test is exact for what [`FillContext::locate`] accepts, so it
     /// prunes without changing any result.
     pub fn build(
-        mesh: &TriMesh,
+        fluid: &FluidTriangles,
         index: &SurfaceIndex,
         patches: &[Patch],
         frames: &[Vec<Option<TriFrame>>],
@@ -159,7 +202,7 @@ impl Candidates {
                     let lo = a.min(b).min(c) - margin;
                     let hi = a.max(b).max(c) + margin;
                     index.triangles_in_box(lo, hi, |f| {
-                        if frame.may_cover(mesh, f, tolerance) {
+                        if fluid.get(f).is_some_and(|t| frame.may_cover(t, tolerance)) {
                             out.push((f, (i as u32, j as u32)));
                         }
                     });
@@ -169,7 +212,7 @@ impl Candidates {
             .collect();
         // Pushed in (patch, triangle) order, so each list is in that order.
         let all: Vec<(u32, (u32, u32))> = per_patch.into_iter().flatten().collect();
-        Candidates(TriangleLists::build(&all, mesh.triangle_count()))
+        Candidates(TriangleLists::build(&all, fluid.len()))
     }
 
     /// The candidates without the patches that cannot show on a fluid
@@ -192,6 +235,8 @@ impl Candidates {
 /// Everything the fill reads.
 pub struct FillContext<'a> {
     pub mesh: &'a TriMesh,
+    /// `mesh`'s triangles as the candidate search reads them.
+    pub fluid: &'a FluidTriangles,
     pub patches: &'a [Patch],
     pub frames: &'a [Vec<Option<TriFrame>>],
     pub exemplar: &'a Exemplar,

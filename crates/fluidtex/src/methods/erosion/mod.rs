@@ -694,10 +694,12 @@ impl Erosion {
         let multi_fill = self.multi.as_ref().map(exemplars::Multi::fill);
         let mut blended = Blended::default();
         let exemplar = Arc::clone(&self.exemplar);
+        let fluid = fill::FluidTriangles::new(mesh);
         let uncovered = {
             let frames = fill::patch_frames(&self.state.patches);
             let unjudged = FillContext {
                 mesh,
+                fluid: &fluid,
                 patches: &self.state.patches,
                 frames: &frames,
                 exemplar: &exemplar,
@@ -719,6 +721,7 @@ impl Erosion {
         // 4. Distribution update: new patches see the fill's settings.
         let template = FillContext {
             mesh,
+            fluid: &fluid,
             patches: &[],
             frames: &[],
             exemplar: &exemplar,
@@ -833,7 +836,7 @@ impl Erosion {
         blended: &mut Blended,
     ) -> Vec<fill::Uncovered> {
         let candidates = Candidates::build(
-            ctx.mesh,
+            fill_ctx.fluid,
             ctx.index,
             fill_ctx.patches,
             fill_ctx.frames,

@@ -630,8 +630,10 @@ fn blend_fill_is_the_weight_normalised_mix_of_every_covering_patch() {
         min_bary: -0.05,
         max_plane_distance: 0.125 * 0.5,
     };
+    let fluid = fill::FluidTriangles::new(&mesh);
     let ctx = FillContext {
         mesh: &mesh,
+        fluid: &fluid,
         patches: &patches,
         frames: &frames,
         exemplar: &ex,
@@ -641,7 +643,7 @@ fn blend_fill_is_the_weight_normalised_mix_of_every_covering_patch() {
         multi: None,
         verdicts: &[],
     };
-    let candidates = Candidates::build(&mesh, &index, &patches, &frames, tolerance);
+    let candidates = Candidates::build(&fluid, &index, &patches, &frames, tolerance);
     let mut out = FillBuffers::new(atlas.width, atlas.height, ex.total_channels());
     let outcome = blend::fill(&ctx, &atlas, &candidates, &mut out);
 

@@ -28,7 +28,8 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::fill::{
-    FillBuffers, FillContext, Hit, LocateTolerance, TriFrame, Uncovered, patch_frames,
+    FillBuffers, FillContext, FluidTriangles, Hit, LocateTolerance, TriFrame, Uncovered,
+    patch_frames,
 };
 use super::patch::{FrameSurface, Patch, PatchShape};
 use crate::exemplar::set::Chooser;
@@ -214,7 +215,7 @@ impl<'u> Holes<'u> {
             ..*template
         };
         let candidates = PatchCandidates::build(
-            mesh,
+            template.fluid,
             inputs.index,
             patch,
             frames.first().map_or(&[][..], Vec::as_slice),
@@ -275,7 +276,7 @@ struct PatchCandidates {
 
 impl PatchCandidates {
     fn build(
-        mesh: &crate::mesh::TriMesh,
+        fluid: &FluidTriangles,
         index: &SurfaceIndex,
         patch: &Patch,
         frames: &[Option<TriFrame>],
@@ -289,7 +290,7 @@ impl PatchCandidates {
             let lo = a.min(b).min(c) - margin;
             let hi = a.max(b).max(c) + margin;
             index.triangles_in_box(lo, hi, |f| {
-                if frame.may_cover(mesh, f, tolerance) {
+                if fluid.get(f).is_some_and(|t| frame.may_cover(t, tolerance)) {
                     pairs.push((f, j as u32));
                 }
             });
@@ -351,8 +352,9 @@ mod tests {
             };
             let one = std::slice::from_ref(&patch);
             let frames = patch_frames(one);
-            let whole = Candidates::build(mesh, index, one, &frames, tolerance);
-            let local = PatchCandidates::build(mesh, index, &patch, &frames[0], tolerance);
+            let fluid = FluidTriangles::new(mesh);
+            let whole = Candidates::build(&fluid, index, one, &frames, tolerance);
+            let local = PatchCandidates::build(&fluid, index, &patch, &frames[0], tolerance);
             let mut groups = local.groups();
             let mut fluid = 0;
             for f in 0..mesh.triangle_count() as u32 {
