@@ -87,6 +87,44 @@ impl SurfaceIndex {
     }
 }
 
+/// The indices of `points` in Morton (Z-curve) order of their position in
+/// the points' bounding box (ties by index; non-finite points last).
+///
+/// A batch of closest-point queries run in this order keeps revisiting
+/// the same few BVH nodes and triangles while they are in cache, where a
+/// raster order (x, then y, then z: the order of sorted position bits)
+/// sweeps whole slabs of the mesh between two neighbours in y or z: on a
+/// 300k-triangle surface (`fluidtex bench`, 2 threads), carrying the
+/// patch vertices this way took 2.5 s per frame against 3.3–3.8 s. Each
+/// query's answer does not depend on the order.
+pub fn query_order(points: &[Vec3]) -> Vec<u32> {
+    use parry3d::utils::morton::morton_encode_u64_unorm;
+    use rayon::prelude::*;
+    let (lo, hi) = points
+        .iter()
+        .filter(|p| p.is_finite())
+        .fold((Vec3::MAX, Vec3::MIN), |(lo, hi), &p| {
+            (lo.min(p), hi.max(p))
+        });
+    let inv = (hi - lo).max(Vec3::splat(f32::MIN_POSITIVE)).recip();
+    let mut keyed: Vec<(u64, u32)> = points
+        .par_iter()
+        .enumerate()
+        .map(|(i, &p)| {
+            let code = if p.is_finite() {
+                // parry keeps 21 bits per axis: 1.0 itself would wrap to 0.
+                let top = Vec3::splat(1.0 - f32::EPSILON);
+                morton_encode_u64_unorm(((p - lo) * inv).clamp(Vec3::ZERO, top))
+            } else {
+                u64::MAX
+            };
+            (code, i as u32)
+        })
+        .collect();
+    keyed.par_sort_unstable();
+    keyed.into_iter().map(|(_, i)| i).collect()
+}
+
 #[cfg(test)]
 mod tests {
     use rand::{Rng, SeedableRng};
@@ -182,5 +220,54 @@ mod tests {
         assert_eq!(index.closest(Vec3::new(0.2, 0.2, 5.0), 1.0), None);
         assert!(index.closest(Vec3::new(0.2, 0.2, 0.5), 1.0).is_some());
         assert_eq!(index.closest(Vec3::splat(f32::NAN), 1.0), None);
+    }
+
+    /// Mean distance between consecutive points of `points` visited in `order`.
+    fn mean_step(points: &[Vec3], order: &[u32]) -> f32 {
+        let total: f32 = order
+            .windows(2)
+            .map(|w| points[w[0] as usize].distance(points[w[1] as usize]))
+            .sum();
+        total / (order.len() - 1) as f32
+    }
+
+    #[test]
+    fn query_order_is_a_permutation_that_walks_in_small_steps() {
+        // A shuffled 16³ grid with unit spacing: in shuffled order the
+        // mean step is about 8.6; a Z curve steps to a neighbour most of
+        // the time.
+        let mut rng = Pcg64::seed_from_u64(11);
+        let mut points: Vec<Vec3> = (0..16 * 16 * 16)
+            .map(|i| Vec3::new((i % 16) as f32, (i / 16 % 16) as f32, (i / 256) as f32))
+            .collect();
+        for i in (1..points.len()).rev() {
+            points.swap(i, rng.random_range(0..=i));
+        }
+        let order = query_order(&points);
+        let mut seen = order.clone();
+        seen.sort_unstable();
+        assert_eq!(seen, (0..points.len() as u32).collect::<Vec<_>>());
+        let shuffled: Vec<u32> = (0..points.len() as u32).collect();
+        assert!(mean_step(&points, &shuffled) > 8.0);
+        assert!(
+            mean_step(&points, &order) < 2.0,
+            "{}",
+            mean_step(&points, &order)
+        );
+        assert_eq!(query_order(&points), order, "same input, same order");
+    }
+
+    #[test]
+    fn query_order_puts_non_finite_points_last_and_keeps_ties_by_index() {
+        let points = [
+            Vec3::new(1.0, 1.0, 1.0),
+            Vec3::splat(f32::NAN),
+            Vec3::ZERO,
+            Vec3::new(1.0, 1.0, 1.0),
+            Vec3::new(f32::INFINITY, 0.0, 0.0),
+        ];
+        assert_eq!(query_order(&points), vec![2, 0, 3, 1, 4]);
+        assert!(query_order(&[]).is_empty());
+        assert_eq!(query_order(&[Vec3::splat(f32::NAN)]), vec![0]);
     }
 }

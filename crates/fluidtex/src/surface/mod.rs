@@ -12,7 +12,7 @@ pub mod velocity;
 
 use glam::{Vec2, Vec3};
 
-pub use bvh::{SurfaceHit, SurfaceIndex};
+pub use bvh::{SurfaceHit, SurfaceIndex, query_order};
 
 use crate::mesh::TriMesh;
 

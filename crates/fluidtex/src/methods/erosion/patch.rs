@@ -15,7 +15,7 @@ use serde::{Deserialize, Serialize};
 use super::distortion::{distortion, triangle_quality_from};
 use crate::mesh::{Topology, TriMesh};
 use crate::surface::velocity::FlowInterval;
-use crate::surface::{SurfaceIndex, SurfacePoint, closest_point_on_triangle};
+use crate::surface::{SurfaceIndex, SurfacePoint, closest_point_on_triangle, query_order};
 
 /// Geometric constants every patch shares (DESIGN §1), world units.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -130,13 +130,21 @@ impl<'a> CarryTable<'a> {
             .collect();
         keys.par_sort_unstable();
         keys.dedup();
-        let carries = keys
+        // Carried in an order that keeps consecutive BVH queries close
+        // (the keys' order runs along x only); results go back by index.
+        let points: Vec<Vec3> = keys
             .par_iter()
-            .map(|k| {
-                let x = Vec3::from_array(k.map(f32::from_bits));
-                carry_vertex(x, &flow, next, &shape)
-            })
+            .map(|k| Vec3::from_array(k.map(f32::from_bits)))
             .collect();
+        let order = query_order(&points);
+        let carried: Vec<Carry> = order
+            .par_iter()
+            .map(|&i| carry_vertex(points[i as usize], &flow, next, &shape))
+            .collect();
+        let mut carries = vec![Carry::Stay; keys.len()];
+        for (&i, c) in order.iter().zip(carried) {
+            carries[i as usize] = c;
+        }
         CarryTable {
             keys,
             carries,
