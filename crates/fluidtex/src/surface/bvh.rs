@@ -107,13 +107,13 @@ pub fn query_order(points: &[Vec3]) -> Vec<u32> {
             (lo.min(p), hi.max(p))
         });
     let inv = (hi - lo).max(Vec3::splat(f32::MIN_POSITIVE)).recip();
+    // parry keeps 21 bits per axis: 1.0 itself would wrap to 0.
+    let top = Vec3::splat(1.0 - f32::EPSILON);
     let mut keyed: Vec<(u64, u32)> = points
         .par_iter()
         .enumerate()
         .map(|(i, &p)| {
             let code = if p.is_finite() {
-                // parry keeps 21 bits per axis: 1.0 itself would wrap to 0.
-                let top = Vec3::splat(1.0 - f32::EPSILON);
                 morton_encode_u64_unorm(((p - lo) * inv).clamp(Vec3::ZERO, top))
             } else {
                 u64::MAX
