@@ -1096,14 +1096,21 @@ fn patch_png(
         s if s < EXACT => Some(s as f32),
         _ => None,
     };
-    let data: Option<Vec<f32>> = source
+    // Checked first, then mapped by index: collecting `Option`s in
+    // parallel goes through a list of pieces and a second copy of the
+    // whole map.
+    if source
         .par_iter()
         .with_min_len(1 << 16)
-        .map(|&s| encode(s))
-        .collect();
-    let Some(data) = data else {
+        .any(|&s| encode(s).is_none())
+    {
         return Ok(None);
-    };
+    }
+    let data: Vec<f32> = source
+        .par_iter()
+        .with_min_len(1 << 16)
+        .map(|&s| encode(s).unwrap_or(-2.0))
+        .collect();
     let mut ids = Texture {
         width: atlas.width,
         height: atlas.height,
@@ -1120,12 +1127,16 @@ fn patch_png(
             v as u32
         }
     };
-    let samples: Vec<u8> = ids
-        .data
-        .par_iter()
+    // Written in place (a flat-mapped collect would gather pieces and copy
+    // them again).
+    let mut samples = vec![0u8; ids.data.len() * 3];
+    samples
+        .par_chunks_mut(3)
+        .zip(ids.data.par_iter())
         .with_min_len(1 << 16)
-        .flat_map_iter(|&v| patch_colour(decode(v)).map(crate::io::image::quantize_8))
-        .collect();
+        .for_each(|(rgb, &v)| {
+            rgb.copy_from_slice(&patch_colour(decode(v)).map(crate::io::image::quantize_8));
+        });
     drop(ids);
     let level = PngOptions::default().level;
     Ok(crate::io::image::encode_png_8(atlas.width, atlas.height, 3, &samples, level).ok())
@@ -1355,8 +1366,17 @@ fn write_source_ids(
         channels: 1,
         data: ids,
     };
-    write_channel(files, path, &ids, ChannelFormat::Exr)?;
+    // The ids are not needed after this: handed over, not copied.
+    crate::io::image::stage_exr_owned(files, path, ids, &exr_channel_options())?;
     Ok(())
+}
+
+/// How a channel in [`ChannelFormat::Exr`] is written: 32-bit floats.
+fn exr_channel_options() -> ExrOptions {
+    ExrOptions {
+        sample: ExrSample::F32,
+        ..Default::default()
+    }
 }
 
 /// Writes one channel atlas; returns the PNG bytes for PNG formats (the
@@ -1371,11 +1391,7 @@ fn write_channel(
         ChannelFormat::Png8 => PngDepth::Eight,
         ChannelFormat::Png16 => PngDepth::Sixteen,
         ChannelFormat::Exr => {
-            let options = ExrOptions {
-                sample: ExrSample::F32,
-                ..Default::default()
-            };
-            crate::io::image::stage_exr(files, path, texture, &options)?;
+            crate::io::image::stage_exr(files, path, texture, &exr_channel_options())?;
             return Ok(None);
         }
     };
