@@ -51,6 +51,7 @@ impl Clip {
                 index: &self.indices[k - 1],
             }),
             atlas: &self.atlases[k],
+            buffers: None,
         }
     }
 }
