@@ -94,7 +94,6 @@ fn main() {
                         index: &indices[k - 1],
                     }),
                     atlas: &atlases[k],
-                    buffers: None,
                 };
                 let t = Instant::now();
                 let r = m.step(&ctx).expect("step");

@@ -16,7 +16,6 @@ use std::sync::Arc;
 use thiserror::Error;
 
 use crate::atlas::{AtlasError, AtlasParams};
-use crate::buffers::Buffers;
 use crate::frame::{FrameGeometry, GeometryError, StageClock};
 use crate::mesh::{TriMesh, ValidationReport};
 use crate::methods::{FrameContext, FrameResult, Method, MethodError};
@@ -71,7 +70,6 @@ pub struct Driver<'m> {
     dt: f32,
     dilate_radius: u32,
     previous: Option<Arc<FrameGeometry>>,
-    buffers: Option<Arc<Buffers>>,
 }
 
 impl<'m> Driver<'m> {
@@ -83,14 +81,7 @@ impl<'m> Driver<'m> {
             dt,
             dilate_radius,
             previous: None,
-            buffers: None,
         }
-    }
-
-    /// Lets the method take its per-texel buffers from `buffers`, where
-    /// the frames' consumers give them back ([`crate::buffers`]).
-    pub fn set_buffers(&mut self, buffers: Option<Arc<Buffers>>) {
-        self.buffers = buffers;
     }
 
     /// The method being driven.
@@ -128,8 +119,7 @@ impl<'m> Driver<'m> {
             })
             .into());
         }
-        let ctx = FrameContext::new(self.dt, g, self.previous.as_deref())
-            .with_buffers(self.buffers.as_deref());
+        let ctx = FrameContext::new(self.dt, g, self.previous.as_deref());
         let mut result = self.method.step(&ctx).map_err(DriverError::from)?;
         clock.extend(&result.timings);
         for channel in &mut result.channels {

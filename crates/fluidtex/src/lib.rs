@@ -50,7 +50,6 @@
 //! line). [`fuzz`] is the seeded mutation fuzzer the reader tests use.
 
 pub mod atlas;
-pub mod buffers;
 pub mod coherence;
 pub mod driver;
 pub mod eval;

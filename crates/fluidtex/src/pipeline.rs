@@ -30,7 +30,6 @@ use thiserror::Error;
 use std::sync::Arc;
 
 use crate::atlas::{AtlasError, AtlasParams};
-use crate::buffers::Buffers;
 use crate::driver::{DrivenFrame, Driver, DriverError, FrameSink, PendingFrame};
 use crate::frame::{FrameGeometry, GeometryError, StageClock};
 use crate::io::image::{ExrOptions, ExrSample, PngDepth, PngOptions};
@@ -303,7 +302,6 @@ pub fn run(
     } else {
         (None, None)
     };
-    let buffers = Arc::new(Buffers::default());
     let mut writer = FrameWriter {
         job,
         guard: &guard,
@@ -323,11 +321,9 @@ pub fn run(
             })?,
         ),
         resumed_after,
-        buffers: Arc::clone(&buffers),
     };
     let mut driver = Driver::new(method, 1.0 / job.fps, job.atlas.gutter.max(1) * 2);
     driver.set_previous(previous);
-    driver.set_buffers(Some(Arc::clone(&buffers)));
     let done = crate::write_behind::scope(
         mode,
         move |w: WriteJob| writer.write(w),
@@ -336,7 +332,6 @@ pub fn run(
                 writer: worker,
                 observer,
                 done: 0,
-                buffers: &buffers,
             };
             let looped = drive(job, source, &frames, &mut driver, &mut sink);
             // The frames already handed over are written (and counted)
@@ -475,8 +470,6 @@ struct FileSink<'w, 'a, 'o> {
     writer: &'w mut crate::write_behind::Worker<'a, WriteJob, Written, PipelineError>,
     observer: &'o mut dyn FnMut(Event<'_>),
     done: usize,
-    /// Where the buffers no file needs go back.
-    buffers: &'o Buffers,
 }
 
 impl FrameSink for FileSink<'_, '_, '_> {
@@ -502,12 +495,6 @@ impl FrameSink for FileSink<'_, '_, '_> {
             clock: std::mem::take(clock),
             state,
         });
-        if let Some(uv) = result.uv {
-            self.buffers.vec2.give(uv);
-        }
-        if let Some(lod) = result.exemplar_lod {
-            self.buffers.f32.give(lod);
-        }
         let ready = self.writer.ready();
         self.report(ready)
     }
@@ -572,8 +559,6 @@ struct FrameWriter<'a> {
     coherence_prev: Option<CoherencePrevious>,
     coherence_settings: crate::coherence::CoherenceSettings,
     resumed_after: Option<i32>,
-    /// Shared with the driver: written frames hand their buffers back.
-    buffers: Arc<Buffers>,
 }
 
 impl FrameWriter<'_> {
@@ -644,13 +629,6 @@ impl FrameWriter<'_> {
                 job.outputs.switch_map,
             ));
             clock.lap("coherence");
-        }
-        // The atlas-sized buffers go back for a later frame to refill.
-        for channel in channels {
-            self.buffers.f32.give(channel.data);
-        }
-        if let Some(source) = source {
-            self.buffers.u32.give(source);
         }
         stats.stage_order = clock.stages.iter().map(|(n, _)| n.to_string()).collect();
         stats.seconds = clock

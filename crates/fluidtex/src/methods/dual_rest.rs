@@ -412,7 +412,6 @@ mod tests {
                     index: &indices[k - 1],
                 }),
                 atlas: &atlases[k],
-                buffers: None,
             };
             let r = m.step(&ctx).expect("step");
             let n = |key: &str| r.stats[key].as_u64().unwrap_or(0) > 0;

@@ -28,7 +28,6 @@ use glam::Vec2;
 use rayon::prelude::*;
 
 use super::erosion::fill::{FillBuffers, OUTSIDE, UNCOVERED};
-use crate::buffers::{Buffers, take_from};
 use crate::exemplar::{Exemplar, ExemplarFilter};
 
 /// Texels are visited in tiles of this many rows (a band per task) ...
@@ -45,19 +44,17 @@ const TILE_COLUMNS: usize = 64;
 /// Leaves `out` as it is and returns `None` for
 /// [`ExemplarFilter::Unfiltered`].
 pub fn apply_footprint_filtering(out: &mut FillBuffers, exemplar: &Exemplar) -> Option<Vec<f32>> {
-    apply_footprint_filtering_by(out, exemplar.filter, |_| exemplar, None)
+    apply_footprint_filtering_by(out, exemplar.filter, |_| exemplar)
 }
 
 /// [`apply_footprint_filtering`] where texels show different exemplars
 /// (several exemplars per surface): `exemplar_of(source)` is the exemplar
 /// of a texel's source (patch id + 1, never outside or uncovered); its size
 /// scales the footprint and its pyramid is read. `filter` applies to all.
-/// The levels are written into a buffer from `buffers` where given.
 pub fn apply_footprint_filtering_by<'e>(
     out: &mut FillBuffers,
     filter: ExemplarFilter,
     exemplar_of: impl Fn(u32) -> &'e Exemplar + Sync,
-    buffers: Option<&Buffers>,
 ) -> Option<Vec<f32>> {
     if filter == ExemplarFilter::Unfiltered {
         return None;
@@ -73,7 +70,7 @@ pub fn apply_footprint_filtering_by<'e>(
     } = out;
     let (w, c) = (*width as usize, *channels);
     let n = w * *height as usize;
-    let mut lods = take_from(buffers.map(|b| &b.f32), n, f32::NAN);
+    let mut lods = vec![f32::NAN; n];
     if n == 0 || c == 0 || source.len() != n || uv.len() != n || values.len() != n * c {
         return Some(lods);
     }

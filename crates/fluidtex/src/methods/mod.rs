@@ -35,7 +35,6 @@ use std::collections::BTreeMap;
 use thiserror::Error;
 
 use crate::atlas::Atlas;
-use crate::buffers::Buffers;
 pub use crate::exemplar::channels::{ChannelFormat, ChannelSpec};
 use crate::frame::FrameGeometry;
 pub use crate::frame::StageClock;
@@ -59,9 +58,6 @@ pub struct FrameContext<'a> {
     /// The frame before, when this is not the first frame of the run.
     pub previous: Option<PreviousFrame<'a>>,
     pub atlas: &'a Atlas,
-    /// Where atlas-sized buffers come from and go back to across frames
-    /// ([`crate::buffers`]); `None`: fresh memory every frame.
-    pub buffers: Option<&'a Buffers>,
 }
 
 impl<'a> FrameContext<'a> {
@@ -83,13 +79,7 @@ impl<'a> FrameContext<'a> {
                 index: &p.index,
             }),
             atlas: &frame.atlas,
-            buffers: None,
         }
-    }
-
-    /// This context, with its buffers taken from `buffers`.
-    pub fn with_buffers(self, buffers: Option<&'a Buffers>) -> FrameContext<'a> {
-        FrameContext { buffers, ..self }
     }
 
     /// The flow that carries points from the previous frame to this one

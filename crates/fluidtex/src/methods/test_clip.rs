@@ -51,7 +51,6 @@ impl Clip {
                 index: &self.indices[k - 1],
             }),
             atlas: &self.atlases[k],
-            buffers: None,
         }
     }
 }

@@ -496,12 +496,7 @@ impl Method for Erosion {
     fn step(&mut self, ctx: &FrameContext<'_>) -> Result<FrameResult, MethodError> {
         let mut clock = StageClock::default();
         let atlas = ctx.atlas;
-        let mut out = FillBuffers::new_in(
-            ctx.buffers,
-            atlas.width,
-            atlas.height,
-            self.exemplar.total_channels(),
-        );
+        let mut out = FillBuffers::new(atlas.width, atlas.height, self.exemplar.total_channels());
         // The footprint pass samples every covered texel (blends excepted).
         out.defer_values = self.variant != Variant::Blend
             && self.exemplar.filter == crate::exemplar::ExemplarFilter::Trilinear;
@@ -532,15 +527,9 @@ impl Method for Erosion {
                             let e = by_id.get(s as usize - 1).copied().unwrap_or(0);
                             all.get(e as usize).map_or(&*self.exemplar, |a| a)
                         },
-                        ctx.buffers,
                     )
                 }
-                _ => super::footprint::apply_footprint_filtering_by(
-                    &mut out,
-                    self.exemplar.filter,
-                    |_| &*self.exemplar,
-                    ctx.buffers,
-                ),
+                _ => super::footprint::apply_footprint_filtering(&mut out, &self.exemplar),
             })
             .flatten();
         clock.lap("exemplar filter");

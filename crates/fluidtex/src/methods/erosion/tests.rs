@@ -515,68 +515,6 @@ fn one_and_two_threads_give_identical_results() {
 }
 
 #[test]
-fn recycled_buffers_give_the_same_frames_as_fresh_ones() {
-    use crate::buffers::Buffers;
-    let c = scene("differential-rotation", 12, 3, 96);
-    let fresh = {
-        let mut m = Erosion::new(ErosionParams::default(), exemplar(), 11).expect("params");
-        step_all(&mut m, &c)
-    };
-    // Pools holding noise of every size around the atlas's, handed back
-    // each frame's buffers as the pipeline does.
-    let buffers = Buffers::keeping(1);
-    let n = 96 * 96;
-    for len in [n / 2, n, 3 * n + 7, 5 * n] {
-        buffers
-            .f32
-            .give((0..len).map(|i| i as f32 * 0.37 - 3.0).collect());
-        buffers
-            .u32
-            .give((0..len as u32).map(|i| i.wrapping_mul(7919)).collect());
-        buffers.vec2.give(vec![Vec2::new(9.0, -4.0); len]);
-    }
-    let mut m = Erosion::new(ErosionParams::default(), exemplar(), 11).expect("params");
-    let mut reused = 0;
-    for (k, want) in fresh.iter().enumerate() {
-        let held = buffers.f32.held() + buffers.u32.held() + buffers.vec2.held();
-        let r = m
-            .step(&c.ctx(k).with_buffers(Some(&buffers)))
-            .expect("step");
-        reused += held - (buffers.f32.held() + buffers.u32.held() + buffers.vec2.held());
-        assert!(r.channels == want.channels, "frame {k}: channels differ");
-        assert_eq!(r.source, want.source, "frame {k}");
-        assert_eq!(
-            r.uv.as_ref().map(|u| u
-                .iter()
-                .map(|p| p.to_array().map(f32::to_bits))
-                .collect::<Vec<_>>()),
-            want.uv.as_ref().map(|u| u
-                .iter()
-                .map(|p| p.to_array().map(f32::to_bits))
-                .collect::<Vec<_>>()),
-            "frame {k}: uv"
-        );
-        assert_eq!(
-            r.exemplar_lod
-                .as_ref()
-                .map(|l| l.iter().map(|x| x.to_bits()).collect::<Vec<_>>()),
-            want.exemplar_lod
-                .as_ref()
-                .map(|l| l.iter().map(|x| x.to_bits()).collect::<Vec<_>>()),
-            "frame {k}: levels"
-        );
-        for channel in r.channels {
-            buffers.f32.give(channel.data);
-        }
-        buffers.u32.give(r.source.expect("source"));
-        buffers.vec2.give(r.uv.expect("uv"));
-        buffers.f32.give(r.exemplar_lod.expect("levels"));
-    }
-    // Values, source, uv and levels: four buffers a frame from the pools.
-    assert_eq!(reused, 4 * fresh.len());
-}
-
-#[test]
 fn saved_state_continues_exactly() {
     let c = scene("differential-rotation", 12, 3, 96);
     let mut whole = Erosion::new(ErosionParams::default(), exemplar(), 2).expect("params");
@@ -600,7 +538,6 @@ fn saved_state_continues_exactly() {
             index: &c.indices[1],
         }),
         atlas: &c.atlases[2],
-        buffers: None,
     };
     let r = resumed.step(&ctx).expect("step");
     assert_eq!(r.channels, all[2].channels);
@@ -638,7 +575,6 @@ fn missing_velocity_and_bad_parameters_are_errors() {
         index: &c.indices[0],
         previous: None,
         atlas: &c.atlases[0],
-        buffers: None,
     };
     let err = m.step(&ctx).expect_err("no velocity").to_string();
     assert!(err.contains("frame 3") && err.contains("velocity"), "{err}");

@@ -280,7 +280,6 @@ fn erosion_atlas_of_a_minified_checker_keeps_its_mean() {
                     index: &indices[k - 1],
                 }),
                 atlas: &atlases[k],
-                buffers: None,
             };
             last = Some(m.step(&ctx).unwrap());
         }

@@ -14,7 +14,6 @@ use rayon::prelude::*;
 
 use super::AtTexel;
 use crate::atlas::{Atlas, Band};
-use crate::buffers::{Buffers, take_from};
 use crate::mesh::TriMesh;
 use crate::provenance::SOURCE_OUTSIDE;
 
@@ -49,25 +48,16 @@ pub struct TexelBuffers {
 impl TexelBuffers {
     /// Every texel outside the charts, values 0, uv NaN.
     pub fn new(width: u32, height: u32, channels: usize) -> TexelBuffers {
-        TexelBuffers::new_in(None, width, height, channels)
-    }
-
-    /// [`TexelBuffers::new`] in buffers from `buffers` where given (the
-    /// same values either way; [`crate::buffers`]).
-    pub fn new_in(
-        buffers: Option<&Buffers>,
-        width: u32,
-        height: u32,
-        channels: usize,
-    ) -> TexelBuffers {
         let n = width as usize * height as usize;
         TexelBuffers {
             width,
             height,
             channels,
-            values: take_from(buffers.map(|b| &b.f32), n * channels, 0.0),
-            source: take_from(buffers.map(|b| &b.u32), n, SOURCE_OUTSIDE),
-            uv: take_from(buffers.map(|b| &b.vec2), n, Vec2::NAN),
+            values: vec![0.0; n * channels],
+            // Filled on every core: at 6144² these two are 450 MB, whose
+            // serial fill (and page faults) showed in every frame's time.
+            source: filled(n, SOURCE_OUTSIDE),
+            uv: filled(n, Vec2::NAN),
             layers: Vec::new(),
             lod: Vec::new(),
             defer_values: false,
@@ -78,7 +68,7 @@ impl TexelBuffers {
     pub fn with_layers(mut self) -> TexelBuffers {
         let n = self.source.len();
         self.layers = vec![0; n];
-        self.lod = take_from(None, n, f32::NAN);
+        self.lod = filled(n, f32::NAN);
         self
     }
 
@@ -94,6 +84,13 @@ impl TexelBuffers {
             lod: &mut self.lod,
         }
     }
+}
+
+/// `n` copies of `value`, written in parallel.
+fn filled<T: Copy + Send + Sync>(n: usize, value: T) -> Vec<T> {
+    let mut v = Vec::with_capacity(n);
+    v.par_extend(rayon::iter::repeat_n(value, n));
+    v
 }
 
 /// Rows of the per-texel outputs of a fill: the whole atlas (`base` 0)

@@ -562,7 +562,6 @@ fn flat_synthesis_keeps_the_exemplar_contrast() {
         normals: &mesh.vertex_normals(),
         previous: None,
         atlas: &atlas,
-        buffers: None,
     };
     m.step(&ctx).expect("step");
     for d in &m.state().orientation {
@@ -647,7 +646,6 @@ fn run(
                 normals: &mesh.vertex_normals(),
                 previous,
                 atlas,
-                buffers: None,
             };
             let r = method.step(&ctx).expect("step");
             r.channels.into_iter().flat_map(|t| t.data).collect()
@@ -740,7 +738,6 @@ fn frames_carry_texture_and_report_stats() {
             index: &data[f - 1].1,
         }),
         atlas: &data[f].2,
-        buffers: None,
     };
     let widths = |stats: &serde_json::Value| -> Vec<Vec<u64>> {
         let levels = stats.as_array().expect("levels");
