@@ -1090,26 +1090,25 @@ fn patch_png(
     radius: u32,
 ) -> Result<Option<Vec<u8>>, AtlasError> {
     const EXACT: u32 = 1 << 24;
-    let encode = |s: u32| match s {
-        SOURCE_OUTSIDE => Some(-1.0),
-        SOURCE_UNCOVERED => Some(-2.0),
-        s if s < EXACT => Some(s as f32),
-        _ => None,
-    };
     // Checked first, then mapped by index: collecting `Option`s in
     // parallel goes through a list of pieces and a second copy of the
     // whole map.
     if source
         .par_iter()
         .with_min_len(1 << 16)
-        .any(|&s| encode(s).is_none())
+        .any(|&s| s >= EXACT && s != SOURCE_OUTSIDE)
     {
         return Ok(None);
     }
+    let encode = |s: u32| match s {
+        SOURCE_OUTSIDE => -1.0,
+        SOURCE_UNCOVERED => -2.0,
+        s => s as f32,
+    };
     let data: Vec<f32> = source
         .par_iter()
         .with_min_len(1 << 16)
-        .map(|&s| encode(s).unwrap_or(-2.0))
+        .map(|&s| encode(s))
         .collect();
     let mut ids = Texture {
         width: atlas.width,

@@ -445,10 +445,7 @@ pub fn stage_exr(
     tex: &Texture,
     options: &ExrOptions,
 ) -> Result<(), IoError> {
-    check_texture(tex).map_err(|reason| IoError::Unwritable {
-        path: path.to_path_buf(),
-        reason,
-    })?;
+    check_exr_texture(path, tex)?;
     let planes = exr_planes(&tex.data, tex.channels, options.sample);
     stage_exr_planes(files, path, (tex.width, tex.height), planes, options)
 }
@@ -463,16 +460,21 @@ pub fn stage_exr_owned(
     tex: Texture,
     options: &ExrOptions,
 ) -> Result<(), IoError> {
-    check_texture(&tex).map_err(|reason| IoError::Unwritable {
-        path: path.to_path_buf(),
-        reason,
-    })?;
+    check_exr_texture(path, &tex)?;
     let size = (tex.width, tex.height);
     let planes = match (tex.channels, options.sample) {
         (1, ExrSample::F32) => vec![exr::prelude::FlatSamples::F32(tex.data)],
         (c, sample) => exr_planes(&tex.data, c, sample),
     };
     stage_exr_planes(files, path, size, planes, options)
+}
+
+/// [`check_texture`] as the error of writing `path`.
+fn check_exr_texture(path: &Path, tex: &Texture) -> Result<(), IoError> {
+    check_texture(tex).map_err(|reason| IoError::Unwritable {
+        path: path.to_path_buf(),
+        reason,
+    })
 }
 
 /// One plane of samples per channel of `channels`-interleaved values.
