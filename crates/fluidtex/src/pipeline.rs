@@ -1078,67 +1078,42 @@ fn patch_colours(
     Ok(colours)
 }
 
-/// `patches.F.png` without a float colour atlas: the ids are dilated (as
-/// exact small floats: dilation copies the nearest chart texel's value, so
-/// dilating ids and then colouring them is dilating the colours), coloured
-/// and quantized straight to 8 bits. The same bytes as encoding
-/// [`patch_colours`], in a third of the memory. `None` when an id is too
-/// large to be exact as a float (then the caller takes the float path).
+/// `patches.F.png` without a float colour atlas: the ids are dilated as
+/// ids (dilation copies the nearest chart texel's value, so dilating ids
+/// and then colouring them is dilating the colours) and each strip of the
+/// PNG encoder colours its own rows straight to 8 bits. The same bytes as
+/// encoding [`patch_colours`], holding one id per texel instead of twelve
+/// bytes of colour.
 fn patch_png(
     atlas: &crate::atlas::Atlas,
     source: &[u32],
     radius: u32,
-) -> Result<Option<Vec<u8>>, AtlasError> {
-    const EXACT: u32 = 1 << 24;
-    // Checked first, then mapped by index: collecting `Option`s in
-    // parallel goes through a list of pieces and a second copy of the
-    // whole map.
-    if source
-        .par_iter()
-        .with_min_len(1 << 16)
-        .any(|&s| s >= EXACT && s != SOURCE_OUTSIDE)
-    {
-        return Ok(None);
-    }
-    let encode = |s: u32| match s {
-        SOURCE_OUTSIDE => -1.0,
-        SOURCE_UNCOVERED => -2.0,
-        s => s as f32,
-    };
-    let data: Vec<f32> = source
-        .par_iter()
-        .with_min_len(1 << 16)
-        .map(|&s| encode(s))
-        .collect();
-    let mut ids = Texture {
-        width: atlas.width,
-        height: atlas.height,
-        channels: 1,
-        data,
-    };
-    atlas.dilate(&mut ids, radius)?;
-    let decode = |v: f32| {
-        if v == -1.0 {
-            SOURCE_OUTSIDE
-        } else if v == -2.0 {
-            SOURCE_UNCOVERED
-        } else {
-            v as u32
-        }
-    };
-    // Written in place (a flat-mapped collect would gather pieces and copy
-    // them again).
-    let mut samples = vec![0u8; ids.data.len() * 3];
-    samples
-        .par_chunks_mut(3)
-        .zip(ids.data.par_iter())
-        .with_min_len(1 << 16)
-        .for_each(|(rgb, &v)| {
-            rgb.copy_from_slice(&patch_colour(decode(v)).map(crate::io::image::quantize_8));
-        });
-    drop(ids);
+) -> Result<Result<Vec<u8>, String>, AtlasError> {
+    let mut ids = source.to_vec();
+    atlas.dilate_ids(&mut ids, radius)?;
+    let width = atlas.width as usize;
     let level = PngOptions::default().level;
-    Ok(crate::io::image::encode_png_8(atlas.width, atlas.height, 3, &samples, level).ok())
+    Ok(crate::io::image::encode_png_8_rows(
+        atlas.width,
+        atlas.height,
+        3,
+        level,
+        |y, rgb| {
+            // Ids come in runs along a row: one hash per run.
+            let mut last: Option<(u32, [u8; 3])> = None;
+            for (out, &id) in rgb.chunks_exact_mut(3).zip(&ids[y * width..][..width]) {
+                let colour = match last {
+                    Some((l, c)) if l == id => c,
+                    _ => {
+                        let c = patch_colour(id).map(crate::io::image::quantize_8);
+                        last = Some((id, c));
+                        c
+                    }
+                };
+                out.copy_from_slice(&colour);
+            }
+        },
+    ))
 }
 
 /// A colour per patch id for `patches.F.png` (the paper's Fig. 1, left):
@@ -1290,13 +1265,15 @@ impl FrameWriter<'_> {
                 Some(colours) => {
                     write_channel(files, &path, colours, ChannelFormat::Png8)?;
                 }
-                None => match patch_png(atlas, source, radius).map_err(atlas_error)? {
-                    Some(bytes) => write_file(files, &path, &bytes)?,
-                    None => {
-                        let colours = patch_colours(atlas, source, radius).map_err(atlas_error)?;
-                        write_channel(files, &path, &colours, ChannelFormat::Png8)?;
-                    }
-                },
+                None => {
+                    let bytes = patch_png(atlas, source, radius)
+                        .map_err(atlas_error)?
+                        .map_err(|message| PipelineError::Output {
+                            path: path.clone(),
+                            message,
+                        })?;
+                    write_file(files, &path, &bytes)?;
+                }
             }
             let path = job.out_dir.join(format!("source.{tag}.exr"));
             write_source_ids(files, &path, atlas, source)?;
@@ -1729,7 +1706,7 @@ mod tests {
 
     /// `patches.F.png` made in 8 bits from the dilated ids is byte for byte
     /// the float colour atlas encoded as before (ids dilate as colours do),
-    /// with outside, uncovered and large ids; ids past 2^24 fall back.
+    /// with outside, uncovered and large ids.
     #[test]
     fn patch_png_from_ids_is_the_colour_atlas_encoded() {
         let atlas = Atlas::build(&icosphere(2), &AtlasParams::square(96)).expect("atlas");
@@ -1754,10 +1731,18 @@ mod tests {
             )
             .expect("encode");
             let got = patch_png(&atlas, &source, radius).expect("dilate");
-            assert!(got == Some(want), "radius {radius}: the bytes differ");
+            assert!(got == Ok(want), "radius {radius}: the bytes differ");
         }
+        // Ids past 2^24 (not exact as floats) are coloured as themselves.
         source[chart[2]] = 1 << 24;
-        assert_eq!(patch_png(&atlas, &source, 2).expect("dilate"), None);
+        source[chart[3]] = u32::MAX - 1;
+        let want = crate::io::image::encode_png(
+            &patch_colours(&atlas, &source, 3).expect("dilate"),
+            &PngOptions::default(),
+        )
+        .expect("encode");
+        assert!(patch_png(&atlas, &source, 3).expect("dilate") == Ok(want));
+        assert!(patch_png(&atlas, &source[1..], 3).is_err(), "one id short");
     }
 
     /// Write-behind needs a second frame's buffers: with memory for the

@@ -78,19 +78,32 @@ impl RowRuns {
 
 /// See the module doc. `texture` has the atlas's size (checked by the caller).
 pub(crate) fn dilate(bands: &[Band], width: u32, height: u32, texture: &mut Texture, radius: u32) {
+    let channels = texture.channels;
+    dilate_values(bands, (width, height), &mut texture.data, channels, radius);
+}
+
+/// [`dilate`] over any per-texel values, `channels` interleaved per texel
+/// (patch ids dilate as `u32`, without a float copy). `data` holds
+/// `width × height × channels` values (checked by the caller).
+pub(crate) fn dilate_values<T: Copy + Send + Sync>(
+    bands: &[Band],
+    (width, height): (u32, u32),
+    data: &mut [T],
+    channels: usize,
+    radius: u32,
+) {
     if radius == 0 || bands.is_empty() {
         return;
     }
     let rows = RowRuns::new(bands, width, height);
-    let channels = texture.channels;
     let band_len = BAND_HEIGHT as usize * width as usize * channels;
     for (g, group) in bands.chunks(GROUP).enumerate() {
         let staged: Vec<Vec<(u32, usize)>> = group
             .par_iter()
             .map(|b| sources_in_band(&rows, b.y0, b.y1, width, height, radius))
             .collect();
-        let src_data = &texture.data;
-        let values: Vec<Vec<f32>> = staged
+        let src_data = &*data;
+        let values: Vec<Vec<T>> = staged
             .par_iter()
             .map(|entries| {
                 let mut v = Vec::with_capacity(entries.len() * channels);
@@ -101,8 +114,8 @@ pub(crate) fn dilate(bands: &[Band], width: u32, height: u32, texture: &mut Text
             })
             .collect();
         let first = g * GROUP * band_len;
-        let last = (first + group.len() * band_len).min(texture.data.len());
-        texture.data[first..last]
+        let last = (first + group.len() * band_len).min(data.len());
+        data[first..last]
             .par_chunks_mut(band_len)
             .zip(staged.par_iter().zip(values.par_iter()))
             .for_each(|(chunk, (entries, vals))| {

@@ -172,6 +172,8 @@ pub enum AtlasError {
     },
     #[error("mesh has {got} triangles, the atlas was built for {expected}")]
     MeshMismatch { expected: usize, got: usize },
+    #[error("{got} ids for an atlas of {expected} texels")]
+    IdCount { expected: usize, got: usize },
 }
 
 /// The atlas's mesh: the input mesh with vertices split along chart seams.
@@ -433,6 +435,24 @@ impl Atlas {
             });
         }
         dilate::dilate(&self.bands, self.width, self.height, texture, radius);
+        Ok(())
+    }
+
+    /// [`Atlas::dilate`] for per-texel ids (one `u32` per texel, row-major):
+    /// every gutter texel within `radius` of a chart takes the nearest
+    /// chart texel's id, exactly as a texture's values would move.
+    ///
+    /// # Errors
+    /// [`AtlasError::IdCount`] when `ids` does not hold one id per texel.
+    pub fn dilate_ids(&self, ids: &mut [u32], radius: u32) -> Result<(), AtlasError> {
+        let expected = self.width as usize * self.height as usize;
+        if ids.len() != expected {
+            return Err(AtlasError::IdCount {
+                expected,
+                got: ids.len(),
+            });
+        }
+        dilate::dilate_values(&self.bands, (self.width, self.height), ids, 1, radius);
         Ok(())
     }
 

@@ -161,34 +161,44 @@ pub fn encode_png(tex: &Texture, options: &PngOptions) -> Result<Vec<u8>, String
     }
 }
 
-/// Encodes 8-bit samples already quantized as [`quantize_8`] does
-/// (`channels` interleaved per pixel, rows top to bottom) with the
-/// default parallel encoder at `level`: the same bytes [`encode_png`] gives
-/// for the texture they were quantized from. For images made directly in
-/// 8 bits (debug colours), without a float copy of the atlas.
-pub fn encode_png_8(
+/// Encodes an 8-bit image made row by row with the default parallel
+/// encoder at `level`: `row(y, samples)` writes row `y`'s samples
+/// (`channels` interleaved per pixel, quantized as [`quantize_8`] does).
+/// The same bytes [`encode_png`] gives for the texture the rows were
+/// quantized from, without holding the image: for images made directly in
+/// 8 bits (debug colours), each strip of the encoder makes its own rows.
+pub fn encode_png_8_rows(
     width: u32,
     height: u32,
     channels: usize,
-    samples: &[u8],
     level: u8,
+    row: impl Fn(usize, &mut [u8]) + Sync,
 ) -> Result<Vec<u8>, String> {
     if !(1..=4).contains(&channels) || width == 0 || height == 0 {
         return Err(format!(
             "cannot encode a {width}x{height} image with {channels} channels"
         ));
     }
-    if samples.len() != width as usize * height as usize * channels {
-        return Err(format!(
-            "{} samples for a {width}x{height}x{channels} image",
-            samples.len()
-        ));
-    }
     if !(1..=9).contains(&level) {
         return Err(format!("PNG deflate level {level} is outside 1..=9"));
     }
-    Ok(encode_png_parallel(
-        width, height, channels, 1, samples, level,
+    let len = width as usize * channels;
+    Ok(encode_png_strips(
+        (width, height, channels, 1),
+        level,
+        |y0, y1, filtered| {
+            // Two row buffers: Paeth reads the row above, which for the
+            // strip's first row belongs to the strip before.
+            let (mut prev, mut cur) = (vec![0u8; len], vec![0u8; len]);
+            if y0 > 0 {
+                row(y0 - 1, &mut prev);
+            }
+            for y in y0..y1 {
+                row(y, &mut cur);
+                filter_paeth(&cur, (y > 0).then_some(prev.as_slice()), channels, filtered);
+                std::mem::swap(&mut prev, &mut cur);
+            }
+        },
     ))
 }
 
@@ -258,6 +268,33 @@ fn encode_png_parallel(
 ) -> Vec<u8> {
     let bpp = channels * bytes_per_sample;
     let row = width as usize * bpp;
+    encode_png_strips(
+        (width, height, channels, bytes_per_sample),
+        level,
+        |y0, y1, filtered| {
+            for y in y0..y1 {
+                let cur = &raw[y * row..(y + 1) * row];
+                let prev = if y == 0 {
+                    None
+                } else {
+                    Some(&raw[(y - 1) * row..y * row])
+                };
+                filter_paeth(cur, prev, bpp, filtered);
+            }
+        },
+    )
+}
+
+/// The parallel encoder: the image is cut into strips of whole rows
+/// ([`STRIP_BYTES`]), `filter_strip(y0, y1, out)` appends rows `y0..y1`
+/// filtered, and each strip is deflated on its own and joined with a sync
+/// flush, so the bytes never depend on the thread count.
+fn encode_png_strips(
+    (width, height, channels, bytes_per_sample): (u32, u32, usize, usize),
+    level: u8,
+    filter_strip: impl Fn(usize, usize, &mut Vec<u8>) + Sync,
+) -> Vec<u8> {
+    let row = width as usize * channels * bytes_per_sample;
     let rows_per_strip = (STRIP_BYTES / (row + 1)).max(1);
     let strips = (height as usize).div_ceil(rows_per_strip);
     let flags = create_comp_flags_from_zip_params(i32::from(level), -15, 0);
@@ -267,15 +304,7 @@ fn encode_png_parallel(
             let y0 = s * rows_per_strip;
             let y1 = (y0 + rows_per_strip).min(height as usize);
             let mut filtered = Vec::with_capacity((y1 - y0) * (row + 1));
-            for y in y0..y1 {
-                let cur = &raw[y * row..(y + 1) * row];
-                let prev = if y == 0 {
-                    None
-                } else {
-                    Some(&raw[(y - 1) * row..y * row])
-                };
-                filter_paeth(cur, prev, bpp, &mut filtered);
-            }
+            filter_strip(y0, y1, &mut filtered);
             let adler = simd_adler32::adler32(&filtered.as_slice());
             let mut out = Vec::with_capacity(filtered.len() / 2 + 64);
             let mut c = CompressorOxide::new(flags);
@@ -577,20 +606,27 @@ mod tests {
     }
 
     #[test]
-    fn pre_quantized_samples_encode_to_the_same_bytes() {
+    fn rows_made_in_8_bits_encode_to_the_same_bytes() {
+        // 517×300×3 and 300×2000×1 span several strips: a strip's first
+        // row is filtered against the row the strip before made.
         for (w, h, c) in [
             (1u32, 1u32, 3usize),
             (517, 300, 3),
+            (300, 2000, 1),
             (64, 700, 1),
             (33, 9, 4),
         ] {
             let tex = random_texture(u64::from(w), w, h, c);
             let samples: Vec<u8> = tex.data.iter().map(|&x| quantize_8(x)).collect();
             let want = encode_png(&tex, &PngOptions::default()).unwrap();
-            assert_eq!(encode_png_8(w, h, c, &samples, 1).unwrap(), want);
+            let len = w as usize * c;
+            let rows = |y: usize, out: &mut [u8]| out.copy_from_slice(&samples[y * len..][..len]);
+            assert_eq!(encode_png_8_rows(w, h, c, 1, rows).unwrap(), want);
         }
-        assert!(encode_png_8(2, 2, 3, &[0; 11], 1).is_err());
-        assert!(encode_png_8(2, 2, 5, &[0; 20], 1).is_err());
+        let rows = |_: usize, out: &mut [u8]| out.fill(0);
+        assert!(encode_png_8_rows(2, 2, 5, 1, rows).is_err());
+        assert!(encode_png_8_rows(0, 2, 3, 1, rows).is_err());
+        assert!(encode_png_8_rows(2, 2, 3, 0, rows).is_err());
     }
 
     #[test]
