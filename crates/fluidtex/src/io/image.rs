@@ -143,21 +143,11 @@ pub fn encode_png(tex: &Texture, options: &PngOptions) -> Result<Vec<u8>, String
             options.level
         ));
     }
-    let bytes_per_sample = match options.depth {
-        PngDepth::Eight => 1,
-        PngDepth::Sixteen => 2,
-    };
-    let raw = quantize(tex, options.depth);
     match options.encoder {
-        PngEncoder::Parallel => Ok(encode_png_parallel(
-            tex.width,
-            tex.height,
-            tex.channels,
-            bytes_per_sample,
-            &raw,
-            options.level,
-        )),
-        PngEncoder::Image => encode_png_image_crate(tex, options.depth, &raw),
+        PngEncoder::Parallel => Ok(encode_png_parallel(tex, options.depth, options.level)),
+        PngEncoder::Image => {
+            encode_png_image_crate(tex, options.depth, &quantize(tex, options.depth))
+        }
     }
 }
 
@@ -182,24 +172,7 @@ pub fn encode_png_8_rows(
     if !(1..=9).contains(&level) {
         return Err(format!("PNG deflate level {level} is outside 1..=9"));
     }
-    let len = width as usize * channels;
-    Ok(encode_png_strips(
-        (width, height, channels, 1),
-        level,
-        |y0, y1, filtered| {
-            // Two row buffers: Paeth reads the row above, which for the
-            // strip's first row belongs to the strip before.
-            let (mut prev, mut cur) = (vec![0u8; len], vec![0u8; len]);
-            if y0 > 0 {
-                row(y0 - 1, &mut prev);
-            }
-            for y in y0..y1 {
-                row(y, &mut cur);
-                filter_paeth(&cur, (y > 0).then_some(prev.as_slice()), channels, filtered);
-                std::mem::swap(&mut prev, &mut cur);
-            }
-        },
-    ))
+    Ok(encode_png_rows((width, height, channels), 1, level, row))
 }
 
 /// One 8-bit PNG sample from a value: clamped to [0, 1], scaled and
@@ -231,9 +204,15 @@ fn quantize(tex: &Texture, depth: PngDepth) -> Vec<u8> {
             .data
             .par_iter()
             .with_min_len(1 << 16)
-            .flat_map_iter(|&x| (round_half_up(x.clamp(0.0, 1.0) * 65535.0) as u16).to_be_bytes())
+            .flat_map_iter(|&x| quantize_16(x).to_be_bytes())
             .collect(),
     }
+}
+
+/// One 16-bit PNG sample from a value, as [`quantize_8`] at 16 bits.
+#[inline]
+fn quantize_16(x: f32) -> u16 {
+    round_half_up(x.clamp(0.0, 1.0) * 65535.0) as u16
 }
 
 /// `v + 0.5` in f64, for `as` to truncate: that is `v.round()` for
@@ -258,28 +237,50 @@ fn color_type(channels: usize) -> u8 {
 /// Uncompressed bytes per strip; fixed so output never depends on threads.
 const STRIP_BYTES: usize = 1 << 18;
 
-fn encode_png_parallel(
-    width: u32,
-    height: u32,
-    channels: usize,
+fn encode_png_parallel(tex: &Texture, depth: PngDepth, level: u8) -> Vec<u8> {
+    // Each strip quantizes its own rows: no 8- or 16-bit copy of the whole
+    // texture is made (at 6144² RGB that is 113 MiB of fresh pages).
+    let len = tex.width as usize * tex.channels;
+    let values = |y: usize| &tex.data[y * len..][..len];
+    let dims = (tex.width, tex.height, tex.channels);
+    match depth {
+        PngDepth::Eight => encode_png_rows(dims, 1, level, |y, out| {
+            for (o, &x) in out.iter_mut().zip(values(y)) {
+                *o = quantize_8(x);
+            }
+        }),
+        PngDepth::Sixteen => encode_png_rows(dims, 2, level, |y, out| {
+            for (o, &x) in out.chunks_exact_mut(2).zip(values(y)) {
+                o.copy_from_slice(&quantize_16(x).to_be_bytes());
+            }
+        }),
+    }
+}
+
+/// [`encode_png_strips`] over rows made one at a time: `row(y, samples)`
+/// writes row `y`'s samples in PNG order (big endian at 16 bits).
+fn encode_png_rows(
+    (width, height, channels): (u32, u32, usize),
     bytes_per_sample: usize,
-    raw: &[u8],
     level: u8,
+    row: impl Fn(usize, &mut [u8]) + Sync,
 ) -> Vec<u8> {
     let bpp = channels * bytes_per_sample;
-    let row = width as usize * bpp;
+    let len = width as usize * bpp;
     encode_png_strips(
         (width, height, channels, bytes_per_sample),
         level,
         |y0, y1, filtered| {
+            // Two row buffers: Paeth reads the row above, which for the
+            // strip's first row belongs to the strip before.
+            let (mut prev, mut cur) = (vec![0u8; len], vec![0u8; len]);
+            if y0 > 0 {
+                row(y0 - 1, &mut prev);
+            }
             for y in y0..y1 {
-                let cur = &raw[y * row..(y + 1) * row];
-                let prev = if y == 0 {
-                    None
-                } else {
-                    Some(&raw[(y - 1) * row..y * row])
-                };
-                filter_paeth(cur, prev, bpp, filtered);
+                row(y, &mut cur);
+                filter_paeth(&cur, (y > 0).then_some(prev.as_slice()), bpp, filtered);
+                std::mem::swap(&mut prev, &mut cur);
             }
         },
     )
