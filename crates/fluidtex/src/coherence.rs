@@ -328,10 +328,23 @@ pub fn measure(
     after: &impl Texels,
     settings: &CoherenceSettings,
 ) -> Result<Coherence, MetricsError> {
+    measure_with_points(carried, before, after, settings).map(|(c, _)| c)
+}
+
+/// [`measure`], and each point's source at both ends (`[t, t+1]`, in the
+/// order of `carried`): two runs measured on the same carried points can
+/// then be compared on the points both cover
+/// ([`metrics::source_switch_same_points`]).
+pub fn measure_with_points(
+    carried: &Carried,
+    before: &impl Texels,
+    after: &impl Texels,
+    settings: &CoherenceSettings,
+) -> Result<(Coherence, Vec<[u32; 2]>), MetricsError> {
     before.validate()?;
     after.validate()?;
     let values = point_values(&carried.from, before)?;
-    measure_from(carried, &values, after, settings)
+    measure_points(carried, &values, after, settings)
 }
 
 /// [`measure`] with frame t's output already looked up at the carried
@@ -343,6 +356,16 @@ pub fn measure_from(
     settings: &CoherenceSettings,
 ) -> Result<Coherence, MetricsError> {
     after.validate()?;
+    measure_points(carried, before, after, settings).map(|(c, _)| c)
+}
+
+/// [`measure_from`] with each point's sources at both ends.
+fn measure_points(
+    carried: &Carried,
+    before: &[PointValue],
+    after: &impl Texels,
+    settings: &CoherenceSettings,
+) -> Result<(Coherence, Vec<[u32; 2]>), MetricsError> {
     let n = carried.from.len();
     for len in [
         carried.to.len(),
@@ -383,7 +406,7 @@ pub fn measure_from(
         |k: usize| -> Vec<f32> { per_point.iter().map(|p| [p.2, p.3, p.4, p.5][k]).collect() };
     let s0: Vec<u32> = per_point.iter().map(|p| p.0).collect();
     let s1: Vec<u32> = per_point.iter().map(|p| p.1).collect();
-    Ok(Coherence {
+    let found = Coherence {
         switch: metrics::source_switch(&s0, &s1)?,
         follow: metrics::colour_follow(
             &column(0),
@@ -393,7 +416,8 @@ pub fn measure_from(
             settings.min_move_texels,
             settings.min_moving_samples,
         )?,
-    })
+    };
+    Ok((found, s0.into_iter().zip(s1).map(|(a, b)| [a, b]).collect()))
 }
 
 /// What [`switch_map`] found at one texel of frame t+1.

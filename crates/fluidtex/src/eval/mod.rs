@@ -279,6 +279,14 @@ pub struct FrameRecord {
     /// For information beside distortion: area-weighted p95 of σ₁/σ₂ (NaN
     /// without exemplar uv).
     pub anisotropy: f64,
+    /// Each carried point's source at the previous frame and this one
+    /// (empty when not measured): the same points for every method.
+    pub point_sources: Vec<[u32; 2]>,
+    /// For information beside the switch share: this run's and the floor
+    /// method's share on the points both cover at both ends
+    /// ([`metrics::source_switch_same_points`]), set by
+    /// [`judge_against_floor`]; NaN where not measured.
+    pub switch_same_points: [f64; 2],
 }
 
 impl FrameRecord {
@@ -482,7 +490,7 @@ impl FrameSink for MetricsSink<'_> {
         };
         let anisotropy = self.atlas_metrics(k, frame, result, &view, &mut set)?;
         let rendered = self.render_metrics(frame, prev, &view, &mut set)?;
-        self.coherence_metrics(frame, prev, &view, &mut set)?;
+        let point_sources = self.coherence_metrics(frame, prev, &view, &mut set)?;
         if frame.still {
             self.stop.push(colour);
             if let Some(p) = &self.previous_still
@@ -506,6 +514,8 @@ impl FrameSink for MetricsSink<'_> {
             values,
             still: frame.still,
             anisotropy,
+            point_sources,
+            switch_same_points: [f64::NAN; 2],
         });
         self.previous_view = Some(rendered);
         Ok(())
@@ -788,24 +798,26 @@ impl MetricsSink<'_> {
     /// Source switch share and colour follow ratio: the previous frame's
     /// points carried here. Without per-texel sources nothing is covered
     /// (no switch share) but the colour still says whether the texture
-    /// follows.
+    /// follows. Returns each point's sources at both ends (empty on the
+    /// first frame).
     fn coherence_metrics(
         &mut self,
         frame: &PreparedFrame,
         prev: Option<&PreparedFrame>,
         view: &AtlasView<'_>,
         set: &mut impl FnMut(Metric, f64),
-    ) -> Result<(), EvalError> {
+    ) -> Result<Vec<[u32; 2]>, EvalError> {
         let n_texels = view.charts.len();
         let texels = (
             view.source
                 .map_or_else(|| vec![metrics::SOURCE_OUTSIDE; n_texels], <[u32]>::to_vec),
             metrics::luminance(view.colour),
         );
+        let mut points = Vec::new();
         if let (Some(p), Some((ps, pg))) = (prev, &self.previous_texels)
             && let Some(carried) = &p.carried
         {
-            let c = crate::coherence::measure(
+            let (c, sources) = crate::coherence::measure_with_points(
                 carried,
                 &crate::coherence::TexelFrame {
                     atlas: &p.geometry.atlas,
@@ -822,9 +834,10 @@ impl MetricsSink<'_> {
             .map_err(Self::metric_err(frame.number, "coherence"))?;
             set(Metric::SourceSwitch, c.switch_share());
             set(Metric::ColourFollow, c.follow_ratio());
+            points = sources;
         }
         self.previous_texels = Some(texels);
-        Ok(())
+        Ok(points)
     }
 
     /// The run: per-frame records and their summaries.
@@ -909,7 +922,8 @@ pub fn judge_against_floor(runs: &mut [MethodRun], thresholds: &Thresholds) {
             .collect();
         let Some(floor) = &floor else {
             run.notes.push(format!(
-                "source switch share: not judged, it is judged against {floor_name} on the                  same frames and {floor_name} was not run"
+                "source switch share: not judged, it is judged against {floor_name} on the \
+                 same frames and {floor_name} was not run"
             ));
             continue;
         };
@@ -931,6 +945,67 @@ pub fn judge_against_floor(runs: &mut [MethodRun], thresholds: &Thresholds) {
         {
             *s = summary;
         }
+    }
+    compare_on_same_points(runs, &floor_name);
+}
+
+/// Each run's switch share beside the floor run's on the points both cover
+/// at both ends, frame by frame ([`FrameRecord::switch_same_points`]), and
+/// a note with the excess over the floor there (information: the verdict
+/// stays on each run's own points, as the thresholds file defines it).
+fn compare_on_same_points(runs: &mut [MethodRun], floor_name: &str) {
+    let Some(floor) = runs.iter().find(|r| r.method == floor_name) else {
+        return;
+    };
+    let floor_points: Vec<(i32, Vec<[u32; 2]>)> = floor
+        .frames
+        .iter()
+        .map(|f| (f.frame, f.point_sources.clone()))
+        .collect();
+    let lead = format!("source switch share on the points {floor_name} also covers");
+    for run in runs.iter_mut() {
+        // Judging again replaces what an earlier call found.
+        run.notes.retain(|n| !n.starts_with(&lead));
+        let mut excess = Vec::new();
+        for f in &mut run.frames {
+            f.switch_same_points = [f64::NAN; 2];
+            let Some((_, fp)) = floor_points.iter().find(|(n, _)| *n == f.frame) else {
+                continue;
+            };
+            if f.point_sources.is_empty() || fp.is_empty() {
+                continue;
+            }
+            if let Ok((mine, theirs)) = metrics::source_switch_same_points(&f.point_sources, fp) {
+                f.switch_same_points = [mine.share(), theirs.share()];
+                let d = mine.share() - theirs.share();
+                if d.is_finite() {
+                    excess.push((f.frame, d));
+                }
+            }
+        }
+        if run.method == floor_name || excess.is_empty() {
+            continue;
+        }
+        let mut sorted: Vec<f64> = excess.iter().map(|e| e.1).collect();
+        sorted.sort_by(f64::total_cmp);
+        let m = sorted.len();
+        let median = if m % 2 == 1 {
+            sorted[m / 2]
+        } else {
+            0.5 * (sorted[m / 2 - 1] + sorted[m / 2])
+        };
+        let worst = excess
+            .iter()
+            .copied()
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+            .unwrap_or((0, f64::NAN));
+        run.notes.push(format!(
+            "{lead} at both ends: \
+             {:.1} points above {floor_name} in the median frame, {:.1} at worst (frame {})",
+            100.0 * median,
+            100.0 * worst.1,
+            worst.0
+        ));
     }
 }
 

@@ -47,6 +47,9 @@ pub struct FrameJson {
     pub values: Vec<(&'static str, f64)>,
     /// Area-weighted p95 of σ₁/σ₂, for information beside distortion.
     pub anisotropy: f64,
+    /// This method's and the floor method's source switch share on the
+    /// points both cover at both ends (information beside the switch share).
+    pub switch_same_points: [f64; 2],
 }
 
 /// One method on one scene.
@@ -103,6 +106,7 @@ impl MethodReport {
                     patches: r.patches,
                     still: r.still,
                     anisotropy: r.anisotropy,
+                    switch_same_points: r.switch_same_points,
                     values: PER_FRAME
                         .iter()
                         .zip(r.values)

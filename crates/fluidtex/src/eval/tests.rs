@@ -12,7 +12,9 @@ use super::report::{MethodReport, Report, SceneReport};
 use super::*;
 use crate::atlas::AtlasParams;
 use crate::methods::atlas_check::{AtlasCheck, AtlasCheckParams};
-use crate::methods::{ChannelFormat, ChannelSpec, FrameContext, FrameResult, SOURCE_OUTSIDE};
+use crate::methods::{
+    ChannelFormat, ChannelSpec, FrameContext, FrameResult, SOURCE_OUTSIDE, SOURCE_UNCOVERED,
+};
 use crate::metrics::Verdict;
 use crate::scenes::{self, SceneParams};
 use crate::texture::{Texture, Wrap};
@@ -518,6 +520,39 @@ fn source_switch_is_judged_against_advect_on_the_same_frames() {
     runs[0] = with_shares("erosion", [f64::NAN, 0.05, 0.05]);
     judge_against_floor(&mut runs, &thresholds);
     assert_eq!(v(&runs[0]), Verdict::Pass);
+    // On the points both cover: erosion's new patch over advect's hole
+    // (third point) does not count; its switch on the second does.
+    const U: u32 = SOURCE_UNCOVERED;
+    runs[0].frames[1].point_sources = vec![[1, 1], [1, 2], [3, 4]];
+    runs[1].frames[1].point_sources = vec![[1, 1], [1, 1], [U, 4]];
+    runs[0].frames[2].point_sources = vec![[5, 5], [5, 6]];
+    runs[1].frames[2].point_sources = vec![[5, 5], [5, 6]];
+    runs[2].frames[2].point_sources = vec![[5, 5]];
+    judge_against_floor(&mut runs, &thresholds);
+    assert_eq!(runs[0].frames[1].switch_same_points, [0.5, 0.0]);
+    assert_eq!(runs[0].frames[2].switch_same_points, [0.5, 0.5]);
+    assert_eq!(runs[1].frames[1].switch_same_points, [0.0, 0.0]);
+    assert!(runs[0].frames[0].switch_same_points[0].is_nan());
+    // A run measured on other points is not compared.
+    assert!(runs[2].frames[2].switch_same_points[0].is_nan());
+    let note = |r: &MethodRun| {
+        r.notes
+            .iter()
+            .filter(|n| n.contains("also covers"))
+            .cloned()
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(
+        note(&runs[0]),
+        [
+            "source switch share on the points advect also covers at both ends: 25.0 points \
+          above advect in the median frame, 50.0 at worst (frame 1)"
+        ]
+    );
+    assert!(
+        note(&runs[1]).is_empty(),
+        "advect is not compared with itself"
+    );
     // Without advect there is nothing to judge against.
     let mut alone = vec![with_shares("erosion", [f64::NAN, 0.05, 0.05])];
     judge_against_floor(&mut alone, &thresholds);

@@ -104,6 +104,42 @@ pub fn source_switch(before: &[u32], after: &[u32]) -> Result<SourceSwitch, Metr
     Ok(out)
 }
 
+/// Two runs' switches over the *same* carried points, counted only where
+/// both have a patch at both ends: `(run, floor)`. Each run's own
+/// [`source_switch`] counts the points it covers, and a method that covers
+/// holes with new patches counts points the floor method (advect, which
+/// leaves them as holes) does not; on the common points the two shares
+/// differ only by how the patches both methods show there move. Points are
+/// `[source at t, source at t+1]`, in the same order for both runs.
+pub fn source_switch_same_points(
+    run: &[[u32; 2]],
+    floor: &[[u32; 2]],
+) -> Result<(SourceSwitch, SourceSwitch), MetricsError> {
+    if run.len() != floor.len() {
+        return Err(MetricsError::Length {
+            what: "points of the floor run",
+            expected: run.len(),
+            got: floor.len(),
+        });
+    }
+    let covered = |p: &[u32; 2]| is_patch(p[0]) && is_patch(p[1]);
+    let mut out = [SourceSwitch {
+        covered: 0,
+        switched: 0,
+        lost: 0,
+        gained: 0,
+    }; 2];
+    for (a, b) in run.iter().zip(floor) {
+        if covered(a) && covered(b) {
+            for (o, p) in out.iter_mut().zip([a, b]) {
+                o.covered += 1;
+                o.switched += usize::from(p[0] != p[1]);
+            }
+        }
+    }
+    Ok((out[0], out[1]))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -155,6 +191,51 @@ mod tests {
         assert!(none.share().is_nan());
         assert!(matches!(
             source_switch(&[1, 2], &[1]),
+            Err(MetricsError::Length { .. })
+        ));
+    }
+
+    /// A run that fills the floor's holes with new patches switches there;
+    /// on the points both cover it is judged on its own patches only.
+    #[test]
+    fn same_points_count_only_where_both_runs_cover_both_ends() {
+        const U: u32 = SOURCE_UNCOVERED;
+        const O: u32 = SOURCE_OUTSIDE;
+        let run = [
+            [1, 1],
+            [1, 2],
+            [3, 3],
+            [4, 5],
+            [6, 7],
+            [8, 9],
+            [2, 2],
+            [O, 1],
+        ];
+        let floor = [
+            [1, 1],
+            [1, 1],
+            [2, 3],
+            [U, 4],
+            [6, U],
+            [O, 1],
+            [2, 2],
+            [1, 1],
+        ];
+        let (r, f) = source_switch_same_points(&run, &floor).expect("same lengths");
+        // Common: points 0, 1, 2 and 6.
+        assert_eq!((r.covered, r.switched), (4, 1));
+        assert_eq!((f.covered, f.switched), (4, 1));
+        assert_eq!((r.lost, r.gained, f.lost, f.gained), (0, 0, 0, 0));
+        // On its own points the run switches 4 of 7; the holes it filled
+        // (points 3 and 4) and point 5 no longer count.
+        let (b, a): (Vec<u32>, Vec<u32>) = run.iter().map(|p| (p[0], p[1])).unzip();
+        assert_eq!(source_switch(&b, &a).expect("same lengths").switched, 4);
+        // The same run on both sides: the same counts, every covered point.
+        let (x, y) = source_switch_same_points(&run, &run).expect("same lengths");
+        assert_eq!(x, y);
+        assert_eq!((x.covered, x.switched), (7, 4));
+        assert!(matches!(
+            source_switch_same_points(&run, &floor[1..]),
             Err(MetricsError::Length { .. })
         ));
     }
