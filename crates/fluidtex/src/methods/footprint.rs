@@ -70,10 +70,13 @@ pub fn apply_footprint_filtering_by<'e>(
     } = out;
     let (w, c) = (*width as usize, *channels);
     let n = w * *height as usize;
-    let mut lods = vec![f32::NAN; n];
     if n == 0 || c == 0 || source.len() != n || uv.len() != n || values.len() != n * c {
-        return Some(lods);
+        return Some(vec![f32::NAN; n]);
     }
+    // Zeroed pages the kernel maps on first touch; each band sets its own
+    // levels to NaN below, on every core and while they are in cache,
+    // instead of a serial pass over the whole atlas first.
+    let mut lods = vec![0.0f32; n];
     let (source, uv) = (source.as_slice(), uv.as_slice());
     let filter_texel = |x: usize, y: usize, value: &mut [f32], lod_out: &mut f32| {
         let s = source[y * w + x];
@@ -98,6 +101,7 @@ pub fn apply_footprint_filtering_by<'e>(
         .zip(lods.par_chunks_mut(TILE_ROWS * w))
         .enumerate()
         .for_each(|(band, (values, lods))| {
+            lods.fill(f32::NAN);
             let rows = lods.len() / w;
             for x0 in (0..w).step_by(TILE_COLUMNS) {
                 for r in 0..rows {
