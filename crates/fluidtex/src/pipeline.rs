@@ -597,9 +597,8 @@ impl FrameWriter<'_> {
         let mut files = Staging::new(Some(self.guard), job.hooks.write.as_ref());
         self.write_frame(&mut files, &g, &channels, source.as_deref())?;
         clock.lap("write");
-        if job.outputs.debug
-            && let Some(ids) = &source
-        {
+        let debug = job.outputs.debug.then_some(source.as_deref()).flatten();
+        if let Some(ids) = debug {
             let prev = previous.as_deref();
             if self.coherence_prev.is_none()
                 && let (Some(last), Some(prev)) = (self.resumed_after, prev)
@@ -629,6 +628,13 @@ impl FrameWriter<'_> {
                 job.outputs.switch_map,
             ));
             clock.lap("coherence");
+        }
+        // The channels (12 bytes a texel in colour alone) are written and
+        // measured: not held while the debug views are made from the ids.
+        drop(channels);
+        if let Some(ids) = debug {
+            self.write_debug_views(&mut files, &g, ids)?;
+            clock.lap("debug");
         }
         stats.stage_order = clock.stages.iter().map(|(n, _)| n.to_string()).collect();
         stats.seconds = clock
@@ -1131,7 +1137,8 @@ pub fn patch_colour(source: u32) -> [f32; 3] {
 }
 
 impl FrameWriter<'_> {
-    /// Stages every file of one frame: channels, meshes, previews, debug.
+    /// Stages the files of one frame that need its channels: channels,
+    /// meshes, previews (the debug views follow, [`Self::write_debug_views`]).
     fn write_frame(
         &self,
         files: &mut Staging<'_>,
@@ -1227,8 +1234,8 @@ impl FrameWriter<'_> {
         Ok(())
     }
 
-    /// The views of where texels came from: `preview.F.png` on preview
-    /// frames, and with debug outputs `patches.F.png` and `source.F.exr`.
+    /// `preview.F.png` on preview frames: the lit render beside the view
+    /// of where texels came from.
     fn write_patch_views(
         &self,
         files: &mut Staging<'_>,
@@ -1237,48 +1244,57 @@ impl FrameWriter<'_> {
         source: Option<&[u32]>,
         normals: &[Vec3],
     ) -> Result<(), PipelineError> {
-        let (job, number, atlas) = (self.job, g.number, &g.atlas);
+        let (job, number) = (self.job, g.number);
         let preview = job.outputs.preview_every > 0
             && (number - self.first_frame).rem_euclid(job.outputs.preview_every as i32) == 0;
+        let Some(colour) = channels.first().filter(|_| preview) else {
+            return Ok(());
+        };
         // The patch colours as floats serve the preview only; the debug
         // file is made in 8 bits from the dilated ids (`patch_png`).
-        let radius = job.atlas.gutter.max(1) * 2;
-        let atlas_error = |source| PipelineError::Atlas {
-            frame: number,
-            source,
-        };
         let patches = match source {
-            Some(source) if preview => {
-                Some(patch_colours(atlas, source, radius).map_err(atlas_error)?)
-            }
-            _ => None,
+            Some(source) => Some(
+                patch_colours(&g.atlas, source, self.patch_view_radius()).map_err(|source| {
+                    PipelineError::Atlas {
+                        frame: number,
+                        source,
+                    }
+                })?,
+            ),
+            None => None,
         };
-        if preview && let Some(colour) = channels.first() {
-            self.write_preview(files, g, colour, patches.as_ref(), normals)?;
-        }
-        if job.outputs.debug
-            && let Some(source) = source
-        {
-            let tag = frame_tag(number);
-            let path = job.out_dir.join(format!("patches.{tag}.png"));
-            match &patches {
-                Some(colours) => {
-                    write_channel(files, &path, colours, ChannelFormat::Png8)?;
-                }
-                None => {
-                    let bytes = patch_png(atlas, source, radius)
-                        .map_err(atlas_error)?
-                        .map_err(|message| PipelineError::Output {
-                            path: path.clone(),
-                            message,
-                        })?;
-                    write_file(files, &path, &bytes)?;
-                }
-            }
-            let path = job.out_dir.join(format!("source.{tag}.exr"));
-            write_source_ids(files, &path, atlas, source)?;
-        }
-        Ok(())
+        self.write_preview(files, g, colour, patches.as_ref(), normals)
+    }
+
+    /// Gutter texels of the patch views: twice the atlas's, so that the
+    /// view's charts stand out at a glance.
+    fn patch_view_radius(&self) -> u32 {
+        self.job.atlas.gutter.max(1) * 2
+    }
+
+    /// The debug views of where texels came from, made from the ids alone:
+    /// `patches.F.png` and `source.F.exr`.
+    fn write_debug_views(
+        &self,
+        files: &mut Staging<'_>,
+        g: &FrameGeometry,
+        source: &[u32],
+    ) -> Result<(), PipelineError> {
+        let (job, number, atlas) = (self.job, g.number, &g.atlas);
+        let tag = frame_tag(number);
+        let path = job.out_dir.join(format!("patches.{tag}.png"));
+        let bytes = patch_png(atlas, source, self.patch_view_radius())
+            .map_err(|source| PipelineError::Atlas {
+                frame: number,
+                source,
+            })?
+            .map_err(|message| PipelineError::Output {
+                path: path.clone(),
+                message,
+            })?;
+        write_file(files, &path, &bytes)?;
+        let path = job.out_dir.join(format!("source.{tag}.exr"));
+        write_source_ids(files, &path, atlas, source)
     }
 
     /// `preview.F.png`: a lit render of the textured mesh beside the patch
