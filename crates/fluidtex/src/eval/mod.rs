@@ -1000,8 +1000,8 @@ fn compare_on_same_points(runs: &mut [MethodRun], floor_name: &str) {
             .max_by(|a, b| a.1.total_cmp(&b.1))
             .unwrap_or((0, f64::NAN));
         run.notes.push(format!(
-            "{lead} at both ends: \
-             {:.1} points above {floor_name} in the median frame, {:.1} at worst (frame {})",
+            "{lead} at both ends: {:+.1} points against {floor_name}'s in the median \
+             frame, {:+.1} at worst (frame {})",
             100.0 * median,
             100.0 * worst.1,
             worst.0

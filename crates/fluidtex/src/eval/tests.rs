@@ -545,8 +545,8 @@ fn source_switch_is_judged_against_advect_on_the_same_frames() {
     assert_eq!(
         note(&runs[0]),
         [
-            "source switch share on the points advect also covers at both ends: 25.0 points \
-          above advect in the median frame, 50.0 at worst (frame 1)"
+            "source switch share on the points advect also covers at both ends: +25.0 points \
+             against advect's in the median frame, +50.0 at worst (frame 1)"
         ]
     );
     assert!(
