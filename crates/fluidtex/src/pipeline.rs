@@ -1427,8 +1427,11 @@ const BASE_BYTES: u64 = 256 << 20;
 /// bound, colour has 3 or 4.
 const ESTIMATE_COMPONENTS: u64 = 4;
 
-/// Bytes per texel of the debug outputs: patch colours (12), ids as floats
-/// (4) and their EXR planes (4).
+/// Bytes per texel of the debug outputs, an upper bound: the float patch
+/// colours of a preview frame (12), the dilated copy of the ids that
+/// `patches.F.png` is coloured from (4) and the ids as floats that
+/// `source.F.exr` takes without a copy (4). The channels are dropped before
+/// the last two are made, and those two are not alive together.
 fn debug_bytes(outputs: &OutputOptions) -> u64 {
     if outputs.debug { 12 + 4 + 4 } else { 0 }
 }
@@ -1452,8 +1455,7 @@ fn encode_bytes(channels: &[ChannelSpec]) -> u64 {
 /// bound: colour is 3 or 4):
 /// - the method's fill: C floats per channel, a source id and a uv
 ///   (4·C·channels + 12 bytes), and its result textures (4·C·channels + 8);
-/// - the debug outputs: patch colours (12), ids as floats (4) and their
-///   EXR planes (4);
+/// - the debug outputs: 20 at most ([`debug_bytes`]);
 /// - encoding: quantized samples and the compressed image, about 2 bytes
 ///   per component (up to 4 for 16-bit).
 ///
