@@ -1455,7 +1455,9 @@ fn encode_bytes(channels: &[ChannelSpec]) -> u64 {
 /// bound: colour is 3 or 4):
 /// - the method's fill: C floats per channel, a source id and a uv
 ///   (4·C·channels + 12 bytes), and its result textures (4·C·channels + 8);
-/// - the debug outputs: 20 at most ([`debug_bytes`]);
+/// - the debug outputs: 20 at most (float patch colours on preview frames,
+///   12; a copy of the ids for `patches.F.png`, 4; float ids for
+///   `source.F.exr`, 4);
 /// - encoding: quantized samples and the compressed image, about 2 bytes
 ///   per component (up to 4 for 16-bit).
 ///
