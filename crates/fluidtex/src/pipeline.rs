@@ -1090,36 +1090,28 @@ fn patch_colours(
 /// PNG encoder colours its own rows straight to 8 bits. The same bytes as
 /// encoding [`patch_colours`], holding one id per texel instead of twelve
 /// bytes of colour.
-fn patch_png(
-    atlas: &crate::atlas::Atlas,
-    source: &[u32],
-    radius: u32,
-) -> Result<Result<Vec<u8>, String>, AtlasError> {
+fn patch_png(atlas: &crate::atlas::Atlas, source: &[u32], radius: u32) -> Result<Vec<u8>, String> {
     let mut ids = source.to_vec();
-    atlas.dilate_ids(&mut ids, radius)?;
+    atlas
+        .dilate_ids(&mut ids, radius)
+        .map_err(|e| e.to_string())?;
     let width = atlas.width as usize;
     let level = PngOptions::default().level;
-    Ok(crate::io::image::encode_png_8_rows(
-        atlas.width,
-        atlas.height,
-        3,
-        level,
-        |y, rgb| {
-            // Ids come in runs along a row: one hash per run.
-            let mut last: Option<(u32, [u8; 3])> = None;
-            for (out, &id) in rgb.chunks_exact_mut(3).zip(&ids[y * width..][..width]) {
-                let colour = match last {
-                    Some((l, c)) if l == id => c,
-                    _ => {
-                        let c = patch_colour(id).map(crate::io::image::quantize_8);
-                        last = Some((id, c));
-                        c
-                    }
-                };
-                out.copy_from_slice(&colour);
-            }
-        },
-    ))
+    crate::io::image::encode_png_8_rows(atlas.width, atlas.height, 3, level, |y, rgb| {
+        // Ids come in runs along a row: one hash per run.
+        let mut last: Option<(u32, [u8; 3])> = None;
+        for (out, &id) in rgb.chunks_exact_mut(3).zip(&ids[y * width..][..width]) {
+            let colour = match last {
+                Some((l, c)) if l == id => c,
+                _ => {
+                    let c = patch_colour(id).map(crate::io::image::quantize_8);
+                    last = Some((id, c));
+                    c
+                }
+            };
+            out.copy_from_slice(&colour);
+        }
+    })
 }
 
 /// A colour per patch id for `patches.F.png` (the paper's Fig. 1, left):
@@ -1283,15 +1275,12 @@ impl FrameWriter<'_> {
         let (job, number, atlas) = (self.job, g.number, &g.atlas);
         let tag = frame_tag(number);
         let path = job.out_dir.join(format!("patches.{tag}.png"));
-        let bytes = patch_png(atlas, source, self.patch_view_radius())
-            .map_err(|source| PipelineError::Atlas {
-                frame: number,
-                source,
-            })?
-            .map_err(|message| PipelineError::Output {
+        let bytes = patch_png(atlas, source, self.patch_view_radius()).map_err(|message| {
+            PipelineError::Output {
                 path: path.clone(),
                 message,
-            })?;
+            }
+        })?;
         write_file(files, &path, &bytes)?;
         let path = job.out_dir.join(format!("source.{tag}.exr"));
         write_source_ids(files, &path, atlas, source)
@@ -1750,8 +1739,8 @@ mod tests {
                 &PngOptions::default(),
             )
             .expect("encode");
-            let got = patch_png(&atlas, &source, radius).expect("dilate");
-            assert!(got == Ok(want), "radius {radius}: the bytes differ");
+            let got = patch_png(&atlas, &source, radius).expect("encode");
+            assert!(got == want, "radius {radius}: the bytes differ");
         }
         // Ids past 2^24 (not exact as floats) are coloured as themselves.
         source[chart[2]] = 1 << 24;
@@ -1761,7 +1750,7 @@ mod tests {
             &PngOptions::default(),
         )
         .expect("encode");
-        assert!(patch_png(&atlas, &source, 3).expect("dilate") == Ok(want));
+        assert!(patch_png(&atlas, &source, 3).expect("encode") == want);
         assert!(patch_png(&atlas, &source[1..], 3).is_err(), "one id short");
     }
 

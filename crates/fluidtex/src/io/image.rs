@@ -257,8 +257,11 @@ fn encode_png_parallel(tex: &Texture, depth: PngDepth, level: u8) -> Vec<u8> {
     }
 }
 
-/// [`encode_png_strips`] over rows made one at a time: `row(y, samples)`
-/// writes row `y`'s samples in PNG order (big endian at 16 bits).
+/// The parallel encoder over rows made one at a time: `row(y, samples)`
+/// writes row `y`'s samples in PNG order (big endian at 16 bits). The
+/// image is cut into strips of whole rows ([`STRIP_BYTES`]); each strip
+/// makes and filters its rows, is deflated on its own and joined with a
+/// sync flush, so the bytes never depend on the thread count.
 fn encode_png_rows(
     (width, height, channels): (u32, u32, usize),
     bytes_per_sample: usize,
@@ -267,10 +270,15 @@ fn encode_png_rows(
 ) -> Vec<u8> {
     let bpp = channels * bytes_per_sample;
     let len = width as usize * bpp;
-    encode_png_strips(
-        (width, height, channels, bytes_per_sample),
-        level,
-        |y0, y1, filtered| {
+    let rows_per_strip = (STRIP_BYTES / (len + 1)).max(1);
+    let strips = (height as usize).div_ceil(rows_per_strip);
+    let flags = create_comp_flags_from_zip_params(i32::from(level), -15, 0);
+    let parts: Vec<(Vec<u8>, u32, usize)> = (0..strips)
+        .into_par_iter()
+        .map(|s| {
+            let y0 = s * rows_per_strip;
+            let y1 = (y0 + rows_per_strip).min(height as usize);
+            let mut filtered = Vec::with_capacity((y1 - y0) * (len + 1));
             // Two row buffers: Paeth reads the row above, which for the
             // strip's first row belongs to the strip before.
             let (mut prev, mut cur) = (vec![0u8; len], vec![0u8; len]);
@@ -279,33 +287,9 @@ fn encode_png_rows(
             }
             for y in y0..y1 {
                 row(y, &mut cur);
-                filter_paeth(&cur, (y > 0).then_some(prev.as_slice()), bpp, filtered);
+                filter_paeth(&cur, (y > 0).then_some(prev.as_slice()), bpp, &mut filtered);
                 std::mem::swap(&mut prev, &mut cur);
             }
-        },
-    )
-}
-
-/// The parallel encoder: the image is cut into strips of whole rows
-/// ([`STRIP_BYTES`]), `filter_strip(y0, y1, out)` appends rows `y0..y1`
-/// filtered, and each strip is deflated on its own and joined with a sync
-/// flush, so the bytes never depend on the thread count.
-fn encode_png_strips(
-    (width, height, channels, bytes_per_sample): (u32, u32, usize, usize),
-    level: u8,
-    filter_strip: impl Fn(usize, usize, &mut Vec<u8>) + Sync,
-) -> Vec<u8> {
-    let row = width as usize * channels * bytes_per_sample;
-    let rows_per_strip = (STRIP_BYTES / (row + 1)).max(1);
-    let strips = (height as usize).div_ceil(rows_per_strip);
-    let flags = create_comp_flags_from_zip_params(i32::from(level), -15, 0);
-    let parts: Vec<(Vec<u8>, u32, usize)> = (0..strips)
-        .into_par_iter()
-        .map(|s| {
-            let y0 = s * rows_per_strip;
-            let y1 = (y0 + rows_per_strip).min(height as usize);
-            let mut filtered = Vec::with_capacity((y1 - y0) * (row + 1));
-            filter_strip(y0, y1, &mut filtered);
             let adler = simd_adler32::adler32(&filtered.as_slice());
             let mut out = Vec::with_capacity(filtered.len() / 2 + 64);
             let mut c = CompressorOxide::new(flags);
