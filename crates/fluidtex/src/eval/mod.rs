@@ -988,12 +988,8 @@ fn compare_on_same_points(runs: &mut [MethodRun], floor_name: &str) {
         }
         let mut sorted: Vec<f64> = excess.iter().map(|e| e.1).collect();
         sorted.sort_by(f64::total_cmp);
-        let m = sorted.len();
-        let median = if m % 2 == 1 {
-            sorted[m / 2]
-        } else {
-            0.5 * (sorted[m / 2 - 1] + sorted[m / 2])
-        };
+        // The lower median, as every cell of the report gives it.
+        let median = sorted[(sorted.len() - 1) / 2];
         let worst = excess
             .iter()
             .copied()

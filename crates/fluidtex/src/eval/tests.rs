@@ -545,7 +545,7 @@ fn source_switch_is_judged_against_advect_on_the_same_frames() {
     assert_eq!(
         note(&runs[0]),
         [
-            "source switch share on the points advect also covers at both ends: +25.0 points \
+            "source switch share on the points advect also covers at both ends: +0.0 points \
              against advect's in the median frame, +50.0 at worst (frame 1)"
         ]
     );

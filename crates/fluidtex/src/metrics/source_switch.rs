@@ -123,21 +123,15 @@ pub fn source_switch_same_points(
         });
     }
     let covered = |p: &[u32; 2]| is_patch(p[0]) && is_patch(p[1]);
-    let mut out = [SourceSwitch {
-        covered: 0,
-        switched: 0,
-        lost: 0,
-        gained: 0,
-    }; 2];
-    for (a, b) in run.iter().zip(floor) {
-        if covered(a) && covered(b) {
-            for (o, p) in out.iter_mut().zip([a, b]) {
-                o.covered += 1;
-                o.switched += usize::from(p[0] != p[1]);
-            }
-        }
-    }
-    Ok((out[0], out[1]))
+    let common: Vec<usize> = (0..run.len())
+        .filter(|&i| covered(&run[i]) && covered(&floor[i]))
+        .collect();
+    let on_common = |points: &[[u32; 2]]| {
+        let (before, after): (Vec<u32>, Vec<u32>) =
+            common.iter().map(|&i| (points[i][0], points[i][1])).unzip();
+        source_switch(&before, &after)
+    };
+    Ok((on_common(run)?, on_common(floor)?))
 }
 
 #[cfg(test)]
