@@ -947,6 +947,48 @@ pub fn judge_against_floor(runs: &mut [MethodRun], thresholds: &Thresholds) {
         }
     }
     compare_on_same_points(runs, &floor_name);
+    note_switch_peaks(runs);
+}
+
+/// The lead of the note [`note_switch_peaks`] writes.
+const PEAK_NOTE: &str = "source switch share: the worst frame is";
+
+/// A note per run with its worst frame's switch share as a multiple of the
+/// run's median frame: the fast-flow rule of the evaluation (no frame above
+/// twice the median, no synchronised erosion waves), given as information.
+/// Over a window that starts with the run, every patch of the first frame
+/// wears out at about the same time, so the window's first frames pull the
+/// median down; over a longer window the same flow may stay below 2×.
+fn note_switch_peaks(runs: &mut [MethodRun]) {
+    for run in runs.iter_mut() {
+        run.notes.retain(|n| !n.starts_with(PEAK_NOTE));
+        let shares: Vec<(i32, f64)> = run
+            .frames
+            .iter()
+            .map(|f| (f.frame, f.value(Metric::SourceSwitch)))
+            .filter(|(_, v)| v.is_finite())
+            .collect();
+        let mut sorted: Vec<f64> = shares.iter().map(|s| s.1).collect();
+        sorted.sort_by(f64::total_cmp);
+        let Some(&median) = sorted.get(sorted.len().saturating_sub(1) / 2) else {
+            continue;
+        };
+        // The first of equal worst frames, as the switch-share cell reads.
+        let worst = shares
+            .iter()
+            .copied()
+            .reduce(|best, s| if s.1 > best.1 { s } else { best });
+        if let Some((frame, peak)) = worst
+            && median > 0.0
+        {
+            run.notes.push(format!(
+                "{PEAK_NOTE} {:.1}x the median frame ({:.1} % at frame {frame}, median {:.1} %)",
+                peak / median,
+                100.0 * peak,
+                100.0 * median
+            ));
+        }
+    }
 }
 
 /// Each run's switch share beside the floor run's on the points both cover

@@ -553,6 +553,35 @@ fn source_switch_is_judged_against_advect_on_the_same_frames() {
         note(&runs[1]).is_empty(),
         "advect is not compared with itself"
     );
+    // The worst frame against the median one, for every run with switches:
+    // boiling's 20 % against its lower median of 4 % is 5x.
+    let peaks = |r: &MethodRun| {
+        r.notes
+            .iter()
+            .filter(|n| n.contains("worst frame is"))
+            .cloned()
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(
+        peaks(&runs[2]),
+        [
+            "source switch share: the worst frame is 5.0x the median frame (20.0 % at frame 2, \
+          median 4.0 %)"
+        ]
+    );
+    assert_eq!(
+        peaks(&runs[1]),
+        [
+            "source switch share: the worst frame is 1.0x the median frame (3.0 % at frame 1, \
+          median 3.0 %)"
+        ],
+        "of equal frames the first is the worst"
+    );
+    // Judging again replaces the note; a run that never switches has none.
+    runs[2] = with_shares("boiling", [f64::NAN, 0.0, 0.0]);
+    judge_against_floor(&mut runs, &thresholds);
+    assert!(peaks(&runs[2]).is_empty());
+    assert_eq!(peaks(&runs[0]).len(), 1);
     // Without advect there is nothing to judge against.
     let mut alone = vec![with_shares("erosion", [f64::NAN, 0.05, 0.05])];
     judge_against_floor(&mut alone, &thresholds);
