@@ -1210,7 +1210,8 @@ impl FrameWriter<'_> {
         if job.outputs.glb {
             let path = job.out_dir.join(format!("mesh.{tag}.glb"));
             let png = colour_png.map(|(_, b)| b.as_slice());
-            let glb = crate::io::gltf::encode_glb(
+            // The PNG's bytes go into the file from `colour_png` itself.
+            let glb = crate::io::gltf::layout_glb(
                 &uv.positions,
                 &uv.uvs,
                 Some(normals),
@@ -1221,7 +1222,7 @@ impl FrameWriter<'_> {
                 path: path.clone(),
                 reason,
             })?;
-            write_file(files, &path, &glb)?;
+            files.write(&path, |w| glb.write_to(w))?;
         }
         Ok(())
     }

@@ -41,14 +41,13 @@ pub fn write_glb(
     triangles: &[[u32; 3]],
     base_color_png: Option<&[u8]>,
 ) -> Result<(), IoError> {
-    let bytes =
-        encode_glb(positions, uvs, normals, triangles, base_color_png).map_err(|reason| {
-            IoError::Unwritable {
-                path: path.to_path_buf(),
-                reason,
-            }
-        })?;
-    write_atomic(path, |w| w.write_all(&bytes))
+    let glb = layout_glb(positions, uvs, normals, triangles, base_color_png).map_err(|reason| {
+        IoError::Unwritable {
+            path: path.to_path_buf(),
+            reason,
+        }
+    })?;
+    write_atomic(path, |w| glb.write_to(w))
 }
 
 /// Builds the `.glb` bytes in memory.
@@ -59,6 +58,61 @@ pub fn encode_glb(
     triangles: &[[u32; 3]],
     base_color_png: Option<&[u8]>,
 ) -> Result<Vec<u8>, String> {
+    layout_glb(positions, uvs, normals, triangles, base_color_png).map(|g| g.to_bytes())
+}
+
+/// A `.glb` laid out and ready to write: the header with the JSON chunk
+/// and the binary chunk's own header, the mesh's buffer views, then the
+/// embedded PNG as the chunk's last view. The PNG is borrowed and written
+/// from the caller's bytes: at 6144² it is tens of MB, which the file would
+/// otherwise copy twice more in memory (into the binary chunk, then into
+/// the file's bytes) before writing them.
+pub struct Glb<'a> {
+    head: Vec<u8>,
+    mesh: Vec<u8>,
+    image: &'a [u8],
+    /// Zeros after the image, to the chunk's 4-byte end.
+    padding: usize,
+}
+
+impl Glb<'_> {
+    /// The file's size in bytes.
+    pub fn len(&self) -> usize {
+        self.head.len() + self.mesh.len() + self.image.len() + self.padding
+    }
+
+    /// Never true: a `.glb` has at least its header.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Writes the file's bytes to `w`.
+    pub fn write_to(&self, w: &mut impl Write) -> std::io::Result<()> {
+        w.write_all(&self.head)?;
+        w.write_all(&self.mesh)?;
+        w.write_all(self.image)?;
+        w.write_all(&[0; 3][..self.padding])
+    }
+
+    /// The file's bytes.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut out = Vec::with_capacity(self.len());
+        for part in [&self.head, &self.mesh, self.image, &[0; 3][..self.padding]] {
+            out.extend_from_slice(part);
+        }
+        out
+    }
+}
+
+/// Lays out the `.glb` of a mesh with atlas UVs and, optionally, the
+/// colour atlas as its one material's base colour.
+pub fn layout_glb<'a>(
+    positions: &[Vec3],
+    uvs: &[Vec2],
+    normals: Option<&[Vec3]>,
+    triangles: &[[u32; 3]],
+    base_color_png: Option<&'a [u8]>,
+) -> Result<Glb<'a>, String> {
     check_mesh(positions, uvs, normals, triangles)?;
     let mut json = json!({
         "asset": { "version": "2.0", "generator": concat!("fluidtex ", env!("CARGO_PKG_VERSION")) },
@@ -66,15 +120,17 @@ pub fn encode_glb(
     });
     if triangles.is_empty() {
         json["scenes"] = json!([{}]);
-        return Ok(assemble(&json, &[]));
+        return Ok(assemble(&json, Vec::new(), &[]));
     }
     // The buffer views in this order: positions, normals, uvs, indices,
     // the colour image.
     let mut buffer = GlbBuffer::default();
     let mut primitive = buffer.primitive(positions, uvs, normals, triangles);
+    let mut image: &[u8] = &[];
     if let Some(png) = base_color_png {
         buffer.base_colour(&mut json, png);
         primitive["material"] = json!(0);
+        image = png;
     }
     json["scenes"] = json!([{ "nodes": [0] }]);
     json["nodes"] = json!([{ "mesh": 0 }]);
@@ -86,8 +142,8 @@ pub fn encode_glb(
     } = buffer;
     json["accessors"] = Value::Array(accessors);
     json["bufferViews"] = Value::Array(views);
-    json["buffers"] = json!([{ "byteLength": bin.len() }]);
-    Ok(assemble(&json, &bin))
+    json["buffers"] = json!([{ "byteLength": bin.len() + image.len().next_multiple_of(4) }]);
+    Ok(assemble(&json, bin, image))
 }
 
 /// The binary chunk as it is filled, with its buffer views and accessors.
@@ -172,9 +228,13 @@ impl GlbBuffer {
         json!({ "attributes": attributes, "indices": indices, "mode": 4 })
     }
 
-    /// Embeds `png` and adds the one material that shows it as base colour.
+    /// Adds the view of `png`, which follows the views so far in the
+    /// binary chunk (the caller writes its bytes there: [`Glb`]), and the
+    /// one material that shows it as base colour.
     fn base_colour(&mut self, json: &mut Value, png: &[u8]) {
-        let img_view = self.view(png, None);
+        self.views
+            .push(json!({ "buffer": 0, "byteOffset": self.bin.len(), "byteLength": png.len() }));
+        let img_view = self.views.len() - 1;
         json["images"] = json!([{ "bufferView": img_view, "mimeType": "image/png" }]);
         json["samplers"] = json!([{
             "magFilter": LINEAR, "minFilter": LINEAR, "wrapS": CLAMP_TO_EDGE, "wrapT": CLAMP_TO_EDGE,
@@ -196,24 +256,29 @@ fn flat3(v: &[Vec3]) -> impl Iterator<Item = f32> + '_ {
     v.iter().flat_map(|p| p.to_array())
 }
 
-/// Header + JSON chunk (space-padded) + BIN chunk (zero-padded, if any).
-fn assemble(json: &Value, bin: &[u8]) -> Vec<u8> {
+/// Header + JSON chunk (space-padded) + BIN chunk (the mesh's views, then
+/// `image`, zero-padded), the chunk only if it has bytes.
+fn assemble<'a>(json: &Value, mesh: Vec<u8>, image: &'a [u8]) -> Glb<'a> {
     let mut text = json.to_string().into_bytes();
     text.resize(text.len().next_multiple_of(4), b' ');
-    let bin_len = bin.len().next_multiple_of(4);
-    let total = 12 + 8 + text.len() + if bin.is_empty() { 0 } else { 8 + bin_len };
-    let mut out = Vec::with_capacity(total);
+    let bin_len = (mesh.len() + image.len()).next_multiple_of(4);
+    let total = 12 + 8 + text.len() + if bin_len == 0 { 0 } else { 8 + bin_len };
+    let mut head = Vec::with_capacity(12 + 8 + text.len() + 8);
     for word in [GLB_MAGIC, 2, total as u32, text.len() as u32, CHUNK_JSON] {
-        out.extend_from_slice(&word.to_le_bytes());
+        head.extend_from_slice(&word.to_le_bytes());
     }
-    out.extend_from_slice(&text);
-    if !bin.is_empty() {
-        out.extend_from_slice(&(bin_len as u32).to_le_bytes());
-        out.extend_from_slice(&CHUNK_BIN.to_le_bytes());
-        out.extend_from_slice(bin);
-        out.resize(total, 0);
+    head.extend_from_slice(&text);
+    if bin_len > 0 {
+        head.extend_from_slice(&(bin_len as u32).to_le_bytes());
+        head.extend_from_slice(&CHUNK_BIN.to_le_bytes());
     }
-    out
+    let padding = bin_len - mesh.len() - image.len();
+    Glb {
+        head,
+        mesh,
+        image,
+        padding,
+    }
 }
 
 #[cfg(test)]
@@ -245,6 +310,41 @@ mod tests {
         assert_eq!(json["buffers"][0]["byteLength"], json!(word(bin_at)));
         assert_eq!(json["accessors"][0]["min"], json!([0.0, 0.0, 0.0]));
         assert_eq!(json["accessors"][0]["max"], json!([1.0, 1.0, 0.0]));
+    }
+
+    #[test]
+    fn the_borrowed_png_lands_in_its_view_whatever_its_padding() {
+        let positions = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let uvs = [Vec2::ZERO, Vec2::X, Vec2::Y];
+        let normals = [Vec3::Z; 3];
+        for n in 0..9u8 {
+            let png: Vec<u8> = (1..=n).collect();
+            for normals in [None, Some(&normals[..])] {
+                let glb = layout_glb(&positions, &uvs, normals, &[[0, 1, 2]], Some(&png)).unwrap();
+                let b = glb.to_bytes();
+                let mut written = Vec::new();
+                glb.write_to(&mut written).unwrap();
+                assert_eq!(written, b, "write_to and to_bytes agree");
+                assert_eq!(glb.len(), b.len());
+                let word = |k: usize| u32::from_le_bytes(b[k..k + 4].try_into().unwrap()) as usize;
+                let bin_at = 20 + word(12);
+                let json: Value = serde_json::from_slice(&b[20..bin_at]).unwrap();
+                let view = &json["bufferViews"]
+                    [json["images"][0]["bufferView"].as_u64().unwrap() as usize];
+                let offset = view["byteOffset"].as_u64().unwrap() as usize;
+                assert_eq!(offset % 4, 0);
+                assert_eq!(view["byteLength"], json!(png.len()));
+                let image_at = bin_at + 8 + offset;
+                assert_eq!(&b[image_at..image_at + png.len()], &png[..]);
+                // Zero padding to the chunk's end, which is the file's.
+                assert!(b[image_at + png.len()..].iter().all(|&z| z == 0));
+                assert_eq!(
+                    b.len() - (image_at + png.len()),
+                    png.len().next_multiple_of(4) - png.len()
+                );
+                assert_eq!(json["buffers"][0]["byteLength"], json!(word(bin_at)));
+            }
+        }
     }
 
     #[test]
