@@ -535,13 +535,14 @@ fn source_switch_is_judged_against_advect_on_the_same_frames() {
     assert!(runs[0].frames[0].switch_same_points[0].is_nan());
     // A run measured on other points is not compared.
     assert!(runs[2].frames[2].switch_same_points[0].is_nan());
-    let note = |r: &MethodRun| {
+    let notes_with = |r: &MethodRun, needle: &str| {
         r.notes
             .iter()
-            .filter(|n| n.contains("also covers"))
+            .filter(|n| n.contains(needle))
             .cloned()
             .collect::<Vec<_>>()
     };
+    let note = |r: &MethodRun| notes_with(r, "also covers");
     assert_eq!(
         note(&runs[0]),
         [
@@ -555,13 +556,7 @@ fn source_switch_is_judged_against_advect_on_the_same_frames() {
     );
     // The worst frame against the median one, for every run with switches:
     // boiling's 20 % against its lower median of 4 % is 5x.
-    let peaks = |r: &MethodRun| {
-        r.notes
-            .iter()
-            .filter(|n| n.contains("worst frame is"))
-            .cloned()
-            .collect::<Vec<_>>()
-    };
+    let peaks = |r: &MethodRun| notes_with(r, "worst frame is");
     assert_eq!(
         peaks(&runs[2]),
         [
