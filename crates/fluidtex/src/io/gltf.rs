@@ -77,13 +77,8 @@ pub struct Glb<'a> {
 
 impl Glb<'_> {
     /// The file's size in bytes.
-    pub fn len(&self) -> usize {
+    fn len(&self) -> usize {
         self.head.len() + self.mesh.len() + self.image.len() + self.padding
-    }
-
-    /// Never true: a `.glb` has at least its header.
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
     }
 
     /// Writes the file's bytes to `w`.
