@@ -308,25 +308,28 @@ fn encode_png_rows(
         })
         .collect();
 
-    let mut zlib = Vec::with_capacity(parts.iter().map(|p| p.0.len()).sum::<usize>() + 6);
-    zlib.extend_from_slice(&[0x78, 0x01]);
     let mut adler = 1u32;
-    for (bytes, a, len) in &parts {
-        zlib.extend_from_slice(bytes);
+    for (_, a, len) in &parts {
         adler = adler32_combine(adler, *a, *len);
     }
-    zlib.extend_from_slice(&adler.to_be_bytes());
+    let trailer = adler.to_be_bytes();
+    // The zlib stream (header, the strips' deflate, Adler-32) goes into the
+    // IDAT chunks from its pieces, not from a joined copy: at 6144² that
+    // copy is tens of MB of fresh memory per frame.
+    let mut stream: Vec<&[u8]> = Vec::with_capacity(parts.len() + 2);
+    stream.push(&[0x78, 0x01]);
+    stream.extend(parts.iter().map(|p| p.0.as_slice()));
+    stream.push(&trailer);
+    let zlib_len: usize = stream.iter().map(|p| p.len()).sum();
 
-    let mut png = Vec::with_capacity(zlib.len() + 64 + zlib.len() / (1 << 20) * 12);
+    let mut png = Vec::with_capacity(zlib_len + 64 + zlib_len.div_ceil(IDAT_BYTES) * 12);
     png.extend_from_slice(b"\x89PNG\r\n\x1a\n");
     let mut ihdr = Vec::with_capacity(13);
     ihdr.extend_from_slice(&width.to_be_bytes());
     ihdr.extend_from_slice(&height.to_be_bytes());
     ihdr.extend_from_slice(&[(8 * bytes_per_sample) as u8, color_type(channels), 0, 0, 0]);
     chunk(&mut png, b"IHDR", &ihdr);
-    for part in zlib.chunks(1 << 20) {
-        chunk(&mut png, b"IDAT", part);
-    }
+    idat_chunks(&mut png, &stream, zlib_len);
     chunk(&mut png, b"IEND", &[]);
     png
 }
@@ -391,6 +394,41 @@ fn adler32_combine(adler1: u32, adler2: u32, len2: usize) -> u32 {
     let sum1 = (a1 + a2 + BASE - 1) % BASE;
     let sum2 = (rem * a1 % BASE + b1 + b2 + BASE - rem) % BASE;
     (sum1 | (sum2 << 16)) as u32
+}
+
+/// Bytes of the zlib stream per IDAT chunk (the last one holds the rest).
+const IDAT_BYTES: usize = 1 << 20;
+
+/// The zlib stream made of `pieces` (`len` bytes in all) as IDAT chunks of
+/// [`IDAT_BYTES`], each with its CRC: the chunks [`chunk`] would write for
+/// the joined stream cut every [`IDAT_BYTES`].
+fn idat_chunks(png: &mut Vec<u8>, pieces: &[&[u8]], len: usize) {
+    let mut bytes = pieces.iter().flat_map(|p| p.chunks(IDAT_BYTES));
+    let mut pending: &[u8] = &[];
+    let mut left = len;
+    while left > 0 {
+        let size = left.min(IDAT_BYTES);
+        png.extend_from_slice(&(size as u32).to_be_bytes());
+        png.extend_from_slice(b"IDAT");
+        let mut crc = crc32fast::Hasher::new();
+        crc.update(b"IDAT");
+        let mut need = size;
+        while need > 0 {
+            if pending.is_empty() {
+                let Some(next) = bytes.next() else {
+                    break; // `len` counts the pieces' bytes: never reached
+                };
+                pending = next;
+            }
+            let (take, rest) = pending.split_at(need.min(pending.len()));
+            png.extend_from_slice(take);
+            crc.update(take);
+            need -= take.len();
+            pending = rest;
+        }
+        png.extend_from_slice(&crc.finalize().to_be_bytes());
+        left -= size;
+    }
 }
 
 fn chunk(png: &mut Vec<u8>, kind: &[u8; 4], data: &[u8]) {
@@ -588,6 +626,40 @@ mod tests {
 
     fn decode(bytes: &[u8]) -> image::DynamicImage {
         image::load_from_memory_with_format(bytes, image::ImageFormat::Png).unwrap()
+    }
+
+    #[test]
+    fn idat_chunks_from_pieces_are_the_joined_stream_cut_every_mebibyte() {
+        let mut rng = Pcg64::seed_from_u64(7);
+        for total in [
+            1usize,
+            9,
+            IDAT_BYTES,
+            IDAT_BYTES + 1,
+            2 * IDAT_BYTES + 12_345,
+        ] {
+            // Pieces of random sizes, empty ones included, and one piece
+            // longer than a chunk whenever the stream has one.
+            let mut pieces: Vec<Vec<u8>> = Vec::new();
+            let mut made = 0;
+            while made < total {
+                let n = rng
+                    .random_range(0..=IDAT_BYTES + IDAT_BYTES / 2)
+                    .min(total - made);
+                pieces.push((0..n).map(|_| rng.random()).collect());
+                made += n;
+            }
+            let slices: Vec<&[u8]> = pieces.iter().map(Vec::as_slice).collect();
+            let mut got = Vec::new();
+            idat_chunks(&mut got, &slices, total);
+            let joined = pieces.concat();
+            let mut want = Vec::new();
+            for part in joined.chunks(IDAT_BYTES) {
+                chunk(&mut want, b"IDAT", part);
+            }
+            assert_eq!(got.len(), want.len(), "{total} bytes");
+            assert!(got == want, "{total} bytes");
+        }
     }
 
     #[test]
