@@ -18,7 +18,7 @@ use thiserror::Error;
 use crate::atlas::{AtlasError, AtlasParams};
 use crate::frame::{FrameGeometry, GeometryError, StageClock};
 use crate::mesh::{TriMesh, ValidationReport};
-use crate::methods::{FrameContext, FrameResult, Method, MethodError};
+use crate::methods::{FrameContext, FrameResult, Method, MethodError, SpentBuffers};
 
 /// Errors of the driver itself (a sink has its own error type, which
 /// converts from this one).
@@ -55,6 +55,13 @@ pub trait FrameSink {
     type Error: From<DriverError>;
 
     fn frame(&mut self, frame: DrivenFrame<'_>) -> Result<(), Self::Error>;
+
+    /// Whether [`FrameSink::frame`] reads the result's per-texel uv and
+    /// exemplar levels; when not, the driver hands them back to the method
+    /// ([`Method::recycle`]) before the sink sees the frame.
+    fn reads_evaluation_buffers(&self) -> bool {
+        true
+    }
 }
 
 /// A frame ready to be driven: its geometry and the clock its building
@@ -131,6 +138,12 @@ impl<'m> Driver<'m> {
                 })?;
         }
         clock.lap("dilate");
+        if !sink.reads_evaluation_buffers() {
+            self.method.recycle(SpentBuffers {
+                uv: result.uv.take(),
+                exemplar_lod: result.exemplar_lod.take(),
+            });
+        }
         sink.frame(DrivenFrame {
             method: &*self.method,
             geometry: &geometry,

@@ -475,6 +475,11 @@ struct FileSink<'w, 'a, 'o> {
 impl FrameSink for FileSink<'_, '_, '_> {
     type Error = PipelineError;
 
+    /// No file holds the per-texel uv or exemplar levels.
+    fn reads_evaluation_buffers(&self) -> bool {
+        false
+    }
+
     fn frame(&mut self, frame: DrivenFrame<'_>) -> Result<(), PipelineError> {
         let DrivenFrame {
             method,
@@ -484,8 +489,9 @@ impl FrameSink for FileSink<'_, '_, '_> {
             clock,
         } = frame;
         let state = method.save_state()?;
-        // The per-texel uv, layer counts and mip levels are the evaluation's;
-        // no file holds them, so they are not kept while the frame is written.
+        // The per-texel uv and mip levels went back to the method; the layer
+        // counts are the evaluation's too, and are not kept while the frame
+        // is written.
         self.writer.submit(WriteJob {
             geometry: Arc::clone(geometry),
             previous: previous.cloned(),

@@ -246,6 +246,22 @@ pub trait Method: Send {
 
     /// Restores a state written by [`Method::save_state`].
     fn load_state(&mut self, bytes: &[u8]) -> Result<(), MethodError>;
+
+    /// Takes back the last frame's per-texel evaluation buffers when the
+    /// caller has no use for them (a `run` writes no file of them), so the
+    /// next [`Method::step`] can fill them again instead of mapping fresh
+    /// pages: at 6144² they are 450 MB a frame. The default drops them.
+    fn recycle(&mut self, spent: SpentBuffers) {
+        drop(spent);
+    }
+}
+
+/// The per-texel buffers of a [`FrameResult`] that only an evaluation
+/// reads, handed back to the method by [`Method::recycle`].
+#[derive(Debug, Default)]
+pub struct SpentBuffers {
+    pub uv: Option<Vec<Vec2>>,
+    pub exemplar_lod: Option<Vec<f32>>,
 }
 
 /// Checks `lo <= value <= hi` for a parameter.

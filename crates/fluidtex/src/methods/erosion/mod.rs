@@ -313,6 +313,9 @@ pub struct Erosion {
     /// Each exemplar's statistics, measured on the first frame that
     /// matches its tone.
     tones: Option<Vec<ExemplarTone>>,
+    /// The last frame's uv and exemplar levels, when the caller handed them
+    /// back ([`Method::recycle`]): the next step fills them again.
+    spare: super::SpentBuffers,
 }
 
 pub(crate) use crate::seed::mix;
@@ -364,6 +367,7 @@ impl Erosion {
             dropped_by_reset: 0,
             multi: None,
             tones: None,
+            spare: super::SpentBuffers::default(),
         })
     }
 
@@ -496,7 +500,12 @@ impl Method for Erosion {
     fn step(&mut self, ctx: &FrameContext<'_>) -> Result<FrameResult, MethodError> {
         let mut clock = StageClock::default();
         let atlas = ctx.atlas;
-        let mut out = FillBuffers::new(atlas.width, atlas.height, self.exemplar.total_channels());
+        let mut out = FillBuffers::reusing(
+            atlas.width,
+            atlas.height,
+            self.exemplar.total_channels(),
+            self.spare.uv.take(),
+        );
         // The footprint pass samples every covered texel (blends excepted).
         out.defer_values = self.variant != Variant::Blend
             && self.exemplar.filter == crate::exemplar::ExemplarFilter::Trilinear;
@@ -516,6 +525,7 @@ impl Method for Erosion {
             .multi
             .as_ref()
             .map(|_| exemplars::by_id(&self.state.patches, self.state.next_id));
+        let spare_lod = self.spare.exemplar_lod.take();
         let exemplar_lod = (self.variant != Variant::Blend)
             .then(|| match (&self.multi, &by_id) {
                 (Some(m), Some(by_id)) => {
@@ -523,13 +533,19 @@ impl Method for Erosion {
                     super::footprint::apply_footprint_filtering_by(
                         &mut out,
                         self.exemplar.filter,
+                        spare_lod,
                         |s| {
                             let e = by_id.get(s as usize - 1).copied().unwrap_or(0);
                             all.get(e as usize).map_or(&*self.exemplar, |a| a)
                         },
                     )
                 }
-                _ => super::footprint::apply_footprint_filtering(&mut out, &self.exemplar),
+                _ => super::footprint::apply_footprint_filtering_by(
+                    &mut out,
+                    self.exemplar.filter,
+                    spare_lod,
+                    |_| &*self.exemplar,
+                ),
             })
             .flatten();
         clock.lap("exemplar filter");
@@ -565,6 +581,10 @@ impl Method for Erosion {
         result.layers = blended.layers;
         result.timings = clock.stages;
         Ok(result)
+    }
+
+    fn recycle(&mut self, spent: super::SpentBuffers) {
+        self.spare = spent;
     }
 
     fn save_state(&self) -> Result<Vec<u8>, MethodError> {

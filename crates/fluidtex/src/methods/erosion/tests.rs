@@ -515,6 +515,51 @@ fn one_and_two_threads_give_identical_results() {
 }
 
 #[test]
+fn recycled_buffers_are_refilled_and_give_identical_frames() {
+    let c = scene("vortex", 12, 4, 96);
+    let mut fresh = Erosion::new(ErosionParams::default(), exemplar(), 5).expect("params");
+    let want = step_all(&mut fresh, &c);
+    let mut m = Erosion::new(ErosionParams::default(), exemplar(), 5).expect("params");
+    let mut handed_back: Option<(*const Vec2, *const f32)> = None;
+    for (k, w) in want.iter().enumerate() {
+        let mut r = m.step(&c.ctx(k)).expect("step");
+        assert!(
+            r.channels == w.channels && r.source == w.source,
+            "frame {k}"
+        );
+        let (uv, lod) = (
+            r.uv.take().expect("uv"),
+            r.exemplar_lod.take().expect("levels"),
+        );
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        let flat = |v: &[Vec2]| v.iter().flat_map(|p| p.to_array()).collect::<Vec<_>>();
+        let want_uv = w.uv.as_deref().expect("uv");
+        assert_eq!(bits(&flat(&uv)), bits(&flat(want_uv)), "uv of frame {k}");
+        assert_eq!(
+            bits(&lod),
+            bits(w.exemplar_lod.as_deref().expect("levels")),
+            "frame {k}"
+        );
+        // From the second frame on, the buffers are the ones handed back.
+        if let Some(ptrs) = handed_back {
+            assert_eq!(ptrs, (uv.as_ptr(), lod.as_ptr()), "frame {k} reused them");
+        }
+        handed_back = Some((uv.as_ptr(), lod.as_ptr()));
+        m.recycle(crate::methods::SpentBuffers {
+            uv: Some(uv),
+            exemplar_lod: Some(lod),
+        });
+    }
+    // A buffer of another size is not used: the step allocates its own.
+    m.recycle(crate::methods::SpentBuffers {
+        uv: Some(vec![Vec2::ZERO; 3]),
+        exemplar_lod: Some(vec![0.0; 3]),
+    });
+    let r = m.step(&c.ctx(0)).expect("step");
+    assert_eq!(r.uv.map(|u| u.len()), Some(96 * 96));
+}
+
+#[test]
 fn saved_state_continues_exactly() {
     let c = scene("differential-rotation", 12, 3, 96);
     let mut whole = Erosion::new(ErosionParams::default(), exemplar(), 2).expect("params");

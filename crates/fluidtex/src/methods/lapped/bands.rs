@@ -48,6 +48,17 @@ pub struct TexelBuffers {
 impl TexelBuffers {
     /// Every texel outside the charts, values 0, uv NaN.
     pub fn new(width: u32, height: u32, channels: usize) -> TexelBuffers {
+        TexelBuffers::reusing(width, height, channels, None)
+    }
+
+    /// [`TexelBuffers::new`], refilling `spare_uv` (a spent frame's uv
+    /// buffer, [`crate::methods::Method::recycle`]) when it has the size.
+    pub fn reusing(
+        width: u32,
+        height: u32,
+        channels: usize,
+        spare_uv: Option<Vec<Vec2>>,
+    ) -> TexelBuffers {
         let n = width as usize * height as usize;
         TexelBuffers {
             width,
@@ -57,7 +68,7 @@ impl TexelBuffers {
             // Filled on every core: at 6144² these two are 450 MB, whose
             // serial fill (and page faults) showed in every frame's time.
             source: filled(n, SOURCE_OUTSIDE),
-            uv: filled(n, Vec2::NAN),
+            uv: refilled(spare_uv, n, Vec2::NAN),
             layers: Vec::new(),
             lod: Vec::new(),
             defer_values: false,
@@ -91,6 +102,18 @@ fn filled<T: Copy + Send + Sync>(n: usize, value: T) -> Vec<T> {
     let mut v = Vec::with_capacity(n);
     v.par_extend(rayon::iter::repeat_n(value, n));
     v
+}
+
+/// [`filled`], into `spare` when it holds exactly `n` values: its pages
+/// are mapped already.
+fn refilled<T: Copy + Send + Sync>(spare: Option<Vec<T>>, n: usize, value: T) -> Vec<T> {
+    match spare {
+        Some(mut v) if v.len() == n => {
+            v.par_iter_mut().for_each(|x| *x = value);
+            v
+        }
+        _ => filled(n, value),
+    }
 }
 
 /// Rows of the per-texel outputs of a fill: the whole atlas (`base` 0)
