@@ -1665,7 +1665,75 @@ mod tests {
     use super::*;
     use crate::atlas::{Atlas, AtlasParams, fixtures::icosphere};
     use crate::coherence::Texels;
+    use crate::methods::{FrameContext, FrameResult, MethodError, SpentBuffers};
     use rand::{Rng, SeedableRng};
+
+    /// The erosion method, noting the sizes of what `recycle` hands it.
+    struct Recycling {
+        inner: crate::methods::erosion::Erosion,
+        handed: Vec<(usize, usize)>,
+    }
+
+    impl Method for Recycling {
+        fn name(&self) -> &'static str {
+            self.inner.name()
+        }
+        fn channel_specs(&self) -> Vec<ChannelSpec> {
+            self.inner.channel_specs()
+        }
+        fn step(&mut self, frame: &FrameContext<'_>) -> Result<FrameResult, MethodError> {
+            self.inner.step(frame)
+        }
+        fn save_state(&self) -> Result<Vec<u8>, MethodError> {
+            self.inner.save_state()
+        }
+        fn load_state(&mut self, bytes: &[u8]) -> Result<(), MethodError> {
+            self.inner.load_state(bytes)
+        }
+        fn recycle(&mut self, spent: SpentBuffers) {
+            self.handed.push((
+                spent.uv.as_ref().map_or(0, Vec::len),
+                spent.exemplar_lod.as_ref().map_or(0, Vec::len),
+            ));
+            self.inner.recycle(spent);
+        }
+    }
+
+    /// No file holds the per-texel uv or exemplar levels, so `run` hands
+    /// both back to the method after every frame, whole.
+    #[test]
+    fn run_hands_the_evaluation_buffers_back_after_every_frame() {
+        let scene = crate::scenes::by_name(
+            "rigid-rotation",
+            Some(crate::scenes::SceneParams {
+                resolution: 10,
+                fps: 24.0,
+                first: 0,
+                last: 2,
+                seed: 0,
+            }),
+        )
+        .expect("scene");
+        let mut source = SceneSource::new(scene);
+        let out = tempfile::tempdir().expect("tempdir");
+        let job = Job {
+            out_dir: out.path().to_path_buf(),
+            atlas: AtlasParams::square(64),
+            fps: 24.0,
+            outputs: Default::default(),
+            resume: false,
+            fingerprint: "recycle".into(),
+            hooks: Default::default(),
+        };
+        let exemplar = std::sync::Arc::new(crate::exemplar::builtin_pebbles(64, 0));
+        let mut method = Recycling {
+            inner: crate::methods::erosion::Erosion::new(Default::default(), exemplar, 0)
+                .expect("params"),
+            handed: Vec::new(),
+        };
+        run(&job, &mut source, &mut method, &mut |_| {}).expect("run");
+        assert_eq!(method.handed, vec![(64 * 64, 64 * 64); 3]);
+    }
 
     /// The coherence measurement reads the written values texel by texel:
     /// each must be bit for bit what the whole-atlas conversion (the one a
