@@ -950,6 +950,19 @@ pub fn judge_against_floor(runs: &mut [MethodRun], thresholds: &Thresholds) {
     note_switch_peaks(runs);
 }
 
+/// The lower median of per-frame values (as every cell of the report gives
+/// it) and the worst frame, the first of equal ones; `None` without values.
+fn median_and_worst(values: &[(i32, f64)]) -> Option<(f64, (i32, f64))> {
+    let mut sorted: Vec<f64> = values.iter().map(|v| v.1).collect();
+    sorted.sort_by(f64::total_cmp);
+    let median = *sorted.get(sorted.len().checked_sub(1)? / 2)?;
+    let worst = values
+        .iter()
+        .copied()
+        .reduce(|best, v| if v.1 > best.1 { v } else { best })?;
+    Some((median, worst))
+}
+
 /// The lead of the note [`note_switch_peaks`] writes.
 const PEAK_NOTE: &str = "source switch share: the worst frame is";
 
@@ -968,17 +981,7 @@ fn note_switch_peaks(runs: &mut [MethodRun]) {
             .map(|f| (f.frame, f.value(Metric::SourceSwitch)))
             .filter(|(_, v)| v.is_finite())
             .collect();
-        let mut sorted: Vec<f64> = shares.iter().map(|s| s.1).collect();
-        sorted.sort_by(f64::total_cmp);
-        let Some(&median) = sorted.get(sorted.len().saturating_sub(1) / 2) else {
-            continue;
-        };
-        // The first of equal worst frames, as the switch-share cell reads.
-        let worst = shares
-            .iter()
-            .copied()
-            .reduce(|best, s| if s.1 > best.1 { s } else { best });
-        if let Some((frame, peak)) = worst
+        if let Some((median, (frame, peak))) = median_and_worst(&shares)
             && median > 0.0
         {
             run.notes.push(format!(
@@ -1025,18 +1028,12 @@ fn compare_on_same_points(runs: &mut [MethodRun], floor_name: &str) {
                 }
             }
         }
-        if run.method == floor_name || excess.is_empty() {
+        if run.method == floor_name {
             continue;
         }
-        let mut sorted: Vec<f64> = excess.iter().map(|e| e.1).collect();
-        sorted.sort_by(f64::total_cmp);
-        // The lower median, as every cell of the report gives it.
-        let median = sorted[(sorted.len() - 1) / 2];
-        let worst = excess
-            .iter()
-            .copied()
-            .max_by(|a, b| a.1.total_cmp(&b.1))
-            .unwrap_or((0, f64::NAN));
+        let Some((median, worst)) = median_and_worst(&excess) else {
+            continue;
+        };
         run.notes.push(format!(
             "{lead} at both ends: {:+.1} points against {floor_name}'s in the median \
              frame, {:+.1} at worst (frame {})",

@@ -322,6 +322,7 @@ fn encode_png_rows(
     stream.push(&trailer);
     let zlib_len: usize = stream.iter().map(|p| p.len()).sum();
 
+    // Room for the stream and 12 bytes of framing per chunk.
     let mut png = Vec::with_capacity(zlib_len + 64 + zlib_len.div_ceil(IDAT_BYTES) * 12);
     png.extend_from_slice(b"\x89PNG\r\n\x1a\n");
     let mut ihdr = Vec::with_capacity(13);
@@ -329,7 +330,7 @@ fn encode_png_rows(
     ihdr.extend_from_slice(&height.to_be_bytes());
     ihdr.extend_from_slice(&[(8 * bytes_per_sample) as u8, color_type(channels), 0, 0, 0]);
     chunk(&mut png, b"IHDR", &ihdr);
-    idat_chunks(&mut png, &stream, zlib_len);
+    idat_chunks(&mut png, &stream);
     chunk(&mut png, b"IEND", &[]);
     png
 }
@@ -399,13 +400,13 @@ fn adler32_combine(adler1: u32, adler2: u32, len2: usize) -> u32 {
 /// Bytes of the zlib stream per IDAT chunk (the last one holds the rest).
 const IDAT_BYTES: usize = 1 << 20;
 
-/// The zlib stream made of `pieces` (`len` bytes in all) as IDAT chunks of
-/// [`IDAT_BYTES`], each with its CRC: the chunks [`chunk`] would write for
-/// the joined stream cut every [`IDAT_BYTES`].
-fn idat_chunks(png: &mut Vec<u8>, pieces: &[&[u8]], len: usize) {
-    let mut bytes = pieces.iter().flat_map(|p| p.chunks(IDAT_BYTES));
+/// The zlib stream made of `pieces` as IDAT chunks of [`IDAT_BYTES`], each
+/// with its CRC: the chunks [`chunk`] would write for the joined stream cut
+/// every [`IDAT_BYTES`].
+fn idat_chunks(png: &mut Vec<u8>, pieces: &[&[u8]]) {
+    let mut next_piece = pieces.iter().copied();
     let mut pending: &[u8] = &[];
-    let mut left = len;
+    let mut left: usize = pieces.iter().map(|p| p.len()).sum();
     while left > 0 {
         let size = left.min(IDAT_BYTES);
         png.extend_from_slice(&(size as u32).to_be_bytes());
@@ -415,8 +416,8 @@ fn idat_chunks(png: &mut Vec<u8>, pieces: &[&[u8]], len: usize) {
         let mut need = size;
         while need > 0 {
             if pending.is_empty() {
-                let Some(next) = bytes.next() else {
-                    break; // `len` counts the pieces' bytes: never reached
+                let Some(next) = next_piece.next() else {
+                    break; // `left` counts the pieces' bytes: never reached
                 };
                 pending = next;
             }
@@ -651,7 +652,7 @@ mod tests {
             }
             let slices: Vec<&[u8]> = pieces.iter().map(Vec::as_slice).collect();
             let mut got = Vec::new();
-            idat_chunks(&mut got, &slices, total);
+            idat_chunks(&mut got, &slices);
             let joined = pieces.concat();
             let mut want = Vec::new();
             for part in joined.chunks(IDAT_BYTES) {
