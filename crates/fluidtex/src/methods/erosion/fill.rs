@@ -300,24 +300,42 @@ impl FillContext<'_> {
         n: Vec3,
     ) -> Option<Located> {
         let frames = &self.frames[i as usize];
-        let mut best: Option<(u32, [f32; 3], f32)> = None;
-        for j in tris {
-            let Some(frame) = frames[j as usize] else {
-                continue;
-            };
-            if frame.normal.dot(n) <= 0.0 {
-                continue;
-            }
+        let facing = tris.filter_map(|j| {
+            let frame = frames[j as usize].as_ref()?;
+            (frame.normal.dot(n) > 0.0).then_some((j, frame))
+        });
+        let (j, bary) = self.best_holder(facing, x)?;
+        Some(self.located(i, j, bary))
+    }
+
+    /// Of the listed triangles (facing the point's side), the one that
+    /// holds `x`: within the plane distance, and with the largest smallest
+    /// barycentric above the tolerance (the first of equals); with the
+    /// barycentrics of `x` there.
+    #[inline]
+    fn best_holder<'f, T>(
+        &self,
+        listed: impl Iterator<Item = (T, &'f TriFrame)>,
+        x: Vec3,
+    ) -> Option<(T, [f32; 3])> {
+        let mut best: Option<(T, [f32; 3], f32)> = None;
+        for (j, frame) in listed {
             let (bary, plane) = frame.locate(x);
             if plane.abs() > self.tolerance.max_plane_distance {
                 continue;
             }
             let m = bary[0].min(bary[1]).min(bary[2]);
-            if m >= self.tolerance.min_bary && best.is_none_or(|b| m > b.2) {
+            if m >= self.tolerance.min_bary && best.as_ref().is_none_or(|b| m > b.2) {
                 best = Some((j, bary, m));
             }
         }
-        let (j, bary, _) = best?;
+        best.map(|(j, bary, _)| (j, bary))
+    }
+
+    /// Patch `i`'s uv, weight and feature level at barycentrics `bary` of
+    /// its triangle `j` (clamped to the triangle).
+    #[inline]
+    fn located(&self, i: u32, j: u32, bary: [f32; 3]) -> Located {
         let b = bary.map(|v| v.max(0.0));
         let s = b[0] + b[1] + b[2];
         let b = b.map(|v| v / s);
@@ -330,12 +348,12 @@ impl FillContext<'_> {
             + patch.weight[t[1] as usize] * b[1]
             + patch.weight[t[2] as usize] * b[2];
         let lod = patch.lod.get(j as usize).copied().unwrap_or(0.0);
-        Some(Located {
+        Located {
             triangle: j,
             uv,
             w,
             lod,
-        })
+        }
     }
 
     /// The lapped decision for patch `i` at `x` among the listed patch
@@ -345,7 +363,13 @@ impl FillContext<'_> {
     #[inline]
     fn hit(&self, i: u32, tris: impl Iterator<Item = u32>, x: Vec3, n: Vec3) -> Option<Hit> {
         let l = self.locate_triangle(i, tris, x, n)?;
-        let verdict = self.verdict(i, l.triangle);
+        self.decide(i, l, self.verdict(i, l.triangle))
+    }
+
+    /// The lapped decision at a located point: its hit when the patch's
+    /// texel there survives erosion.
+    #[inline]
+    fn decide(&self, i: u32, l: Located, verdict: Verdict) -> Option<Hit> {
         let kept = match verdict {
             Verdict::Kept => true,
             Verdict::Eroded => false,
@@ -459,12 +483,17 @@ impl TexelBuffers {
 
 /// A candidate patch triangle of one span, with the range of the span's
 /// texels (indices from the span start) where it may contain the texel.
+/// It carries the triangle's locating frame and erosion verdict, so the
+/// per-texel decision reads them from the span's short list instead of
+/// from the per-patch tables.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct SpanCandidate {
     pub(crate) patch: u32,
     pub(crate) tri: u32,
     pub(crate) lo: u32,
     pub(crate) hi: u32,
+    frame: TriFrame,
+    verdict: Verdict,
 }
 
 /// The span pruning of one fluid triangle. Along a span the surface point
@@ -492,6 +521,8 @@ pub(crate) struct SpanPruner {
 struct CandidateLines {
     patch: u32,
     tri: u32,
+    frame: TriFrame,
+    verdict: Verdict,
     /// `at_corners[q][c]`: quantity q (l1, l2, h) at corner c.
     at_corners: [[f32; 3]; 3],
     /// Per condition (b0, b1, b2, h, −h): change per texel and 1 / change
@@ -537,6 +568,8 @@ impl SpanPruner {
             self.lines.push(CandidateLines {
                 patch: i,
                 tri: j,
+                frame,
+                verdict: ctx.verdict(i, j),
                 at_corners,
                 slope,
                 inverse,
@@ -591,6 +624,8 @@ impl SpanPruner {
                     tri: line.tri,
                     lo,
                     hi: hi.min(n.saturating_sub(1)),
+                    frame: line.frame,
+                    verdict: line.verdict,
                 });
             }
         }
@@ -599,10 +634,20 @@ impl SpanPruner {
 
 impl FillContext<'_> {
     /// [`FillContext::resolve`] for texel `k` of a span, among the span's
-    /// pruned candidates.
+    /// pruned candidates. They face the span's side and carry their frame
+    /// and verdict ([`SpanPruner::prepare`]), so the texel tests what
+    /// [`FillContext::hit`] would test, in the same order, with the same
+    /// arithmetic: the same result.
     #[inline]
-    fn resolve_in_span(&self, cands: &[SpanCandidate], k: u32, x: Vec3, n: Vec3) -> Option<Hit> {
-        patch_groups(cands, k).find_map(|(i, tris)| self.hit(i, tris, x, n))
+    fn resolve_in_span(&self, cands: &[SpanCandidate], k: u32, x: Vec3) -> Option<Hit> {
+        cands.chunk_by(|a, b| a.patch == b.patch).find_map(|group| {
+            let listed = group
+                .iter()
+                .filter(|c| c.lo <= k && k <= c.hi)
+                .map(|c| (c, &c.frame));
+            let (c, bary) = self.best_holder(listed, x)?;
+            self.decide(c.patch, self.located(c.patch, c.tri, bary), c.verdict)
+        })
     }
 }
 
@@ -660,7 +705,7 @@ pub fn fill(
         let mut uncovered = Vec::new();
         walk_band(ctx, atlas, candidates, band, |texel, cands| {
             let t = texel.t;
-            match ctx.resolve_in_span(cands, texel.k, texel.p, texel.n) {
+            match ctx.resolve_in_span(cands, texel.k, texel.p) {
                 Some(hit) => {
                     if !defer {
                         let values = rows.values_of(t);
