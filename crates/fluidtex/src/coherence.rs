@@ -42,7 +42,7 @@ use crate::metrics::{
     self, ColourFollow, MetricsError, SOURCE_OUTSIDE, SourceSwitch, Thresholds, is_patch,
 };
 use crate::surface::velocity::FlowFrame;
-use crate::surface::{SurfaceIndex, SurfacePoint};
+use crate::surface::{SurfaceIndex, SurfacePoint, map_in_query_order};
 use crate::texture::Texture;
 
 /// How the coherence metrics are sampled (from the committed thresholds).
@@ -132,19 +132,23 @@ impl Carried {
                 .or_else(|| next.closest_unbounded(p))
                 .map(|h| h.location)
         };
-        let located: Vec<(Option<SurfacePoint>, Option<SurfacePoint>, f32)> = from
+        // Random sample points: queried in an order that keeps consecutive
+        // queries close in the tree, each answer the same (the coherence
+        // stage took half the time at 20 000 points on 85k triangles).
+        let at: Vec<Vec3> = from
             .par_iter()
-            .enumerate()
-            .map(|(i, sp)| {
-                let p = position(from_mesh, sp);
+            .map(|sp| position(from_mesh, sp).unwrap_or(Vec3::NAN))
+            .collect();
+        let located: Vec<(Option<SurfacePoint>, Option<SurfacePoint>, f32)> =
+            map_in_query_order(&at, |i| {
+                let p = position(from_mesh, &from[i]);
                 let q = carried.get(i).copied().flatten().filter(|q| q.is_finite());
                 let still = p.and_then(closest);
                 match (p, q) {
                     (Some(p), Some(q)) => (closest(q), still, (q - p).length()),
                     _ => (None, still, f32::NAN),
                 }
-            })
-            .collect();
+            });
         let mut out = Carried {
             from,
             ..Carried::default()
@@ -170,15 +174,17 @@ pub fn carry_by_velocity(
     from: Vec<SurfacePoint>,
 ) -> Carried {
     let hint = search_hint(prev);
-    let carried: Vec<Option<Vec3>> = from
+    let at: Vec<Vec3> = from
         .par_iter()
-        .map(|sp| {
-            let p = position(prev, sp)?;
-            let v0 = interpolate(prev, prev_velocity, sp)?;
-            let v1 = next.sample(p + v0 * dt, hint)?;
-            Some(p + (v0 + v1) * (0.5 * dt))
-        })
+        .map(|sp| position(prev, sp).unwrap_or(Vec3::NAN))
         .collect();
+    let carried: Vec<Option<Vec3>> = map_in_query_order(&at, |i| {
+        let sp = &from[i];
+        let p = position(prev, sp)?;
+        let v0 = interpolate(prev, prev_velocity, sp)?;
+        let v1 = next.sample(p + v0 * dt, hint)?;
+        Some(p + (v0 + v1) * (0.5 * dt))
+    });
     Carried::locate(prev, from, &carried, next.index)
 }
 

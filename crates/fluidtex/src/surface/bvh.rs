@@ -125,6 +125,21 @@ pub fn query_order(points: &[Vec3]) -> Vec<u32> {
     keyed.into_iter().map(|(_, i)| i).collect()
 }
 
+/// `f(i)` for every index of `points`, evaluated in parallel in
+/// [`query_order`] (for closest-point queries near `points[i]`), returned
+/// in index order: the same values as mapping the indices in order.
+pub fn map_in_query_order<T: Send>(points: &[Vec3], f: impl Fn(usize) -> T + Sync) -> Vec<T> {
+    use rayon::prelude::*;
+    let order = query_order(points);
+    let done: Vec<T> = order.par_iter().map(|&i| f(i as usize)).collect();
+    let mut placed: Vec<Option<T>> = std::iter::repeat_with(|| None).take(points.len()).collect();
+    for (&i, v) in order.iter().zip(done) {
+        placed[i as usize] = Some(v);
+    }
+    // The order is a permutation of the indices: every slot holds a value.
+    placed.into_iter().flatten().collect()
+}
+
 #[cfg(test)]
 mod tests {
     use rand::{Rng, SeedableRng};
@@ -255,6 +270,31 @@ mod tests {
             mean_step(&points, &order)
         );
         assert_eq!(query_order(&points), order, "same input, same order");
+    }
+
+    #[test]
+    fn mapping_in_query_order_gives_each_index_its_own_value() {
+        // Seeded random points, some not finite: the values come back in
+        // index order, each computed once, whatever order they ran in.
+        let mut rng = Pcg64::seed_from_u64(11);
+        let mut points: Vec<Vec3> = (0..500)
+            .map(|_| Vec3::new(rng.random(), rng.random(), rng.random()))
+            .collect();
+        points[7] = Vec3::NAN;
+        points[300] = Vec3::new(f32::INFINITY, 0.0, 0.0);
+        let calls = std::sync::atomic::AtomicUsize::new(0);
+        let mapped = map_in_query_order(&points, |i| {
+            calls.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            (i, points[i].x.to_bits())
+        });
+        let expected: Vec<(usize, u32)> = points
+            .iter()
+            .enumerate()
+            .map(|(i, p)| (i, p.x.to_bits()))
+            .collect();
+        assert_eq!(mapped, expected);
+        assert_eq!(calls.into_inner(), points.len());
+        assert!(map_in_query_order(&[], |i| i).is_empty());
     }
 
     #[test]

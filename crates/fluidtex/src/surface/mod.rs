@@ -12,7 +12,7 @@ pub mod velocity;
 
 use glam::{Vec2, Vec3};
 
-pub use bvh::{SurfaceHit, SurfaceIndex, query_order};
+pub use bvh::{SurfaceHit, SurfaceIndex, map_in_query_order, query_order};
 
 use crate::mesh::TriMesh;
 

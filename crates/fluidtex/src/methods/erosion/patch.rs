@@ -15,7 +15,7 @@ use serde::{Deserialize, Serialize};
 use super::distortion::{distortion, triangle_quality_from};
 use crate::mesh::{Topology, TriMesh};
 use crate::surface::velocity::FlowInterval;
-use crate::surface::{SurfaceIndex, SurfacePoint, closest_point_on_triangle, query_order};
+use crate::surface::{SurfaceIndex, SurfacePoint, closest_point_on_triangle, map_in_query_order};
 
 /// Geometric constants every patch shares (DESIGN §1), world units.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -136,15 +136,7 @@ impl<'a> CarryTable<'a> {
             .par_iter()
             .map(|k| Vec3::from_array(k.map(f32::from_bits)))
             .collect();
-        let order = query_order(&points);
-        let carried: Vec<Carry> = order
-            .par_iter()
-            .map(|&i| carry_vertex(points[i as usize], &flow, next, &shape))
-            .collect();
-        let mut carries = vec![Carry::Stay; keys.len()];
-        for (&i, c) in order.iter().zip(carried) {
-            carries[i as usize] = c;
-        }
+        let carries = map_in_query_order(&points, |i| carry_vertex(points[i], &flow, next, &shape));
         CarryTable {
             keys,
             carries,
