@@ -16,7 +16,8 @@ use std::time::{Duration, Instant};
 
 use fluidtex::io::gltf::write_glb;
 use fluidtex::io::image::{
-    ExrCompression, ExrOptions, ExrSample, PngEncoder, PngOptions, encode_png, write_exr,
+    ExrCompression, ExrOptions, ExrSample, PngCompression, PngEncoder, PngOptions, encode_png,
+    write_exr,
 };
 use fluidtex::io::obj_write::{ObjMaterial, write_obj};
 use fluidtex::io::ply_write::{PlyEncoding, write_ply};
@@ -229,52 +230,46 @@ fn mb(n: usize) -> f64 {
     n as f64 / 1e6
 }
 
-/// The atlas as PNG: the parallel encoder on all threads and on `one`,
-/// at levels 1 and 6, and the image crate's encoder for reference.
+/// The atlas as PNG: the parallel encoder with fdeflate (the default) and
+/// with miniz at levels 1 and 6, on all threads and on `one`, and the image
+/// crate's encoder for reference.
 fn png_writes(tex: &Texture, runs: usize, one: &rayon::ThreadPool) {
     let size = tex.width;
     let threads = rayon::current_num_threads();
-    let png_all = |encoder, level| {
+    let png_all = |encoder, compression| {
         let opts = PngOptions {
             encoder,
-            level,
+            compression,
             ..Default::default()
         };
         best(runs, || encode_png(tex, &opts).expect("png"))
     };
+    let (fastest, level1) = (PngCompression::Fastest, PngCompression::Deflate(1));
     let runs_of = [
+        ("parallel fdeflate", PngEncoder::Parallel, fastest, false),
+        ("parallel fdeflate", PngEncoder::Parallel, fastest, true),
+        ("parallel level 1 ", PngEncoder::Parallel, level1, false),
+        ("parallel level 1 ", PngEncoder::Parallel, level1, true),
         (
-            format!("parallel level 1, {threads} threads:"),
+            "parallel level 6 ",
             PngEncoder::Parallel,
-            1,
+            PngCompression::Deflate(6),
             false,
         ),
-        (
-            "parallel level 1, 1 thread: ".to_string(),
-            PngEncoder::Parallel,
-            1,
-            true,
-        ),
-        (
-            format!("parallel level 6, {threads} threads:"),
-            PngEncoder::Parallel,
-            6,
-            false,
-        ),
-        (
-            "image crate fast, 1 thread: ".to_string(),
-            PngEncoder::Image,
-            1,
-            true,
-        ),
+        ("image crate fast ", PngEncoder::Image, fastest, true),
     ];
-    for (label, encoder, level, one_thread) in runs_of {
+    for (label, encoder, compression, one_thread) in runs_of {
         let (t, b) = if one_thread {
-            one.install(|| png_all(encoder, level))
+            one.install(|| png_all(encoder, compression))
         } else {
-            png_all(encoder, level)
+            png_all(encoder, compression)
         };
-        println!("{size}² PNG {label} {}  {:7.1} MB", ms(t), mb(b.len()));
+        let on = if one_thread { 1 } else { threads };
+        println!(
+            "{size}² PNG {label}, {on:2} thread(s): {}  {:7.1} MB",
+            ms(t),
+            mb(b.len())
+        );
     }
 }
 

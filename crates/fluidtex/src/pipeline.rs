@@ -1102,8 +1102,8 @@ fn patch_png(atlas: &crate::atlas::Atlas, source: &[u32], radius: u32) -> Result
         .dilate_ids(&mut ids, radius)
         .map_err(|e| e.to_string())?;
     let width = atlas.width as usize;
-    let level = PngOptions::default().level;
-    crate::io::image::encode_png_8_rows(atlas.width, atlas.height, 3, level, |y, rgb| {
+    let compression = PngOptions::default().compression;
+    crate::io::image::encode_png_8_rows(atlas.width, atlas.height, 3, compression, |y, rgb| {
         // Ids come in runs along a row: one hash per run.
         let mut last: Option<(u32, [u8; 3])> = None;
         for (out, &id) in rgb.chunks_exact_mut(3).zip(&ids[y * width..][..width]) {

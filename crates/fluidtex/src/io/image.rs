@@ -12,9 +12,23 @@
 //! do not use the mtpng crate because it links the C zlib (libz-sys), and no
 //! pure-Rust crate encodes PNG in parallel. Strip boundaries depend only on
 //! the image size, never on the thread count, so the bytes are identical
-//! however many threads run. Each strip starts with an empty history, which
-//! costs ~1% in size. [`PngEncoder::Image`] (the image crate, single-threaded,
-//! fast deflate) is kept as a reference and for comparison in `io_bench`.
+//! however many threads run. [`PngEncoder::Image`] (the image crate,
+//! single-threaded, fast deflate) is kept as a reference and for comparison
+//! in `io_bench`.
+//!
+//! **Strip compression.** By default ([`PngCompression::Fastest`]) each
+//! strip is coded by the fdeflate crate: one deflate block with a fixed
+//! Huffman code made for filtered PNG rows, plus runs of zeros, and no
+//! search for repeats. On a 6144² colour atlas it is 4× faster than miniz
+//! at level 1 on one core and its file is 10 % smaller (0.18 s and 33.7 MB
+//! against 0.74 s and 37.3 MB); on flat debug colours it is 2–3× faster and
+//! about 15 % larger. fdeflate writes a whole zlib stream, so a strip's
+//! output is cut to its deflate block and made joinable here: the block's
+//! final bit is cleared, and after its end-of-block code an empty stored
+//! block brings the stream to a byte boundary, which is what a zlib sync
+//! flush writes ([`join_fdeflate_block`]). [`PngCompression::Deflate`]
+//! (miniz at a level, each strip starting with an empty history, ~1 %
+//! larger than one stream) is the choice for smaller files.
 //!
 //! **EXR.** 16- or 32-bit float, 1–4 channels, named `Y`, `Y A`, `R G B`,
 //! `R G B A` by default; written by the exr crate, which compresses blocks
@@ -52,26 +66,38 @@ pub enum PngEncoder {
     Image,
 }
 
+/// How the parallel encoder compresses each strip (module doc).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PngCompression {
+    /// fdeflate's fixed code for filtered rows (default): atlases are
+    /// rewritten every frame, so speed wins.
+    #[default]
+    Fastest,
+    /// miniz deflate at level 1 (fastest) to 9 (smallest).
+    Deflate(u8),
+}
+
+impl PngCompression {
+    fn check(self) -> Result<(), String> {
+        match self {
+            PngCompression::Deflate(level) if !(1..=9).contains(&level) => {
+                Err(format!("PNG deflate level {level} is outside 1..=9"))
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
 /// PNG writing options.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct PngOptions {
     /// Sample depth. Default [`PngDepth::Eight`].
     pub depth: PngDepth,
     /// Encoder. Default [`PngEncoder::Parallel`].
     pub encoder: PngEncoder,
-    /// Deflate level 1 (fastest) to 9 (smallest) for the parallel encoder;
-    /// default 1. Atlases are rewritten every frame, so speed wins.
-    pub level: u8,
-}
-
-impl Default for PngOptions {
-    fn default() -> Self {
-        PngOptions {
-            depth: PngDepth::Eight,
-            encoder: PngEncoder::Parallel,
-            level: 1,
-        }
-    }
+    /// Compression of the parallel encoder's strips. Default
+    /// [`PngCompression::Fastest`].
+    pub compression: PngCompression,
 }
 
 /// EXR sample type.
@@ -137,22 +163,17 @@ fn check_texture(tex: &Texture) -> Result<(), String> {
 /// Encodes a texture as PNG bytes.
 pub fn encode_png(tex: &Texture, options: &PngOptions) -> Result<Vec<u8>, String> {
     check_texture(tex)?;
-    if !(1..=9).contains(&options.level) {
-        return Err(format!(
-            "PNG deflate level {} is outside 1..=9",
-            options.level
-        ));
-    }
+    options.compression.check()?;
     match options.encoder {
-        PngEncoder::Parallel => Ok(encode_png_parallel(tex, options.depth, options.level)),
+        PngEncoder::Parallel => Ok(encode_png_parallel(tex, options.depth, options.compression)),
         PngEncoder::Image => {
             encode_png_image_crate(tex, options.depth, &quantize(tex, options.depth))
         }
     }
 }
 
-/// Encodes an 8-bit image made row by row with the default parallel
-/// encoder at `level`: `row(y, samples)` writes row `y`'s samples
+/// Encodes an 8-bit image made row by row with the parallel encoder and
+/// `compression`: `row(y, samples)` writes row `y`'s samples
 /// (`channels` interleaved per pixel, quantized as [`quantize_8`] does).
 /// The same bytes [`encode_png`] gives for the texture the rows were
 /// quantized from, without holding the image: for images made directly in
@@ -161,7 +182,7 @@ pub fn encode_png_8_rows(
     width: u32,
     height: u32,
     channels: usize,
-    level: u8,
+    compression: PngCompression,
     row: impl Fn(usize, &mut [u8]) + Sync,
 ) -> Result<Vec<u8>, String> {
     if !(1..=4).contains(&channels) || width == 0 || height == 0 {
@@ -169,10 +190,13 @@ pub fn encode_png_8_rows(
             "cannot encode a {width}x{height} image with {channels} channels"
         ));
     }
-    if !(1..=9).contains(&level) {
-        return Err(format!("PNG deflate level {level} is outside 1..=9"));
-    }
-    Ok(encode_png_rows((width, height, channels), 1, level, row))
+    compression.check()?;
+    Ok(encode_png_rows(
+        (width, height, channels),
+        1,
+        compression,
+        row,
+    ))
 }
 
 /// One 8-bit PNG sample from a value: clamped to [0, 1], scaled and
@@ -237,19 +261,19 @@ fn color_type(channels: usize) -> u8 {
 /// Uncompressed bytes per strip; fixed so output never depends on threads.
 const STRIP_BYTES: usize = 1 << 18;
 
-fn encode_png_parallel(tex: &Texture, depth: PngDepth, level: u8) -> Vec<u8> {
+fn encode_png_parallel(tex: &Texture, depth: PngDepth, compression: PngCompression) -> Vec<u8> {
     // Each strip quantizes its own rows: no 8- or 16-bit copy of the whole
     // texture is made (at 6144² RGB that is 113 MiB of fresh pages).
     let len = tex.width as usize * tex.channels;
     let values = |y: usize| &tex.data[y * len..][..len];
     let dims = (tex.width, tex.height, tex.channels);
     match depth {
-        PngDepth::Eight => encode_png_rows(dims, 1, level, |y, out| {
+        PngDepth::Eight => encode_png_rows(dims, 1, compression, |y, out| {
             for (o, &x) in out.iter_mut().zip(values(y)) {
                 *o = quantize_8(x);
             }
         }),
-        PngDepth::Sixteen => encode_png_rows(dims, 2, level, |y, out| {
+        PngDepth::Sixteen => encode_png_rows(dims, 2, compression, |y, out| {
             for (o, &x) in out.chunks_exact_mut(2).zip(values(y)) {
                 o.copy_from_slice(&quantize_16(x).to_be_bytes());
             }
@@ -260,19 +284,18 @@ fn encode_png_parallel(tex: &Texture, depth: PngDepth, level: u8) -> Vec<u8> {
 /// The parallel encoder over rows made one at a time: `row(y, samples)`
 /// writes row `y`'s samples in PNG order (big endian at 16 bits). The
 /// image is cut into strips of whole rows ([`STRIP_BYTES`]); each strip
-/// makes and filters its rows, is deflated on its own and joined with a
+/// makes and filters its rows, is compressed on its own and joined with a
 /// sync flush, so the bytes never depend on the thread count.
 fn encode_png_rows(
     (width, height, channels): (u32, u32, usize),
     bytes_per_sample: usize,
-    level: u8,
+    compression: PngCompression,
     row: impl Fn(usize, &mut [u8]) + Sync,
 ) -> Vec<u8> {
     let bpp = channels * bytes_per_sample;
     let len = width as usize * bpp;
     let rows_per_strip = (STRIP_BYTES / (len + 1)).max(1);
     let strips = (height as usize).div_ceil(rows_per_strip);
-    let flags = create_comp_flags_from_zip_params(i32::from(level), -15, 0);
     let parts: Vec<(Vec<u8>, u32, usize)> = (0..strips)
         .into_par_iter()
         .map(|s| {
@@ -291,19 +314,11 @@ fn encode_png_rows(
                 std::mem::swap(&mut prev, &mut cur);
             }
             let adler = simd_adler32::adler32(&filtered.as_slice());
-            let mut out = Vec::with_capacity(filtered.len() / 2 + 64);
-            let mut c = CompressorOxide::new(flags);
-            let flush = if s + 1 == strips {
-                TDEFLFlush::Finish
-            } else {
-                TDEFLFlush::Sync
+            let last = s + 1 == strips;
+            let out = match compression {
+                PngCompression::Fastest => fdeflate_strip(&filtered, last),
+                PngCompression::Deflate(level) => miniz_strip(&filtered, level, last),
             };
-            let (status, consumed) = compress_to_output(&mut c, &filtered, flush, |chunk| {
-                out.extend_from_slice(chunk);
-                true
-            });
-            // An in-memory callback cannot fail, so miniz always consumes all.
-            debug_assert!(status != TDEFLStatus::BadParam && consumed == filtered.len());
             (out, adler, filtered.len())
         })
         .collect();
@@ -333,6 +348,80 @@ fn encode_png_rows(
     idat_chunks(&mut png, &stream);
     chunk(&mut png, b"IEND", &[]);
     png
+}
+
+/// Raw deflate of one strip by miniz at `level`: ends with a sync flush
+/// (byte aligned, not final) unless it is the `last` strip.
+fn miniz_strip(filtered: &[u8], level: u8, last: bool) -> Vec<u8> {
+    let flags = create_comp_flags_from_zip_params(i32::from(level), -15, 0);
+    let mut out = Vec::with_capacity(filtered.len() / 2 + 64);
+    let mut c = CompressorOxide::new(flags);
+    let flush = if last {
+        TDEFLFlush::Finish
+    } else {
+        TDEFLFlush::Sync
+    };
+    let (status, consumed) = compress_to_output(&mut c, filtered, flush, |chunk| {
+        out.extend_from_slice(chunk);
+        true
+    });
+    // An in-memory callback cannot fail, so miniz always consumes all.
+    debug_assert!(status != TDEFLStatus::BadParam && consumed == filtered.len());
+    out
+}
+
+/// Bytes of the zlib header that fdeflate writes before its block.
+const ZLIB_HEADER: usize = 2;
+/// Bytes of the Adler-32 that fdeflate writes after its block.
+const ZLIB_TRAILER: usize = 4;
+
+/// Raw deflate of one strip by fdeflate, joinable as [`miniz_strip`]'s.
+fn fdeflate_strip(filtered: &[u8], last: bool) -> Vec<u8> {
+    // Writing to a vector cannot fail; should it ever, miniz codes the
+    // strip instead of losing it.
+    let coded = (|| {
+        let mut c = fdeflate::Compressor::new(Vec::with_capacity(filtered.len() / 2 + 64))?;
+        c.write_data(filtered)?;
+        c.finish()
+    })();
+    match coded.ok().and_then(|zlib| join_fdeflate_block(zlib, last)) {
+        Some(block) => block,
+        None => miniz_strip(filtered, 1, last),
+    }
+}
+
+/// fdeflate's zlib stream cut to its deflate block; unless `last`, made
+/// joinable: not final, and followed by an empty stored block that ends
+/// byte aligned (a zlib sync flush). `None` when the stream does not have
+/// the one-block shape this relies on (then the caller codes it again).
+///
+/// fdeflate writes a single dynamic-Huffman block right after the 2-byte
+/// zlib header, so the block's first header bit (BFINAL) is bit 0 of the
+/// block's first byte. It ends the block with its end-of-block code, whose
+/// last bit is 1 in fdeflate's fixed code, then pads with zero bits to a
+/// byte: the highest set bit of the block's last byte is where the block
+/// ends. A stored block's 3 header bits (all zero: not final, type 00) go
+/// right after it, zero padding to the byte, then LEN = 0 and NLEN = !0.
+fn join_fdeflate_block(mut zlib: Vec<u8>, last: bool) -> Option<Vec<u8>> {
+    if zlib.len() <= ZLIB_HEADER + ZLIB_TRAILER || zlib[ZLIB_HEADER] & 1 == 0 {
+        return None;
+    }
+    zlib.truncate(zlib.len() - ZLIB_TRAILER);
+    let end = *zlib.last()?;
+    if end == 0 {
+        return None;
+    }
+    zlib.drain(..ZLIB_HEADER);
+    let mut block = zlib;
+    if !last {
+        block[0] &= !1;
+        let free_bits = end.leading_zeros();
+        if free_bits < 3 {
+            block.push(0);
+        }
+        block.extend_from_slice(&[0x00, 0x00, 0xff, 0xff]);
+    }
+    Some(block)
 }
 
 /// PNG filter type 4 (Paeth) for one row, prefixed by its filter byte.
@@ -676,15 +765,95 @@ mod tests {
         ] {
             let tex = random_texture(u64::from(w), w, h, c);
             let samples: Vec<u8> = tex.data.iter().map(|&x| quantize_8(x)).collect();
-            let want = encode_png(&tex, &PngOptions::default()).unwrap();
             let len = w as usize * c;
             let rows = |y: usize, out: &mut [u8]| out.copy_from_slice(&samples[y * len..][..len]);
-            assert_eq!(encode_png_8_rows(w, h, c, 1, rows).unwrap(), want);
+            for compression in [PngCompression::Fastest, PngCompression::Deflate(1)] {
+                let want = encode_png(
+                    &tex,
+                    &PngOptions {
+                        compression,
+                        ..Default::default()
+                    },
+                )
+                .unwrap();
+                assert_eq!(encode_png_8_rows(w, h, c, compression, rows).unwrap(), want);
+            }
         }
         let rows = |_: usize, out: &mut [u8]| out.fill(0);
-        assert!(encode_png_8_rows(2, 2, 5, 1, rows).is_err());
-        assert!(encode_png_8_rows(0, 2, 3, 1, rows).is_err());
-        assert!(encode_png_8_rows(2, 2, 3, 0, rows).is_err());
+        let fastest = PngCompression::Fastest;
+        assert!(encode_png_8_rows(2, 2, 5, fastest, rows).is_err());
+        assert!(encode_png_8_rows(0, 2, 3, fastest, rows).is_err());
+        assert!(encode_png_8_rows(2, 2, 3, PngCompression::Deflate(0), rows).is_err());
+        assert!(encode_png_8_rows(2, 2, 3, PngCompression::Deflate(10), rows).is_err());
+    }
+
+    /// fdeflate strips joined as the encoder joins them: a zlib header,
+    /// the strips' blocks, the combined Adler-32.
+    fn join_strips(strips: &[&[u8]]) -> Vec<u8> {
+        let mut z = vec![0x78, 0x01];
+        let mut adler = 1u32;
+        for (i, s) in strips.iter().enumerate() {
+            let last = i + 1 == strips.len();
+            let zlib = (|| {
+                let mut c = fdeflate::Compressor::new(Vec::new())?;
+                c.write_data(s)?;
+                c.finish()
+            })()
+            .unwrap();
+            let block = join_fdeflate_block(zlib, last).expect("fdeflate's one-block shape");
+            assert_eq!(block, fdeflate_strip(s, last));
+            z.extend_from_slice(&block);
+            adler = adler32_combine(adler, simd_adler32::adler32(s), s.len());
+        }
+        z.extend_from_slice(&adler.to_be_bytes());
+        z
+    }
+
+    #[test]
+    fn fdeflate_strips_join_into_one_stream_wherever_a_block_ends() {
+        // Strips like filtered rows (small values, runs of zeros) and
+        // random bytes, of random lengths: each ends its block at some bit
+        // of its last byte, and the join must hold for all eight (the
+        // stored block's header fits the padding, or spills into a byte).
+        let mut rng = Pcg64::seed_from_u64(2021);
+        let mut ends = [0usize; 8];
+        for case in 0..200 {
+            let strips: Vec<Vec<u8>> = (0..rng.random_range(1..5))
+                .map(|_| {
+                    let n = rng.random_range(1..3000);
+                    (0..n)
+                        .map(|_| match case % 3 {
+                            0 => rng.random(),
+                            1 if rng.random_bool(0.3) => 0,
+                            _ => rng.random_range(0..6u8).wrapping_sub(3),
+                        })
+                        .collect()
+                })
+                .collect();
+            for s in &strips[..strips.len() - 1] {
+                let zlib = (|| {
+                    let mut c = fdeflate::Compressor::new(Vec::new())?;
+                    c.write_data(s)?;
+                    c.finish()
+                })()
+                .unwrap();
+                let end = zlib[zlib.len() - ZLIB_TRAILER - 1];
+                ends[end.leading_zeros() as usize] += 1;
+            }
+            let refs: Vec<&[u8]> = strips.iter().map(Vec::as_slice).collect();
+            let joined = join_strips(&refs);
+            let whole = miniz_oxide::inflate::decompress_to_vec_zlib(&joined).unwrap();
+            assert_eq!(whole, strips.concat(), "case {case}");
+        }
+        assert!(
+            ends.iter().all(|&n| n > 0),
+            "block ends by free bits: {ends:?}"
+        );
+        // A stream without fdeflate's shape (here: its block marked not
+        // final) is refused, and the strip is deflated by miniz instead.
+        let mut zlib = fdeflate::compress_to_vec(b"abc");
+        zlib[ZLIB_HEADER] &= !1;
+        assert_eq!(join_fdeflate_block(zlib, true), None);
     }
 
     #[test]
@@ -726,13 +895,23 @@ mod tests {
                         &PngOptions {
                             depth,
                             encoder: PngEncoder::Image,
-                            level: 1,
+                            ..Default::default()
+                        },
+                    )
+                    .unwrap();
+                    let deflated = encode_png(
+                        &tex,
+                        &PngOptions {
+                            depth,
+                            compression: PngCompression::Deflate(6),
+                            ..Default::default()
                         },
                     )
                     .unwrap();
                     let (a, b) = (decode(&ours), decode(&reference));
                     assert_eq!(a.color(), b.color(), "{w}x{h}x{c} {depth:?}");
                     assert_eq!(a.as_bytes(), b.as_bytes(), "{w}x{h}x{c} {depth:?}");
+                    assert_eq!(decode(&deflated).as_bytes(), b.as_bytes());
                     if depth == PngDepth::Eight {
                         let expect: Vec<u8> = tex
                             .data
@@ -799,7 +978,7 @@ mod tests {
             encode_png(
                 &tex,
                 &PngOptions {
-                    level: 0,
+                    compression: PngCompression::Deflate(0),
                     ..Default::default()
                 }
             )
