@@ -153,8 +153,8 @@ fn frame_files(f: i32) -> Vec<String> {
 /// `--resume` writes exactly the files of an uninterrupted run.
 ///
 /// Writes per frame, in order: color.png, mesh.mtl, mesh.obj, mesh.glb,
-/// (from frame 1 on) switch.png, then the debug views patches.png and
-/// source.exr, stats.json, then state.bin.
+/// (from frame 1 on) switch.png, then the debug views source.exr and
+/// patches.png, stats.json, then state.bin.
 #[test]
 fn a_full_disk_mid_frame_leaves_no_counted_partial_frame_and_resume_matches() {
     let dir = tempfile::tempdir().unwrap();
@@ -166,7 +166,7 @@ fn a_full_disk_mid_frame_leaves_no_counted_partial_frame_and_resume_matches() {
         (8, "state.bin", Some(0)),
         (12, "mesh.0001.glb", Some(0)),
         (13, "switch.0001.png", Some(0)),
-        (15, "source.0001.exr", Some(0)),
+        (15, "patches.0001.png", Some(0)),
         (16, "stats.0001.json", Some(0)),
         (17, "state.bin", Some(1)),
     ];
