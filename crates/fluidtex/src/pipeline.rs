@@ -603,8 +603,9 @@ impl FrameWriter<'_> {
         let mut files = Staging::new(Some(self.guard), job.hooks.write.as_ref());
         self.write_frame(&mut files, &g, &channels, source.as_deref())?;
         clock.lap("write");
-        let debug = job.outputs.debug.then_some(source.as_deref()).flatten();
-        if let Some(ids) = debug {
+        // The ids of the debug outputs (coherence numbers, then the views).
+        let debug = source.filter(|_| job.outputs.debug);
+        if let Some(ids) = debug.as_deref() {
             let prev = previous.as_deref();
             if self.coherence_prev.is_none()
                 && let (Some(last), Some(prev)) = (self.resumed_after, prev)
@@ -638,7 +639,7 @@ impl FrameWriter<'_> {
         // The channels (12 bytes a texel in colour alone) are written and
         // measured: not held while the debug views are made from the ids.
         drop(channels);
-        if let Some(ids) = source.filter(|_| job.outputs.debug) {
+        if let Some(ids) = debug {
             self.write_debug_views(&mut files, &g, ids)?;
             clock.lap("debug");
         }

@@ -315,9 +315,8 @@ fn encode_png_rows(
                 filter_paeth(&cur, (y > 0).then_some(prev.as_slice()), bpp, &mut filtered);
                 std::mem::swap(&mut prev, &mut cur);
             }
-            let adler = simd_adler32::adler32(&filtered.as_slice());
             let last = s + 1 == strips;
-            let out = match compression {
+            let (out, adler) = match compression {
                 PngCompression::Fastest => fdeflate_strip(&filtered, last),
                 PngCompression::Deflate(level) => miniz_strip(&filtered, level, last),
             };
@@ -352,9 +351,10 @@ fn encode_png_rows(
     png
 }
 
-/// Raw deflate of one strip by miniz at `level`: ends with a sync flush
-/// (byte aligned, not final) unless it is the `last` strip.
-fn miniz_strip(filtered: &[u8], level: u8, last: bool) -> Vec<u8> {
+/// Raw deflate of one strip by miniz at `level`, and the strip's Adler-32:
+/// ends with a sync flush (byte aligned, not final) unless it is the
+/// `last` strip.
+fn miniz_strip(filtered: &[u8], level: u8, last: bool) -> (Vec<u8>, u32) {
     let flags = create_comp_flags_from_zip_params(i32::from(level), -15, 0);
     let mut out = Vec::with_capacity(filtered.len() / 2 + 64);
     let mut c = CompressorOxide::new(flags);
@@ -369,7 +369,7 @@ fn miniz_strip(filtered: &[u8], level: u8, last: bool) -> Vec<u8> {
     });
     // An in-memory callback cannot fail, so miniz always consumes all.
     debug_assert!(status != TDEFLStatus::BadParam && consumed == filtered.len());
-    out
+    (out, simd_adler32::adler32(&filtered))
 }
 
 /// Bytes of the zlib header that fdeflate writes before its block.
@@ -384,8 +384,9 @@ fn fdeflate_zlib(data: &[u8]) -> std::io::Result<Vec<u8>> {
     c.finish()
 }
 
-/// Raw deflate of one strip by fdeflate, joinable as [`miniz_strip`]'s.
-fn fdeflate_strip(filtered: &[u8], last: bool) -> Vec<u8> {
+/// Raw deflate of one strip by fdeflate, joinable as [`miniz_strip`]'s,
+/// and the strip's Adler-32 (fdeflate's own, from its trailer).
+fn fdeflate_strip(filtered: &[u8], last: bool) -> (Vec<u8>, u32) {
     // Writing to a vector cannot fail; should it ever, miniz codes the
     // strip instead of losing it.
     match fdeflate_zlib(filtered)
@@ -397,10 +398,11 @@ fn fdeflate_strip(filtered: &[u8], last: bool) -> Vec<u8> {
     }
 }
 
-/// fdeflate's zlib stream cut to its deflate block; unless `last`, made
-/// joinable: not final, and followed by an empty stored block that ends
-/// byte aligned (a zlib sync flush). `None` when the stream does not have
-/// the one-block shape this relies on (then the caller codes it again).
+/// fdeflate's zlib stream cut to its deflate block, with the Adler-32 of
+/// its trailer; unless `last`, made joinable: not final, and followed by
+/// an empty stored block that ends byte aligned (a zlib sync flush).
+/// `None` when the stream does not have the one-block shape this relies on
+/// (then the caller codes it again).
 ///
 /// fdeflate writes a single dynamic-Huffman block right after the 2-byte
 /// zlib header, so the block's first header bit (BFINAL) is bit 0 of the
@@ -409,11 +411,12 @@ fn fdeflate_strip(filtered: &[u8], last: bool) -> Vec<u8> {
 /// byte: the highest set bit of the block's last byte is where the block
 /// ends. A stored block's 3 header bits (all zero: not final, type 00) go
 /// right after it, zero padding to the byte, then LEN = 0 and NLEN = !0.
-fn join_fdeflate_block(mut zlib: Vec<u8>, last: bool) -> Option<Vec<u8>> {
+fn join_fdeflate_block(mut zlib: Vec<u8>, last: bool) -> Option<(Vec<u8>, u32)> {
     if zlib.len() <= ZLIB_HEADER + ZLIB_TRAILER || zlib[ZLIB_HEADER] & 1 == 0 {
         return None;
     }
-    zlib.truncate(zlib.len() - ZLIB_TRAILER);
+    let trailer = zlib.split_off(zlib.len() - ZLIB_TRAILER);
+    let adler = u32::from_be_bytes(trailer.try_into().ok()?);
     let end = *zlib.last()?;
     if end == 0 {
         return None;
@@ -428,7 +431,7 @@ fn join_fdeflate_block(mut zlib: Vec<u8>, last: bool) -> Option<Vec<u8>> {
         }
         block.extend_from_slice(&[0x00, 0x00, 0xff, 0xff]);
     }
-    Some(block)
+    Some((block, adler))
 }
 
 /// PNG filter type 4 (Paeth) for one row, prefixed by its filter byte.
@@ -802,10 +805,11 @@ mod tests {
         for (i, s) in strips.iter().enumerate() {
             let last = i + 1 == strips.len();
             let zlib = fdeflate_zlib(s).unwrap();
-            let block = join_fdeflate_block(zlib, last).expect("fdeflate's one-block shape");
-            assert_eq!(block, fdeflate_strip(s, last));
+            let (block, a) = join_fdeflate_block(zlib, last).expect("fdeflate's one-block shape");
+            assert_eq!((block.clone(), a), fdeflate_strip(s, last));
+            assert_eq!(a, simd_adler32::adler32(s), "the trailer's Adler-32");
             z.extend_from_slice(&block);
-            adler = adler32_combine(adler, simd_adler32::adler32(s), s.len());
+            adler = adler32_combine(adler, a, s.len());
         }
         z.extend_from_slice(&adler.to_be_bytes());
         z
