@@ -353,6 +353,16 @@ pub fn run(
 }
 
 /// Reads, builds and drives every frame of `frames` into `sink`.
+///
+/// Frame k + 1 is read as soon as frame k is built and its geometry
+/// (surface index, atlas) is built on a second thread while frame k is
+/// driven: the geometry does not depend on the method, and its stages
+/// (the chart packing above all) keep less than both cores busy, so the
+/// method's parallel stages fill the gaps. One frame is built ahead, never
+/// more, so memory grows by one frame's geometry (O(mesh), not O(atlas)).
+/// Whatever goes wrong with frame k + 1 is reported after frame k is
+/// handed to the sink, as when frames were built one after another: the
+/// frames before a bad one are written, and `--resume` goes on from them.
 fn drive(
     job: &Job,
     source: &mut dyn FrameSource,
@@ -361,31 +371,83 @@ fn drive(
     sink: &mut FileSink<'_, '_, '_>,
 ) -> Result<(), PipelineError> {
     let total = frames.len();
-    for (k, &number) in frames.iter().enumerate() {
-        (sink.observer)(Event::Start {
-            number,
-            index: k,
-            total,
-        });
-        let mut clock = StageClock::default();
-        let (mesh, report) = source.read(number)?;
-        if report.dropped_degenerate > 0 {
-            (sink.observer)(Event::Warning(format!(
-                "frame {number}: dropped {} zero-area triangles",
-                report.dropped_degenerate
-            )));
+    std::thread::scope(|scope| {
+        let mut ahead = frames
+            .first()
+            .map(|&number| Ahead::start(scope, job, source, number));
+        for (k, &number) in frames.iter().enumerate() {
+            (sink.observer)(Event::Start {
+                number,
+                index: k,
+                total,
+            });
+            let Some(this) = ahead.take() else { break };
+            let (geometry, clock) = this.finish()?;
+            if geometry.report.dropped_degenerate > 0 {
+                (sink.observer)(Event::Warning(format!(
+                    "frame {number}: dropped {} zero-area triangles",
+                    geometry.report.dropped_degenerate
+                )));
+            }
+            ahead = frames
+                .get(k + 1)
+                .map(|&next| Ahead::start(scope, job, source, next));
+            driver.step(
+                PendingFrame {
+                    geometry: Arc::new(geometry),
+                    clock,
+                },
+                sink,
+            )?;
         }
+        Ok(())
+    })
+}
+
+/// A frame read and being built on a scoped thread ([`drive`]).
+enum Ahead<'scope> {
+    Building(std::thread::ScopedJoinHandle<'scope, Built>),
+    /// The read failed: reported when the frame's turn comes.
+    Unread(PipelineError),
+}
+
+/// A built frame and the clock of its read and build stages.
+type Built = Result<(FrameGeometry, StageClock), GeometryError>;
+
+impl<'scope> Ahead<'scope> {
+    /// Reads frame `number` here (sources read in frame order and need not
+    /// be shared across threads) and builds its geometry on a new thread.
+    fn start<'env>(
+        scope: &'scope std::thread::Scope<'scope, 'env>,
+        job: &'env Job,
+        source: &mut dyn FrameSource,
+        number: i32,
+    ) -> Ahead<'scope> {
+        let mut clock = StageClock::default();
+        let (mesh, report) = match source.read(number) {
+            Ok(read) => read,
+            Err(e) => return Ahead::Unread(e),
+        };
         clock.lap("read");
-        let geometry = FrameGeometry::build(number, mesh, report, &job.atlas, &mut clock)?;
-        driver.step(
-            PendingFrame {
-                geometry: Arc::new(geometry),
-                clock,
-            },
-            sink,
-        )?;
+        Ahead::Building(scope.spawn(move || {
+            // The build's stages are timed from where they start on
+            // this thread, not from the end of the read.
+            clock.restart();
+            FrameGeometry::build(number, mesh, report, &job.atlas, &mut clock).map(|g| (g, clock))
+        }))
     }
-    Ok(())
+
+    /// Waits for the frame's geometry (a panic while building it goes on
+    /// here, as if it had been built in place).
+    fn finish(self) -> Result<(FrameGeometry, StageClock), PipelineError> {
+        match self {
+            Ahead::Unread(e) => Err(e),
+            Ahead::Building(handle) => match handle.join() {
+                Ok(built) => Ok(built?),
+                Err(panic) => std::panic::resume_unwind(panic),
+            },
+        }
+    }
 }
 
 /// Write-behind where memory allows a second frame in flight (and no test
