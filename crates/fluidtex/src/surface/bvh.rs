@@ -85,6 +85,24 @@ impl SurfaceIndex {
     pub fn closest_unbounded(&self, p: Vec3) -> Option<SurfaceHit> {
         self.closest(p, f32::MAX)
     }
+
+    /// The bounding box of triangle `t` as the BVH holds it (`None` for a
+    /// triangle the mesh does not have).
+    pub fn triangle_box(&self, t: u32) -> Option<(Vec3, Vec3)> {
+        let node = self.inner.as_ref()?.bvh().leaf_node(t)?;
+        Some((node.mins(), node.maxs()))
+    }
+}
+
+/// Whether the boxes `[a_lo, a_hi]` and `[b_lo, b_hi]` meet: the test
+/// [`SurfaceIndex::triangles_in_box`] applies to each triangle's box
+/// ([`SurfaceIndex::triangle_box`]), inclusive on every axis (boxes that
+/// only touch meet; a NaN coordinate meets nothing). A caller that gathers
+/// the triangles of a larger box once and tests them one by one with this
+/// finds exactly the triangles a query of the smaller box would.
+#[inline]
+pub fn boxes_meet(a_lo: Vec3, a_hi: Vec3, b_lo: Vec3, b_hi: Vec3) -> bool {
+    a_lo.cmple(b_hi).all() && a_hi.cmpge(b_lo).all()
 }
 
 /// The indices of `points` in Morton (Z-curve) order of their position in

@@ -299,6 +299,72 @@ fn lapped_fill_matches_a_brute_force_reference() {
     );
 }
 
+/// The candidate search ([`super::fill::patch_pairs`]: one gather and a
+/// grid per patch, boxes around each triangle's tolerance prism) gives, per
+/// patch triangle, exactly the pairs of the plain search it replaced (one
+/// BVH query per patch triangle's box grown by the plane distance on every
+/// axis, then the prism test) whose fluid triangle's box meets the prism's
+/// box, and the prism boxes prune some: the texel answers are the brute
+/// force's whichever search runs (`lapped_fill_matches_a_brute_force_reference`).
+#[test]
+fn the_candidate_search_is_the_plain_search_within_the_prism_boxes() {
+    let c = scene("vortex", 12, 6, 96);
+    let mut method = Erosion::new(ErosionParams::default(), exemplar(), 3).expect("params");
+    step_all(&mut method, &c);
+    let k = c.meshes.len() - 1;
+    let (mesh, index) = (&c.meshes[k], &c.indices[k]);
+    let patches = &method.state().patches;
+    let radius = method.state().radius.expect("resolved");
+    let tolerance = LocateTolerance {
+        min_bary: -0.05,
+        max_plane_distance: 0.125 * radius,
+    };
+    let fluid = super::fill::FluidTriangles::new(mesh);
+    let frames = super::fill::patch_frames(patches);
+    let margin = Vec3::splat(tolerance.max_plane_distance);
+    let (mut kept, mut pruned) = (0, 0);
+    for (patch, frames) in patches.iter().zip(&frames) {
+        let mut got = vec![Vec::new(); patch.triangles.len()];
+        super::fill::patch_pairs(&fluid, index, patch, frames, tolerance, |f, j| {
+            got[j as usize].push(f);
+        });
+        for (j, (t, frame)) in patch.triangles.iter().zip(frames).enumerate() {
+            let mut want = Vec::new();
+            if let Some(frame) = frame {
+                let q = t.map(|v| patch.positions[v as usize]);
+                let prism = super::fill::prism_box(q, frame, tolerance);
+                let (lo, hi) = (
+                    q[0].min(q[1]).min(q[2]) - margin,
+                    q[0].max(q[1]).max(q[2]) + margin,
+                );
+                index.triangles_in_box(lo, hi, |f| {
+                    if !fluid
+                        .get(f)
+                        .is_some_and(|ft| frame.may_cover(ft, tolerance))
+                    {
+                        return;
+                    }
+                    let (a, b) = index.triangle_box(f).expect("box");
+                    if crate::surface::bvh::boxes_meet(a, b, prism.0, prism.1) {
+                        want.push(f);
+                    } else {
+                        pruned += 1;
+                    }
+                });
+            }
+            let mut g = std::mem::take(&mut got[j]);
+            g.sort_unstable();
+            want.sort_unstable();
+            assert_eq!(g, want, "patch {} triangle {j}", patch.id);
+            kept += want.len();
+        }
+    }
+    assert!(
+        kept > 1000 && pruned > 20,
+        "{kept} pairs kept, {pruned} pruned"
+    );
+}
+
 /// Runs erosion on `frames` frames of scene `name` and checks every texel
 /// of the last fill against a brute-force lapped decision; returns how many
 /// patch triangles had each [`Verdict`] (Test, Kept, Eroded).

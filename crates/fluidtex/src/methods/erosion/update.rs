@@ -23,7 +23,7 @@
 
 use std::collections::HashMap;
 
-use glam::{Vec2, Vec3};
+use glam::Vec2;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -282,19 +282,10 @@ impl PatchCandidates {
         frames: &[Option<TriFrame>],
         tolerance: LocateTolerance,
     ) -> PatchCandidates {
-        let margin = Vec3::splat(tolerance.max_plane_distance);
         let mut pairs = Vec::new();
-        for (j, (t, frame)) in patch.triangles.iter().zip(frames).enumerate() {
-            let Some(frame) = frame else { continue };
-            let [a, b, c] = t.map(|v| patch.positions[v as usize]);
-            let lo = a.min(b).min(c) - margin;
-            let hi = a.max(b).max(c) + margin;
-            index.triangles_in_box(lo, hi, |f| {
-                if fluid.get(f).is_some_and(|t| frame.may_cover(t, tolerance)) {
-                    pairs.push((f, j as u32));
-                }
-            });
-        }
+        super::fill::patch_pairs(fluid, index, patch, frames, tolerance, |f, j| {
+            pairs.push((f, j));
+        });
         pairs.sort_unstable();
         let entries = pairs.iter().map(|&(_, j)| (0, j)).collect();
         PatchCandidates { pairs, entries }
