@@ -47,6 +47,18 @@ pub struct LocateTolerance {
     pub max_plane_distance: f32,
 }
 
+impl LocateTolerance {
+    /// The method's tolerance for patches of radius `radius`: barycentrics
+    /// down to −0.05 (closing the slivers between neighbouring chords) and
+    /// an eighth of the radius off the triangle's plane.
+    pub fn for_radius(radius: f32) -> LocateTolerance {
+        LocateTolerance {
+            min_bary: -0.05,
+            max_plane_distance: 0.125 * radius,
+        }
+    }
+}
+
 /// Precomputed projection onto one patch triangle's plane: barycentrics
 /// of the projection of x are (1 − l1 − l2, l1, l2) with l1 = d1·(x − o),
 /// l2 = d2·(x − o) (dual basis of the edge vectors).
@@ -331,7 +343,8 @@ pub(crate) fn prism_box(
 /// boxes on a uniform grid over it, so that a box within it finds the
 /// triangles it may meet in the few cells it covers. Written here because
 /// the BVH crates at hand answer one box at a time from the root, and the
-/// point of this is to answer hundreds of nearby boxes from one gather.
+/// point of this is to answer hundreds of nearby boxes from one gather;
+/// the bins are the project's [`TriangleLists`], keyed by cell.
 /// The cell of a coordinate is one monotone function of it, for triangle
 /// boxes and query boxes alike, so two boxes that meet share a cell.
 pub(crate) struct NearGrid {
@@ -340,10 +353,8 @@ pub(crate) struct NearGrid {
     /// ... and their boxes ([`SurfaceIndex::triangle_box`]).
     boxes: Vec<(Vec3, Vec3)>,
     cells: Cells,
-    /// Per cell, where its entries start in `items`; one more at the end.
-    starts: Vec<u32>,
-    /// Indices into `triangles`, cell by cell.
-    items: Vec<u32>,
+    /// Per cell, indices into `triangles`.
+    bins: TriangleLists<u32>,
 }
 
 /// The cells of a [`NearGrid`].
@@ -432,29 +443,19 @@ impl NearGrid {
         // 10 % at 300k triangles): the prism boxes keep the queries small.
         let size = mean.max(extent.max_element() / 256.0);
         let cells = Cells::fit(lo, extent, size, 4 * triangles.len() + 64);
-        // Counting sort of (cell, triangle) pairs by cell.
-        let [dx, dy, dz] = cells.dims;
-        let mut starts = vec![0u32; dx * dy * dz + 1];
-        for (a, b) in &boxes {
-            cells.each(*a, *b, |c| starts[c + 1] += 1);
-        }
-        for c in 1..starts.len() {
-            starts[c] += starts[c - 1];
-        }
-        let mut cursor = starts.clone();
-        let mut items = vec![0; starts.last().copied().unwrap_or(0) as usize];
+        // (cell, triangle) pairs grouped by cell: the lists the candidate
+        // search keeps per fluid triangle, here per cell.
+        let mut pairs = Vec::new();
         for (k, (a, b)) in boxes.iter().enumerate() {
-            cells.each(*a, *b, |c| {
-                items[cursor[c] as usize] = k as u32;
-                cursor[c] += 1;
-            });
+            cells.each(*a, *b, |c| pairs.push((c as u32, k as u32)));
         }
+        let [dx, dy, dz] = cells.dims;
+        let bins = TriangleLists::build(&pairs, dx * dy * dz);
         NearGrid {
             triangles,
             boxes,
             cells,
-            starts,
-            items,
+            bins,
         }
     }
 
@@ -464,8 +465,7 @@ impl NearGrid {
     #[inline]
     fn visit(&self, lo: Vec3, hi: Vec3, mut f: impl FnMut(usize)) {
         self.cells.each(lo, hi, |c| {
-            let (a, b) = (self.starts[c] as usize, self.starts[c + 1] as usize);
-            for &k in &self.items[a..b] {
+            for &k in self.bins.of(c as u32) {
                 f(k as usize);
             }
         });

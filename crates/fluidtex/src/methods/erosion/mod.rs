@@ -706,10 +706,7 @@ impl Erosion {
         clock.lap("weights");
 
         // 3. Lapped (or blended) fill.
-        let tolerance = LocateTolerance {
-            min_bary: -0.05,
-            max_plane_distance: 0.125 * radius,
-        };
+        let tolerance = LocateTolerance::for_radius(radius);
         let feature = self.feature_levels.samplers();
         let multi_fill = self.multi.as_ref().map(exemplars::Multi::fill);
         let mut blended = Blended::default();

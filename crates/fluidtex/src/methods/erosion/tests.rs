@@ -315,10 +315,7 @@ fn the_candidate_search_is_the_plain_search_within_the_prism_boxes() {
     let (mesh, index) = (&c.meshes[k], &c.indices[k]);
     let patches = &method.state().patches;
     let radius = method.state().radius.expect("resolved");
-    let tolerance = LocateTolerance {
-        min_bary: -0.05,
-        max_plane_distance: 0.125 * radius,
-    };
+    let tolerance = LocateTolerance::for_radius(radius);
     let fluid = super::fill::FluidTriangles::new(mesh);
     let frames = super::fill::patch_frames(patches);
     let margin = Vec3::splat(tolerance.max_plane_distance);
@@ -379,10 +376,7 @@ fn fill_against_brute_force(name: &str, frames: i32) -> [usize; 3] {
     let (mesh, atlas) = (&c.meshes[k], &c.atlases[k]);
     let patches = &method.state().patches;
     let radius = method.state().radius.expect("resolved");
-    let tolerance = LocateTolerance {
-        min_bary: -0.05,
-        max_plane_distance: 0.125 * radius,
-    };
+    let tolerance = LocateTolerance::for_radius(radius);
     let exemplar_size = method.state().exemplar_size.expect("resolved");
     // The method's defaults: D reaches 0 at the footprint r/S, and F_m is
     // read at each patch triangle's footprint level.
@@ -737,10 +731,7 @@ fn blend_fill_is_the_weight_normalised_mix_of_every_covering_patch() {
     let ex = exemplar();
     let levels = super::feature_levels::FeatureLevels::new(&ex.feature);
     let frames = fill::patch_frames(&patches);
-    let tolerance = LocateTolerance {
-        min_bary: -0.05,
-        max_plane_distance: 0.125 * 0.5,
-    };
+    let tolerance = LocateTolerance::for_radius(0.5);
     let fluid = fill::FluidTriangles::new(&mesh);
     let ctx = FillContext {
         mesh: &mesh,

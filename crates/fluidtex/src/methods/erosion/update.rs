@@ -331,10 +331,7 @@ mod tests {
         let (lo, hi) = mesh.bounding_box().expect("surface");
         let radius = (hi - lo).length() / 8.0;
         let shape = super::super::tests::shape(radius);
-        let tolerance = LocateTolerance {
-            min_bary: -0.05,
-            max_plane_distance: 0.125 * radius,
-        };
+        let tolerance = LocateTolerance::for_radius(radius);
         let mut checked = 0;
         for t in (0..mesh.triangle_count() as u32).step_by(37) {
             let at = SurfacePoint::new(t, [0.2, 0.3, 0.5]);
