@@ -143,6 +143,78 @@ fn unfiltered_exemplars_are_left_as_the_fill_wrote_them() {
     assert_eq!(out.values, before);
 }
 
+/// The pass computes its levels tile by tile, each neighbour difference
+/// once; they must be [`texel_lod`]'s bit for bit. Random atlases that
+/// span several tiles and bands and end mid-tile, with runs of one source
+/// (outside, uncovered, three patches, one of them on a larger exemplar),
+/// uv seams, and infinite or NaN uvs.
+#[test]
+fn tile_levels_are_the_per_texel_levels() {
+    use rand::{Rng, SeedableRng};
+    let small = checker(16, 2);
+    let large = checker(64, 2);
+    let exemplar_of = |s: u32| if s == 3 { &large } else { &small };
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(11);
+    let (mut positive, mut zero, mut none) = (0, 0, 0);
+    for (w, h) in [
+        (1u32, 1u32),
+        (150, 37),
+        (64, 16),
+        (65, 17),
+        (3, 40),
+        (200, 3),
+    ] {
+        let mut out = FillBuffers::new(w, h, 1);
+        let (mut s, mut p) = (1u32, Vec2::ZERO);
+        for t in 0..(w * h) as usize {
+            if rng.random_bool(0.15) {
+                s = [OUTSIDE, UNCOVERED, 1, 2, 3][rng.random_range(0..5)];
+            }
+            p += Vec2::new(rng.random_range(-0.2..0.2), rng.random_range(-0.2..0.2));
+            if rng.random_bool(0.05) {
+                p = Vec2::new(rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0));
+            }
+            out.source[t] = s;
+            out.uv[t] = match rng.random_range(0..40) {
+                0 => Vec2::new(f32::NAN, p.y),
+                1 => Vec2::new(p.x, f32::INFINITY),
+                _ => p,
+            };
+        }
+        let lods = apply_footprint_filtering_by(&mut out, ExemplarFilter::Trilinear, None, |s| {
+            exemplar_of(s)
+        })
+        .expect("trilinear");
+        for y in 0..h as usize {
+            for x in 0..w as usize {
+                let t = y * w as usize + x;
+                let (ew, eh) = exemplar_of(out.source[t]).size();
+                let texels = Vec2::new(ew as f32, eh as f32);
+                let want = texel_lod(&out.source, &out.uv, w as usize, x, y, texels);
+                match want {
+                    None => {
+                        none += 1;
+                        assert!(lods[t].is_nan(), "{w}x{h} ({x}, {y}): {}", lods[t]);
+                    }
+                    Some(l) => {
+                        if l > 0.0 {
+                            positive += 1
+                        } else {
+                            zero += 1
+                        }
+                        assert_eq!(lods[t].to_bits(), l.to_bits(), "{w}x{h} ({x}, {y})");
+                    }
+                }
+            }
+        }
+    }
+    // Every kind of answer occurred.
+    assert!(
+        positive > 1000 && zero > 100 && none > 1000,
+        "{positive} {zero} {none}"
+    );
+}
+
 #[test]
 fn one_and_two_threads_give_identical_results() {
     let ex = crate::exemplar::builtin_pebbles(128, 3);
