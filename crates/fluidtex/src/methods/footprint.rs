@@ -114,8 +114,8 @@ pub fn apply_footprint_filtering_by<'e>(
                         // Every covered texel: the fill may have deferred
                         // its values to this pass; at lod 0 this is the
                         // fill's own bilinear read, bit for bit.
-                        let s = source[(band * TILE_ROWS + r) * w + x];
-                        let p = uv[(band * TILE_ROWS + r) * w + x];
+                        let at = (band * TILE_ROWS + r) * w + x;
+                        let (s, p) = (source[at], uv[at]);
                         exemplar_of(s).sample_all_lod(
                             p.x,
                             p.y,

@@ -510,8 +510,8 @@ struct Located {
 /// rest uv and weight, and the triangle's feature level. The span walk
 /// gathers them once per fluid triangle and candidate
 /// ([`SpanPruner::prepare`]) instead of once per texel from the patch's
-/// arrays: those reads, scattered over every patch, were a fifth of the
-/// per-texel decision's time.
+/// arrays: those reads, scattered over every patch, were about a quarter
+/// of the fill's time in a profile (85k triangles, 6144² atlas).
 #[derive(Clone, Copy, Debug)]
 struct CornerData {
     uv: [Vec2; 3],
