@@ -168,11 +168,18 @@ pub fn texel_lod(
         (Some(a), Some(b)) => a.max(b),
         (Some(a), None) | (None, Some(a)) => a,
         (None, None) => return Some(0.0),
-    }
-    .sqrt();
+    };
+    Some(level(longest))
+}
+
+/// The mip level of a footprint whose longest step is `squared` (squared
+/// length in exemplar texels; NaN when there is none: level 0).
+#[inline]
+fn level(squared: f32) -> f32 {
+    let longest = squared.sqrt();
     // Below one texel (and for zero-length steps, log2 = −inf) the
     // exemplar is magnified: level 0.
-    Some(if longest > 1.0 { longest.log2() } else { 0.0 })
+    if longest > 1.0 { longest.log2() } else { 0.0 }
 }
 
 /// The texels of one tile: columns `x0..x1` of rows `y0..y0 + rows` of a
@@ -273,8 +280,7 @@ fn tile_lods<'e>(
             // texel_lod's axis(forward, backward) and longest, in its order.
             let across = right[i + 1].min(right[i]);
             let along = down[i].min(up[i]);
-            let longest = across.max(along).sqrt();
-            *out = if longest > 1.0 { longest.log2() } else { 0.0 };
+            *out = level(across.max(along));
         }
     }
 }
