@@ -58,9 +58,17 @@ pub trait FrameSink {
 
     /// Whether [`FrameSink::frame`] reads the result's per-texel uv and
     /// exemplar levels; when not, the driver hands them back to the method
-    /// ([`Method::recycle`]) before the sink sees the frame.
+    /// ([`Method::recycle`]) once the sink has seen the frame.
     fn reads_evaluation_buffers(&self) -> bool {
         true
+    }
+
+    /// The last frame's interleaved channel values, when the sink took what
+    /// it needs of them and has no further use for the buffer; the driver
+    /// hands it back to the method ([`Method::recycle`]). The default keeps
+    /// nothing back.
+    fn spent_values(&mut self) -> Option<Vec<f32>> {
+        None
     }
 }
 
@@ -138,11 +146,10 @@ impl<'m> Driver<'m> {
                 })?;
         }
         clock.lap("dilate");
+        let mut spent = SpentBuffers::default();
         if !sink.reads_evaluation_buffers() {
-            self.method.recycle(SpentBuffers {
-                uv: result.uv.take(),
-                exemplar_lod: result.exemplar_lod.take(),
-            });
+            spent.uv = result.uv.take();
+            spent.exemplar_lod = result.exemplar_lod.take();
         }
         sink.frame(DrivenFrame {
             method: &*self.method,
@@ -151,6 +158,8 @@ impl<'m> Driver<'m> {
             result,
             clock: &mut clock,
         })?;
+        spent.values = sink.spent_values();
+        self.method.recycle(spent);
         self.previous = Some(geometry);
         Ok(())
     }

@@ -302,6 +302,10 @@ pub fn run(
     } else {
         (None, None)
     };
+    // Previews are taken every n frames counted from the sequence's first
+    // frame, so a resumed run writes the same previews.
+    let first_frame = source.frames().first().copied().unwrap_or(0);
+    let formats: Vec<ChannelFormat> = specs.iter().map(|s| s.format).collect();
     let mut writer = FrameWriter {
         job,
         guard: &guard,
@@ -309,9 +313,7 @@ pub fn run(
             name: method.name(),
             specs,
         },
-        // Previews are taken every n frames counted from the sequence's
-        // first frame, so a resumed run writes the same previews.
-        first_frame: source.frames().first().copied().unwrap_or(0),
+        first_frame,
         coherence_prev: None,
         // The coherence settings are committed constants: parsed once per run.
         coherence_settings: crate::coherence::CoherenceSettings::from_thresholds(
@@ -332,6 +334,10 @@ pub fn run(
                 writer: worker,
                 observer,
                 done: 0,
+                preview_every: job.outputs.preview_every,
+                formats,
+                first_frame,
+                spent_values: None,
             };
             let looped = drive(job, source, &frames, &mut driver, &mut sink);
             // The frames already handed over are written (and counted)
@@ -532,6 +538,15 @@ struct FileSink<'w, 'a, 'o> {
     writer: &'w mut crate::write_behind::Worker<'a, WriteJob, Written, PipelineError>,
     observer: &'o mut dyn FnMut(Event<'_>),
     done: usize,
+    /// `outputs.preview_every` of the job.
+    preview_every: u32,
+    /// The file format of each channel, in the method's order.
+    formats: Vec<ChannelFormat>,
+    /// The sequence's first frame, from which previews are counted.
+    first_frame: i32,
+    /// The float values of the last frame's colour atlas, once its 8-bit
+    /// samples were taken ([`FrameSink::spent_values`]).
+    spent_values: Option<Vec<f32>>,
 }
 
 impl FrameSink for FileSink<'_, '_, '_> {
@@ -540,6 +555,10 @@ impl FrameSink for FileSink<'_, '_, '_> {
     /// No file holds the per-texel uv or exemplar levels.
     fn reads_evaluation_buffers(&self) -> bool {
         false
+    }
+
+    fn spent_values(&mut self) -> Option<Vec<f32>> {
+        self.spent_values.take()
     }
 
     fn frame(&mut self, frame: DrivenFrame<'_>) -> Result<(), PipelineError> {
@@ -551,13 +570,17 @@ impl FrameSink for FileSink<'_, '_, '_> {
             clock,
         } = frame;
         let state = method.save_state()?;
-        // The per-texel uv and mip levels went back to the method; the layer
+        // The per-texel uv and mip levels go back to the method; the layer
         // counts are the evaluation's too, and are not kept while the frame
-        // is written.
+        // is written. 8-bit channels travel as the samples their PNG holds
+        // (previews shade the floats).
+        let preview = is_preview_frame(self.preview_every, self.first_frame, geometry.number);
+        let (channels, spent) = written_channels(result.channels, &self.formats, !preview);
+        self.spent_values = spent;
         self.writer.submit(WriteJob {
             geometry: Arc::clone(geometry),
             previous: previous.cloned(),
-            channels: result.channels,
+            channels,
             source: result.source,
             method_stats: result.stats,
             clock: std::mem::take(clock),
@@ -587,6 +610,98 @@ impl FileSink<'_, '_, '_> {
     }
 }
 
+/// Whether frame `number` gets a `preview.F.png`: every
+/// `preview_every` frames counted from the sequence's `first_frame`.
+fn is_preview_frame(preview_every: u32, first_frame: i32, number: i32) -> bool {
+    preview_every > 0 && (number - first_frame).rem_euclid(preview_every as i32) == 0
+}
+
+/// One channel atlas on its way to the writer.
+enum OutChannel {
+    /// As the method made it.
+    Float(Texture),
+    /// The 8-bit samples of a [`ChannelFormat::Png8`] channel, quantized as
+    /// the PNG encoder quantizes ([`crate::io::image::quantize_8`]): what
+    /// the file and the coherence numbers read of it, a quarter of the
+    /// floats' memory while the frame is written.
+    Eight {
+        width: u32,
+        height: u32,
+        channels: usize,
+        samples: Vec<u8>,
+    },
+}
+
+impl OutChannel {
+    /// The float atlas, where the channel still has it.
+    fn float(&self) -> Option<&Texture> {
+        match self {
+            OutChannel::Float(t) => Some(t),
+            OutChannel::Eight { .. } => None,
+        }
+    }
+
+    /// Components per texel.
+    fn channels(&self) -> usize {
+        match self {
+            OutChannel::Float(t) => t.channels,
+            OutChannel::Eight { channels, .. } => *channels,
+        }
+    }
+
+    /// Texels held (values ÷ components).
+    fn texels(&self) -> usize {
+        match self {
+            OutChannel::Float(t) => t.data.len() / t.channels.max(1),
+            OutChannel::Eight {
+                channels, samples, ..
+            } => samples.len() / (*channels).max(1),
+        }
+    }
+}
+
+/// The channels as the writer takes them: with `eight`, each 8-bit PNG
+/// channel that the encoder can take becomes its samples (in parallel,
+/// on the computing thread), and the first such channel's floats come back
+/// for the method to fill again (with a colour-only exemplar they are the
+/// fill's own values buffer); the others stay floats.
+fn written_channels(
+    channels: Vec<Texture>,
+    formats: &[ChannelFormat],
+    eight: bool,
+) -> (Vec<OutChannel>, Option<Vec<f32>>) {
+    let mut spent = None;
+    let out = channels
+        .into_iter()
+        .enumerate()
+        .map(|(k, t)| {
+            let quantizable = eight
+                && formats.get(k) == Some(&ChannelFormat::Png8)
+                && crate::io::image::encodable(&t);
+            if !quantizable {
+                return OutChannel::Float(t);
+            }
+            let samples: Vec<u8> = t
+                .data
+                .par_iter()
+                .with_min_len(1 << 16)
+                .map(|&x| crate::io::image::quantize_8(x))
+                .collect();
+            let channel = OutChannel::Eight {
+                width: t.width,
+                height: t.height,
+                channels: t.channels,
+                samples,
+            };
+            if spent.is_none() {
+                spent = Some(t.data);
+            }
+            channel
+        })
+        .collect();
+    (out, spent)
+}
+
 /// What the writer needs to know of the method: the same for every frame
 /// of a run.
 struct MethodInfo {
@@ -599,7 +714,7 @@ struct WriteJob {
     geometry: Arc<FrameGeometry>,
     previous: Option<Arc<FrameGeometry>>,
     /// Channels dilated into the gutter, colour first.
-    channels: Vec<Texture>,
+    channels: Vec<OutChannel>,
     source: Option<Vec<u32>>,
     method_stats: crate::methods::MethodStats,
     /// Stages so far; the writer adds its own.
@@ -865,7 +980,9 @@ impl CoherencePrevious {
             let n = current.source.len();
             let source = (0..n).into_par_iter().map(|i| current.source(i)).collect();
             let grey = match current.colour {
-                Some((colour, format)) => written_grey(colour, format),
+                Some((OutChannel::Float(colour), format)) => written_grey(colour, format),
+                // Texel by texel, the same values.
+                Some(_) => (0..n).into_par_iter().map(|i| current.grey(i)).collect(),
                 None => Vec::new(),
             };
             (source, grey)
@@ -886,7 +1003,7 @@ struct WrittenTexels<'a> {
     atlas: &'a crate::atlas::Atlas,
     source: &'a [u32],
     /// The colour atlas and its file format; `None` without channels.
-    colour: Option<(&'a Texture, ChannelFormat)>,
+    colour: Option<(&'a OutChannel, ChannelFormat)>,
 }
 
 impl<'a> WrittenTexels<'a> {
@@ -894,7 +1011,7 @@ impl<'a> WrittenTexels<'a> {
         specs: &[ChannelSpec],
         atlas: &'a crate::atlas::Atlas,
         source: &'a [u32],
-        channels: &'a [Texture],
+        channels: &'a [OutChannel],
     ) -> WrittenTexels<'a> {
         let colour = match (specs.first(), channels.first()) {
             (Some(spec), Some(colour)) => Some((colour, spec.format)),
@@ -924,10 +1041,21 @@ impl crate::coherence::Texels for WrittenTexels<'_> {
         let Some((colour, format)) = self.colour else {
             return f32::NAN;
         };
-        let c = colour.channels.max(1);
-        match colour.data.get(i * c..(i + 1) * c) {
-            Some(texel) => written_grey_texel(texel, colour.channels, format),
-            None => f32::NAN,
+        let channels = colour.channels();
+        let c = channels.max(1);
+        let texel = i * c..(i + 1) * c;
+        match colour {
+            OutChannel::Float(t) => t.data.get(texel).map_or(f32::NAN, |texel| {
+                written_grey_texel(texel, channels, format)
+            }),
+            // The samples the PNG holds, scaled as its decoder scales them:
+            // the values `written_grey_texel` makes of the floats.
+            OutChannel::Eight { samples, .. } => samples.get(texel).map_or(f32::NAN, |texel| {
+                grey_of(
+                    texel.iter().map(|&q| f32::from(q) / 255.0).collect(),
+                    channels,
+                )
+            }),
         }
     }
 
@@ -935,9 +1063,7 @@ impl crate::coherence::Texels for WrittenTexels<'_> {
         let (w, h) = (self.atlas.width, self.atlas.height);
         crate::metrics::check_len("source", self.source, w, h)?;
         // As many grey values as `written_grey` would give.
-        let greys = self
-            .colour
-            .map_or(0, |(t, _)| t.data.len() / t.channels.max(1));
+        let greys = self.colour.map_or(0, |(c, _)| c.texels());
         let expected = w as usize * h as usize;
         if greys == expected {
             Ok(())
@@ -960,6 +1086,11 @@ fn written_grey_texel(texel: &[f32], channels: usize, format: ChannelFormat) -> 
         ChannelFormat::Png16 => texel.iter().map(|&x| quantize(65535.0, x)).collect(),
         ChannelFormat::Exr => texel.to_vec(),
     };
+    grey_of(data, channels)
+}
+
+/// The luminance of one texel's `channels` values.
+fn grey_of(data: Vec<f32>, channels: usize) -> f32 {
     let one = Texture {
         width: 1,
         height: 1,
@@ -1208,7 +1339,7 @@ impl FrameWriter<'_> {
         &self,
         files: &mut Staging<'_>,
         g: &FrameGeometry,
-        channels: &[Texture],
+        channels: &[OutChannel],
         source: Option<&[u32]>,
     ) -> Result<(), PipelineError> {
         let colour_png = self.write_channels(files, g.number, channels)?;
@@ -1223,7 +1354,7 @@ impl FrameWriter<'_> {
         &self,
         files: &mut Staging<'_>,
         number: i32,
-        channels: &[Texture],
+        channels: &[OutChannel],
     ) -> Result<Option<(String, Vec<u8>)>, PipelineError> {
         let tag = frame_tag(number);
         let dir = &self.job.out_dir;
@@ -1244,7 +1375,7 @@ impl FrameWriter<'_> {
         for (spec, texture) in specs.iter().zip(channels) {
             let file = format!("{}.{tag}.{}", spec.name, spec.format.extension());
             let path = dir.join(&file);
-            if let Some(bytes) = write_channel(files, &path, texture, spec.format)?
+            if let Some(bytes) = write_out_channel(files, &path, texture, spec.format)?
                 && colour_png.is_none()
             {
                 colour_png = Some((file, bytes));
@@ -1306,14 +1437,18 @@ impl FrameWriter<'_> {
         &self,
         files: &mut Staging<'_>,
         g: &FrameGeometry,
-        channels: &[Texture],
+        channels: &[OutChannel],
         source: Option<&[u32]>,
         normals: &[Vec3],
     ) -> Result<(), PipelineError> {
-        let (job, number) = (self.job, g.number);
-        let preview = job.outputs.preview_every > 0
-            && (number - self.first_frame).rem_euclid(job.outputs.preview_every as i32) == 0;
-        let Some(colour) = channels.first().filter(|_| preview) else {
+        let number = g.number;
+        let preview = is_preview_frame(self.job.outputs.preview_every, self.first_frame, number);
+        // A preview frame's channels are handed over as floats.
+        let Some(colour) = channels
+            .first()
+            .and_then(OutChannel::float)
+            .filter(|_| preview)
+        else {
             return Ok(());
         };
         // The patch colours as floats serve the preview only; the debug
@@ -1350,7 +1485,7 @@ impl FrameWriter<'_> {
         let (job, number, atlas) = (self.job, g.number, &g.atlas);
         let tag = frame_tag(number);
         let path = job.out_dir.join(format!("source.{tag}.exr"));
-        write_source_ids(files, &path, atlas, &source)?;
+        let source = write_source_ids(files, &path, atlas, source)?;
         let path = job.out_dir.join(format!("patches.{tag}.png"));
         let bytes = patch_png(atlas, source, self.patch_view_radius()).map_err(|message| {
             PipelineError::Output {
@@ -1404,27 +1539,51 @@ impl FrameWriter<'_> {
 }
 
 /// `source.F.exr`: each texel's source patch id as a float, -1 outside
-/// the charts.
+/// the charts; hands the ids back.
+///
+/// The ids become floats in their own buffer and turn back into the same
+/// ids once the file is written: every id below 2^24 is an integer an f32
+/// holds exactly. That saves a second atlas-sized buffer at the frame's
+/// peak of memory (151 MB at 6144²). Ids from 2^24 up (16.7 million
+/// patches: never met) take a float copy instead.
 fn write_source_ids(
     files: &mut Staging<'_>,
     path: &Path,
     atlas: &crate::atlas::Atlas,
-    source: &[u32],
-) -> Result<(), PipelineError> {
-    let ids: Vec<f32> = source
-        .par_iter()
-        .with_min_len(1 << 16)
-        .map(|&s| if s == SOURCE_OUTSIDE { -1.0 } else { s as f32 })
-        .collect();
-    let ids = Texture {
+    source: Vec<u32>,
+) -> Result<Vec<u32>, PipelineError> {
+    const EXACT: u32 = 1 << 24;
+    let as_float = |s: u32| if s == SOURCE_OUTSIDE { -1.0 } else { s as f32 };
+    let texture = |data| Texture {
         width: atlas.width,
         height: atlas.height,
         channels: 1,
-        data: ids,
+        data,
     };
-    // The ids are not needed after this: handed over, not copied.
-    crate::io::image::stage_exr_owned(files, path, ids, &exr_channel_options())?;
-    Ok(())
+    let options = exr_channel_options();
+    let exact = source
+        .par_iter()
+        .with_min_len(1 << 16)
+        .all(|&s| s < EXACT || s == SOURCE_OUTSIDE);
+    if !exact {
+        let ids = source
+            .par_iter()
+            .with_min_len(1 << 16)
+            .map(|&s| as_float(s))
+            .collect();
+        crate::io::image::stage_exr_owned(files, path, texture(ids), &options)?;
+        return Ok(source);
+    }
+    let mut ids: Vec<f32> = bytemuck::cast_vec(source);
+    ids.par_iter_mut()
+        .with_min_len(1 << 16)
+        .for_each(|x| *x = as_float(x.to_bits()));
+    let mut ids = crate::io::image::stage_exr_owned(files, path, texture(ids), &options)?.data;
+    ids.par_iter_mut().with_min_len(1 << 16).for_each(|x| {
+        let s = if *x < 0.0 { SOURCE_OUTSIDE } else { *x as u32 };
+        *x = f32::from_bits(s);
+    });
+    Ok(bytemuck::cast_vec(ids))
 }
 
 /// How a channel in [`ChannelFormat::Exr`] is written: 32-bit floats.
@@ -1432,6 +1591,41 @@ fn exr_channel_options() -> ExrOptions {
     ExrOptions {
         sample: ExrSample::F32,
         ..Default::default()
+    }
+}
+
+/// [`write_channel`] of a channel as the writer receives it.
+fn write_out_channel(
+    files: &mut Staging<'_>,
+    path: &Path,
+    channel: &OutChannel,
+    format: ChannelFormat,
+) -> Result<Option<Vec<u8>>, PipelineError> {
+    match channel {
+        OutChannel::Float(t) => write_channel(files, path, t, format),
+        OutChannel::Eight {
+            width,
+            height,
+            channels,
+            samples,
+        } => {
+            // The same bytes as encoding the floats they were quantized from.
+            let row = *width as usize * channels;
+            let compression = PngOptions::default().compression;
+            let bytes = crate::io::image::encode_png_8_rows(
+                *width,
+                *height,
+                *channels,
+                compression,
+                |y, out| out.copy_from_slice(&samples[y * row..(y + 1) * row]),
+            )
+            .map_err(|message| PipelineError::Output {
+                path: path.to_path_buf(),
+                message,
+            })?;
+            write_file(files, path, &bytes)?;
+            Ok(Some(bytes))
+        }
     }
 }
 
@@ -1550,8 +1744,10 @@ pub fn estimate_memory(
 impl MemoryEstimate {
     /// The estimate when frame t is written while frame t+1 is computed
     /// ([`crate::write_behind`]): besides the computing frame's peak, the
-    /// written frame's channels (4·C·channels bytes per texel), its source
-    /// ids (4), its debug views and its encoders' buffers are alive.
+    /// written frame's channels (4·C·channels bytes per texel: floats on
+    /// preview frames; an 8-bit PNG channel is handed over as its C bytes
+    /// otherwise, so this is the bound), its source ids (4), its debug
+    /// views and its encoders' buffers are alive.
     pub fn writing_behind(mut self, channels: &[ChannelSpec], outputs: &OutputOptions) -> Self {
         let written = 4 * ESTIMATE_COMPONENTS * channels.len().max(1) as u64
             + 4
@@ -1739,7 +1935,7 @@ mod tests {
     /// The erosion method, noting the sizes of what `recycle` hands it.
     struct Recycling {
         inner: crate::methods::erosion::Erosion,
-        handed: Vec<(usize, usize)>,
+        handed: Vec<(usize, usize, usize)>,
     }
 
     impl Method for Recycling {
@@ -1762,13 +1958,15 @@ mod tests {
             self.handed.push((
                 spent.uv.as_ref().map_or(0, Vec::len),
                 spent.exemplar_lod.as_ref().map_or(0, Vec::len),
+                spent.values.as_ref().map_or(0, Vec::len),
             ));
             self.inner.recycle(spent);
         }
     }
 
     /// No file holds the per-texel uv or exemplar levels, so `run` hands
-    /// both back to the method after every frame, whole.
+    /// both back to the method after every frame, whole; the colour values
+    /// come back too, except on preview frames (the preview shades them).
     #[test]
     fn run_hands_the_evaluation_buffers_back_after_every_frame() {
         let scene = crate::scenes::by_name(
@@ -1784,23 +1982,142 @@ mod tests {
         .expect("scene");
         let mut source = SceneSource::new(scene);
         let out = tempfile::tempdir().expect("tempdir");
-        let job = Job {
-            out_dir: out.path().to_path_buf(),
-            atlas: AtlasParams::square(64),
-            fps: 24.0,
-            outputs: Default::default(),
-            resume: false,
-            fingerprint: "recycle".into(),
-            hooks: Default::default(),
+        let n = 64 * 64;
+        for (preview_every, values) in [(0, [3 * n; 3]), (2, [0, 3 * n, 0])] {
+            let job = Job {
+                out_dir: out.path().join(format!("every{preview_every}")),
+                atlas: AtlasParams::square(64),
+                fps: 24.0,
+                outputs: OutputOptions {
+                    preview_every,
+                    preview_size: 32,
+                    ..Default::default()
+                },
+                resume: false,
+                fingerprint: "recycle".into(),
+                hooks: Default::default(),
+            };
+            let exemplar = std::sync::Arc::new(crate::exemplar::builtin_pebbles(64, 0));
+            let mut method = Recycling {
+                inner: crate::methods::erosion::Erosion::new(Default::default(), exemplar, 0)
+                    .expect("params"),
+                handed: Vec::new(),
+            };
+            run(&job, &mut source, &mut method, &mut |_| {}).expect("run");
+            let want: Vec<_> = values.iter().map(|&v| (n, n, v)).collect();
+            assert_eq!(method.handed, want, "previews every {preview_every}");
+        }
+    }
+
+    /// An 8-bit channel handed to the writer as its samples writes the
+    /// bytes its floats would (values outside [0, 1] and NaN included), and
+    /// its floats come back for the method; previews, other formats and
+    /// textures no encoder takes stay floats.
+    #[test]
+    fn eight_bit_channels_write_the_bytes_of_their_floats() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(11);
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        let sizes = [(1, 1, 1), (7, 3, 3), (33, 17, 4), (64, 9, 2), (5, 40, 3)];
+        for (k, &(width, height, channels)) in sizes.iter().enumerate() {
+            let data = (0..width as usize * height as usize * channels)
+                .map(|i| match i % 11 {
+                    0 => f32::NAN,
+                    1 => -0.3,
+                    2 => 1.7,
+                    _ => rng.random::<f32>(),
+                })
+                .collect();
+            let t = Texture {
+                width,
+                height,
+                channels,
+                data,
+            };
+            let (handed, spent) = written_channels(vec![t.clone()], &[ChannelFormat::Png8], true);
+            assert_eq!(spent.as_deref().map(bits), Some(bits(&t.data)), "{k}");
+            let OutChannel::Eight { samples, .. } = &handed[0] else {
+                panic!("{k}: an 8-bit channel is handed over as samples");
+            };
+            let want: Vec<u8> = t
+                .data
+                .iter()
+                .map(|&x| crate::io::image::quantize_8(x))
+                .collect();
+            assert_eq!(samples, &want, "{k}");
+            let mut files = Staging::new(None, None);
+            let eight = dir.path().join(format!("eight{k}.png"));
+            let float = dir.path().join(format!("float{k}.png"));
+            let a = write_out_channel(&mut files, &eight, &handed[0], ChannelFormat::Png8)
+                .expect("write");
+            let b = write_channel(&mut files, &float, &t, ChannelFormat::Png8).expect("write");
+            files.commit().expect("commit");
+            assert!(a.is_some() && a == b, "{k}: same PNG bytes");
+            assert_eq!(std::fs::read(&eight).ok(), b, "{k}: the file holds them");
+        }
+        let t = Texture {
+            width: 4,
+            height: 4,
+            channels: 3,
+            data: vec![0.5; 48],
         };
-        let exemplar = std::sync::Arc::new(crate::exemplar::builtin_pebbles(64, 0));
-        let mut method = Recycling {
-            inner: crate::methods::erosion::Erosion::new(Default::default(), exemplar, 0)
-                .expect("params"),
-            handed: Vec::new(),
+        let floats = |c: &[OutChannel]| c.iter().map(|c| c.float().is_some()).collect::<Vec<_>>();
+        let (handed, spent) = written_channels(vec![t.clone()], &[ChannelFormat::Png8], false);
+        assert_eq!(
+            (floats(&handed), spent),
+            (vec![true], None),
+            "a preview frame"
+        );
+        let formats = [
+            ChannelFormat::Png16,
+            ChannelFormat::Exr,
+            ChannelFormat::Png8,
+        ];
+        let (handed, spent) = written_channels(vec![t.clone(); 4], &formats, true);
+        assert_eq!(floats(&handed), vec![true, true, false, true]);
+        assert_eq!(spent.map(|v| v.len()), Some(48));
+        let bad = Texture {
+            channels: 5,
+            data: vec![0.5; 80],
+            ..t
         };
-        run(&job, &mut source, &mut method, &mut |_| {}).expect("run");
-        assert_eq!(method.handed, vec![(64 * 64, 64 * 64); 3]);
+        let (handed, spent) = written_channels(vec![bad], &[ChannelFormat::Png8], true);
+        assert_eq!((floats(&handed), spent), (vec![true], None), "5 channels");
+    }
+
+    /// `source.F.exr` holds each id as a float (-1 outside) and the ids come
+    /// back unchanged, whether they went through the file in their own
+    /// buffer or, with an id past 2^24, through a copy.
+    #[test]
+    fn source_ids_come_back_from_their_file() {
+        let atlas = Atlas::build(&icosphere(2), &AtlasParams::square(16)).expect("atlas");
+        let n = (atlas.width * atlas.height) as usize;
+        let dir = tempfile::tempdir().expect("tempdir");
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(12);
+        for big in [false, true] {
+            let mut ids: Vec<u32> = (0..n).map(|_| rng.random_range(0..5000)).collect();
+            ids[0] = SOURCE_OUTSIDE;
+            ids[1] = SOURCE_UNCOVERED;
+            ids[2] = (1 << 24) - 1;
+            if big {
+                ids[3] = (1 << 24) + 1;
+            }
+            let path = dir.path().join(format!("source{big}.exr"));
+            let mut files = Staging::new(None, None);
+            let back = write_source_ids(&mut files, &path, &atlas, ids.clone()).expect("write");
+            files.commit().expect("commit");
+            assert_eq!(back, ids, "big ids: {big}");
+            let read = crate::io::image_read::read_image(&path).expect("read");
+            assert_eq!(read.texture.data.len(), n);
+            for (i, (&v, &id)) in read.texture.data.iter().zip(&ids).enumerate() {
+                let want = if id == SOURCE_OUTSIDE {
+                    -1.0
+                } else {
+                    id as f32
+                };
+                assert_eq!(v.to_bits(), want.to_bits(), "texel {i}, big ids: {big}");
+            }
+        }
     }
 
     /// The coherence measurement reads the written values texel by texel:
@@ -1832,14 +2149,24 @@ mod tests {
                 ChannelFormat::Exr,
             ] {
                 let whole = written_grey(&colour, format);
-                let texels = WrittenTexels {
-                    atlas: &atlas,
-                    source: &source,
-                    colour: Some((&colour, format)),
-                };
-                texels.validate().expect("fits");
-                for (i, g) in whole.iter().enumerate() {
-                    assert_eq!(texels.grey(i).to_bits(), g.to_bits(), "{format:?} {i}");
+                // As floats, and (8-bit PNG) as the samples handed to the
+                // writer instead.
+                let (handed, _) = written_channels(vec![colour.clone()], &[format], true);
+                let float = OutChannel::Float(colour.clone());
+                assert_eq!(
+                    matches!(handed[0], OutChannel::Eight { .. }),
+                    format == ChannelFormat::Png8
+                );
+                for written in [&float, &handed[0]] {
+                    let texels = WrittenTexels {
+                        atlas: &atlas,
+                        source: &source,
+                        colour: Some((written, format)),
+                    };
+                    texels.validate().expect("fits");
+                    for (i, g) in whole.iter().enumerate() {
+                        assert_eq!(texels.grey(i).to_bits(), g.to_bits(), "{format:?} {i}");
+                    }
                 }
             }
         }

@@ -138,6 +138,12 @@ pub struct ExrOptions {
     pub single_threaded: bool,
 }
 
+/// Whether every encoder takes `tex` (1 to 4 channels, not empty, as many
+/// values as texels × channels): what [`encode_png`] checks first.
+pub fn encodable(tex: &Texture) -> bool {
+    check_texture(tex).is_ok()
+}
+
 /// Checks what every encoder assumes about a texture.
 fn check_texture(tex: &Texture) -> Result<(), String> {
     if !(1..=4).contains(&tex.channels) {
@@ -599,26 +605,48 @@ pub fn stage_exr(
 ) -> Result<(), IoError> {
     check_exr_texture(path, tex)?;
     let planes = exr_planes(&tex.data, tex.channels, options.sample);
-    stage_exr_planes(files, path, (tex.width, tex.height), planes, options)
+    stage_exr_planes(files, path, (tex.width, tex.height), planes, options)?;
+    Ok(())
 }
 
-/// [`stage_exr`] of a texture the caller is done with: the values of a
-/// one-channel texture written as 32-bit floats become the file's plane as
-/// they are, without the copy [`stage_exr`] makes (150 MB for a 6144² id
-/// map).
+/// [`stage_exr`] taking the texture and handing it back, values
+/// unchanged, once written: the values of a one-channel texture written as
+/// 32-bit floats become the file's plane as they are, without the copy
+/// [`stage_exr`] makes (150 MB for a 6144² id map), and the caller gets
+/// its buffer back.
 pub fn stage_exr_owned(
     files: &mut Staging<'_>,
     path: &Path,
     tex: Texture,
     options: &ExrOptions,
-) -> Result<(), IoError> {
+) -> Result<Texture, IoError> {
+    use exr::prelude::FlatSamples;
     check_exr_texture(path, &tex)?;
     let size = (tex.width, tex.height);
-    let planes = match (tex.channels, options.sample) {
-        (1, ExrSample::F32) => vec![exr::prelude::FlatSamples::F32(tex.data)],
-        (c, sample) => exr_planes(&tex.data, c, sample),
-    };
-    stage_exr_planes(files, path, size, planes, options)
+    if (tex.channels, options.sample) != (1, ExrSample::F32) {
+        let planes = exr_planes(&tex.data, tex.channels, options.sample);
+        stage_exr_planes(files, path, size, planes, options)?;
+        return Ok(tex);
+    }
+    let Texture {
+        width,
+        height,
+        channels,
+        data,
+    } = tex;
+    let mut planes = stage_exr_planes(files, path, size, vec![FlatSamples::F32(data)], options)?;
+    match planes.pop() {
+        Some(FlatSamples::F32(data)) => Ok(Texture {
+            width,
+            height,
+            channels,
+            data,
+        }),
+        _ => Err(IoError::Unwritable {
+            path: path.to_path_buf(),
+            reason: "internal: the written plane did not come back".into(),
+        }),
+    }
 }
 
 /// [`check_texture`] as the error of writing `path`.
@@ -644,14 +672,15 @@ fn exr_planes(data: &[f32], channels: usize, sample: ExrSample) -> Vec<exr::prel
 }
 
 /// Writes channel planes (each `width × height` samples, rows top to
-/// bottom) as an EXR file; the texture checks are the caller's.
+/// bottom) as an EXR file and hands them back; the texture checks are the
+/// caller's.
 fn stage_exr_planes(
     files: &mut Staging<'_>,
     path: &Path,
     (width, height): (u32, u32),
     planes: Vec<exr::prelude::FlatSamples>,
     options: &ExrOptions,
-) -> Result<(), IoError> {
+) -> Result<Vec<exr::prelude::FlatSamples>, IoError> {
     use exr::prelude::*;
     let bad = |reason: String| IoError::Unwritable {
         path: path.to_path_buf(),
@@ -705,7 +734,15 @@ fn stage_exr_planes(
             writer.to_buffered(w)
         };
         result.map_err(|e| std::io::Error::other(e.to_string()))
-    })
+    })?;
+    // The planes, in the file's order (sorted by name), back to the caller.
+    Ok(image
+        .layer_data
+        .channel_data
+        .list
+        .into_iter()
+        .map(|c| c.sample_data)
+        .collect())
 }
 
 #[cfg(test)]
@@ -1050,7 +1087,7 @@ mod tests {
     }
 
     #[test]
-    fn exr_of_an_owned_texture_has_the_same_bytes() {
+    fn exr_of_an_owned_texture_has_the_same_bytes_and_comes_back() {
         let dir = tempfile::tempdir().unwrap();
         for (c, sample) in [
             (1, ExrSample::F32),
@@ -1065,8 +1102,12 @@ mod tests {
             let (borrowed, owned) = (dir.path().join("b.exr"), dir.path().join("o.exr"));
             write_exr(&borrowed, &tex, &options).unwrap();
             let mut files = Staging::new(None, None);
-            stage_exr_owned(&mut files, &owned, tex, &options).unwrap();
+            let back = stage_exr_owned(&mut files, &owned, tex.clone(), &options).unwrap();
             files.commit().unwrap();
+            assert!(
+                back == tex,
+                "{c} channels, {sample:?}: handed back unchanged"
+            );
             let (b, o) = (
                 std::fs::read(&borrowed).unwrap(),
                 std::fs::read(&owned).unwrap(),

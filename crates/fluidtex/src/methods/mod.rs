@@ -247,21 +247,27 @@ pub trait Method: Send {
     /// Restores a state written by [`Method::save_state`].
     fn load_state(&mut self, bytes: &[u8]) -> Result<(), MethodError>;
 
-    /// Takes back the last frame's per-texel evaluation buffers when the
-    /// caller has no use for them (a `run` writes no file of them), so the
-    /// next [`Method::step`] can fill them again instead of mapping fresh
-    /// pages: at 6144² they are 450 MB a frame. The default drops them.
+    /// Takes back the last frame's per-texel buffers the caller has no use
+    /// for (a `run` writes no file of the uv and levels, and writes an
+    /// 8-bit colour atlas from its own 8-bit copy), so the next
+    /// [`Method::step`] can fill them again instead of mapping fresh pages:
+    /// at 6144² they are 450 MB each. The default drops them.
     fn recycle(&mut self, spent: SpentBuffers) {
         drop(spent);
     }
 }
 
-/// The per-texel buffers of a [`FrameResult`] that only an evaluation
-/// reads, handed back to the method by [`Method::recycle`].
+/// Per-texel buffers of a [`FrameResult`] that nothing reads any more,
+/// handed back to the method by [`Method::recycle`]: the uv and levels
+/// that only an evaluation reads, and the channel values once the sink has
+/// them in the form it writes.
 #[derive(Debug, Default)]
 pub struct SpentBuffers {
     pub uv: Option<Vec<Vec2>>,
     pub exemplar_lod: Option<Vec<f32>>,
+    /// The interleaved channel values the fill wrote (the colour atlas when
+    /// the exemplar has no extra channel).
+    pub values: Option<Vec<f32>>,
 }
 
 /// Checks `lo <= value <= hi` for a parameter.

@@ -505,6 +505,7 @@ impl Method for Erosion {
             atlas.height,
             self.exemplar.total_channels(),
             self.spare.uv.take(),
+            self.spare.values.take(),
         );
         // The footprint pass samples every covered texel (blends excepted).
         out.defer_values = self.variant != Variant::Blend

@@ -580,13 +580,17 @@ fn recycled_buffers_are_refilled_and_give_identical_frames() {
     let mut fresh = Erosion::new(ErosionParams::default(), exemplar(), 5).expect("params");
     let want = step_all(&mut fresh, &c);
     let mut m = Erosion::new(ErosionParams::default(), exemplar(), 5).expect("params");
-    let mut handed_back: Option<(*const Vec2, *const f32)> = None;
+    let mut handed_back: Option<(*const Vec2, *const f32, *const f32)> = None;
     for (k, w) in want.iter().enumerate() {
         let mut r = m.step(&c.ctx(k)).expect("step");
         assert!(
             r.channels == w.channels && r.source == w.source,
             "frame {k}"
         );
+        // A colour-only exemplar: the colour atlas is the fill's values
+        // buffer, handed back with this frame's colours in it.
+        assert_eq!(r.channels.len(), 1);
+        let values = std::mem::take(&mut r.channels[0].data);
         let (uv, lod) = (
             r.uv.take().expect("uv"),
             r.exemplar_lod.take().expect("levels"),
@@ -601,22 +605,26 @@ fn recycled_buffers_are_refilled_and_give_identical_frames() {
             "frame {k}"
         );
         // From the second frame on, the buffers are the ones handed back.
-        if let Some(ptrs) = handed_back {
-            assert_eq!(ptrs, (uv.as_ptr(), lod.as_ptr()), "frame {k} reused them");
+        let ptrs = (uv.as_ptr(), lod.as_ptr(), values.as_ptr());
+        if let Some(before) = handed_back {
+            assert_eq!(before, ptrs, "frame {k} reused them");
         }
-        handed_back = Some((uv.as_ptr(), lod.as_ptr()));
+        handed_back = Some(ptrs);
         m.recycle(crate::methods::SpentBuffers {
             uv: Some(uv),
             exemplar_lod: Some(lod),
+            values: Some(values),
         });
     }
     // A buffer of another size is not used: the step allocates its own.
     m.recycle(crate::methods::SpentBuffers {
         uv: Some(vec![Vec2::ZERO; 3]),
         exemplar_lod: Some(vec![0.0; 3]),
+        values: Some(vec![1.0; 3]),
     });
     let r = m.step(&c.ctx(0)).expect("step");
     assert_eq!(r.uv.map(|u| u.len()), Some(96 * 96));
+    assert_eq!(r.channels[0].data.len(), 96 * 96 * r.channels[0].channels);
 }
 
 #[test]

@@ -48,23 +48,30 @@ pub struct TexelBuffers {
 impl TexelBuffers {
     /// Every texel outside the charts, values 0, uv NaN.
     pub fn new(width: u32, height: u32, channels: usize) -> TexelBuffers {
-        TexelBuffers::reusing(width, height, channels, None)
+        TexelBuffers::reusing(width, height, channels, None, None)
     }
 
-    /// [`TexelBuffers::new`], refilling `spare_uv` (a spent frame's uv
-    /// buffer, [`crate::methods::Method::recycle`]) when it has the size.
+    /// [`TexelBuffers::new`], refilling `spare_uv` and `spare_values` (a
+    /// spent frame's buffers, [`crate::methods::Method::recycle`]) where
+    /// they have the size.
     pub fn reusing(
         width: u32,
         height: u32,
         channels: usize,
         spare_uv: Option<Vec<Vec2>>,
+        spare_values: Option<Vec<f32>>,
     ) -> TexelBuffers {
         let n = width as usize * height as usize;
         TexelBuffers {
             width,
             height,
             channels,
-            values: vec![0.0; n * channels],
+            // Zeroed pages the kernel maps on first touch, or a spent
+            // frame's values zeroed on every core.
+            values: match spare_values {
+                Some(v) if v.len() == n * channels => refilled(Some(v), n * channels, 0.0),
+                _ => vec![0.0; n * channels],
+            },
             // Filled on every core: at 6144² these two are 450 MB, whose
             // serial fill (and page faults) showed in every frame's time.
             source: filled(n, SOURCE_OUTSIDE),
