@@ -1487,12 +1487,8 @@ impl FrameWriter<'_> {
         let path = job.out_dir.join(format!("source.{tag}.exr"));
         let source = write_source_ids(files, &path, atlas, source)?;
         let path = job.out_dir.join(format!("patches.{tag}.png"));
-        let bytes = patch_png(atlas, source, self.patch_view_radius()).map_err(|message| {
-            PipelineError::Output {
-                path: path.clone(),
-                message,
-            }
-        })?;
+        let bytes =
+            patch_png(atlas, source, self.patch_view_radius()).map_err(output_error(&path))?;
         write_file(files, &path, &bytes)
     }
 
@@ -1594,6 +1590,14 @@ fn exr_channel_options() -> ExrOptions {
     }
 }
 
+/// An encoder's message as the error of writing `path`.
+fn output_error(path: &Path) -> impl Fn(String) -> PipelineError + '_ {
+    move |message| PipelineError::Output {
+        path: path.to_path_buf(),
+        message,
+    }
+}
+
 /// [`write_channel`] of a channel as the writer receives it.
 fn write_out_channel(
     files: &mut Staging<'_>,
@@ -1619,10 +1623,7 @@ fn write_out_channel(
                 compression,
                 |y, out| out.copy_from_slice(&samples[y * row..(y + 1) * row]),
             )
-            .map_err(|message| PipelineError::Output {
-                path: path.to_path_buf(),
-                message,
-            })?;
+            .map_err(output_error(path))?;
             write_file(files, path, &bytes)?;
             Ok(Some(bytes))
         }
@@ -1649,12 +1650,7 @@ fn write_channel(
         depth,
         ..Default::default()
     };
-    let bytes = crate::io::image::encode_png(texture, &options).map_err(|message| {
-        PipelineError::Output {
-            path: path.to_path_buf(),
-            message,
-        }
-    })?;
+    let bytes = crate::io::image::encode_png(texture, &options).map_err(output_error(path))?;
     write_file(files, path, &bytes)?;
     Ok(Some(bytes))
 }
