@@ -681,17 +681,11 @@ fn written_channels(
             if !quantizable {
                 return OutChannel::Float(t);
             }
-            let samples: Vec<u8> = t
-                .data
-                .par_iter()
-                .with_min_len(1 << 16)
-                .map(|&x| crate::io::image::quantize_8(x))
-                .collect();
             let channel = OutChannel::Eight {
                 width: t.width,
                 height: t.height,
                 channels: t.channels,
-                samples,
+                samples: crate::io::image::quantize_8_all(&t.data),
             };
             if spent.is_none() {
                 spent = Some(t.data);

@@ -226,12 +226,7 @@ pub fn write_png(path: &Path, tex: &Texture, options: &PngOptions) -> Result<(),
 /// Samples in PNG order: 8-bit, or 16-bit big endian; clamped and rounded.
 fn quantize(tex: &Texture, depth: PngDepth) -> Vec<u8> {
     match depth {
-        PngDepth::Eight => tex
-            .data
-            .par_iter()
-            .with_min_len(1 << 16)
-            .map(|&x| quantize_8(x))
-            .collect(),
+        PngDepth::Eight => quantize_8_all(&tex.data),
         PngDepth::Sixteen => tex
             .data
             .par_iter()
@@ -239,6 +234,15 @@ fn quantize(tex: &Texture, depth: PngDepth) -> Vec<u8> {
             .flat_map_iter(|&x| quantize_16(x).to_be_bytes())
             .collect(),
     }
+}
+
+/// [`quantize_8`] of every value, on every core: an 8-bit PNG's samples.
+pub fn quantize_8_all(values: &[f32]) -> Vec<u8> {
+    values
+        .par_iter()
+        .with_min_len(1 << 16)
+        .map(|&x| quantize_8(x))
+        .collect()
 }
 
 /// One 16-bit PNG sample from a value, as [`quantize_8`] at 16 bits.
