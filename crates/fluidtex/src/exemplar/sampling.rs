@@ -140,8 +140,32 @@ fn texel<const N: usize>(data: &[f32], i: usize) -> [f32; N] {
 
 /// Bilinear lookup of `N`-channel texels, in the operation order of
 /// [`blend_any`].
+///
+/// The four texels are read as slices of `data`, each channel straight
+/// into the arithmetic: gathering them into arrays first (`[i; 4].map`)
+/// compiled to a call that stored them to the stack piecewise and loaded
+/// them back whole, a store-forwarding stall on every lookup that cost
+/// more than the lookup's own arithmetic.
 #[inline(always)]
 fn bilinear<const N: usize>(data: &[f32], f: &Footprint) -> [f32; N] {
+    let at = |i: usize| data.get(i * N..(i + 1) * N);
+    let [ia, ib, ic, id] = f.texels;
+    let (Some(a), Some(b), Some(c), Some(d)) = (at(ia), at(ib), at(ic), at(id)) else {
+        return bilinear_clipped::<N>(data, f);
+    };
+    let mut o = [0.0f32; N];
+    for k in 0..N {
+        let top = a[k] + (b[k] - a[k]) * f.fx;
+        let bottom = c[k] + (d[k] - c[k]) * f.fx;
+        o[k] = top + (bottom - top) * f.fy;
+    }
+    o
+}
+
+/// [`bilinear`] where a texel lies past the end of `data` (which no
+/// footprint of the matching [`Lattice`] does): such a texel reads as zeros.
+#[cold]
+fn bilinear_clipped<const N: usize>(data: &[f32], f: &Footprint) -> [f32; N] {
     let [a, b, c, d] = f.texels.map(|i| texel::<N>(data, i));
     let mut o = [0.0f32; N];
     for k in 0..N {
@@ -298,6 +322,27 @@ mod tests {
                     "trilinear, stride {stride}"
                 );
             }
+        }
+    }
+
+    /// A footprint reaching past the texels (which no lattice of the
+    /// data's size makes) reads zeros there on the fixed-width path, as
+    /// the generic texel read does, instead of panicking.
+    #[test]
+    fn texels_past_the_end_read_as_zeros() {
+        let data = [1.0f32, 2.0, 3.0, 4.0, 5.0, 6.0];
+        let f = Footprint {
+            texels: [0, 1, 5, 1],
+            fx: 0.25,
+            fy: 0.5,
+        };
+        let mut out = [9.0f32; 3];
+        blend(&data, 3, &f, &mut out);
+        for k in 0..3 {
+            let (a, b) = (data[k], data[3 + k]);
+            let top = a + (b - a) * 0.25;
+            let bottom = 0.0 + (b - 0.0) * 0.25;
+            assert_eq!(out[k], top + (bottom - top) * 0.5, "channel {k}");
         }
     }
 
