@@ -44,19 +44,16 @@ const TILE_COLUMNS: usize = 64;
 /// Leaves `out` as it is and returns `None` for
 /// [`ExemplarFilter::Unfiltered`].
 pub fn apply_footprint_filtering(out: &mut FillBuffers, exemplar: &Exemplar) -> Option<Vec<f32>> {
-    apply_footprint_filtering_by(out, exemplar.filter, None, |_| exemplar)
+    apply_footprint_filtering_by(out, exemplar.filter, |_| exemplar)
 }
 
 /// [`apply_footprint_filtering`] where texels show different exemplars
 /// (several exemplars per surface): `exemplar_of(source)` is the exemplar
 /// of a texel's source (patch id + 1, never outside or uncovered); its size
 /// scales the footprint and its pyramid is read. `filter` applies to all.
-/// The levels are written into `spare` (a spent frame's levels,
-/// [`crate::methods::Method::recycle`]) when it has the atlas's size.
 pub fn apply_footprint_filtering_by<'e>(
     out: &mut FillBuffers,
     filter: ExemplarFilter,
-    spare: Option<Vec<f32>>,
     exemplar_of: impl Fn(u32) -> &'e Exemplar + Sync,
 ) -> Option<Vec<f32>> {
     if filter == ExemplarFilter::Unfiltered {
@@ -76,14 +73,11 @@ pub fn apply_footprint_filtering_by<'e>(
     if n == 0 || c == 0 || source.len() != n || uv.len() != n || values.len() != n * c {
         return Some(vec![f32::NAN; n]);
     }
-    // Zeroed pages the kernel maps on first touch (or a spent frame's
-    // levels); each tile writes every level of its own texels below (NaN
-    // where there is none), on every core and while they are in cache,
-    // instead of a serial pass over the whole atlas first.
-    let mut lods = match spare {
-        Some(v) if v.len() == n => v,
-        _ => vec![0.0f32; n],
-    };
+    // Zeroed pages the kernel maps on first touch: each tile writes every
+    // level of its own texels below (NaN where there is none), on every
+    // core and while they are in cache, instead of a serial pass over the
+    // whole atlas first.
+    let mut lods = vec![0.0f32; n];
     let (source, uv) = (source.as_slice(), uv.as_slice());
     let h = n / w;
     values

@@ -506,6 +506,14 @@ impl Method for Erosion {
             self.exemplar.total_channels(),
             self.spare.uv.take(),
             self.spare.values.take(),
+            // The last frame's levels hold this frame's patch ids: a
+            // fresh id buffer goes to the writer every frame, and levels
+            // kept aside until the footprint pass would sit idle through
+            // the fill, the frame's largest moment (151 MB at 6144²).
+            self.spare
+                .exemplar_lod
+                .take()
+                .and_then(|lods| bytemuck::allocation::try_cast_vec(lods).ok()),
         );
         // The footprint pass samples every covered texel (blends excepted).
         out.defer_values = self.variant != Variant::Blend
@@ -526,7 +534,6 @@ impl Method for Erosion {
             .multi
             .as_ref()
             .map(|_| exemplars::by_id(&self.state.patches, self.state.next_id));
-        let spare_lod = self.spare.exemplar_lod.take();
         let exemplar_lod = (self.variant != Variant::Blend)
             .then(|| match (&self.multi, &by_id) {
                 (Some(m), Some(by_id)) => {
@@ -534,7 +541,6 @@ impl Method for Erosion {
                     super::footprint::apply_footprint_filtering_by(
                         &mut out,
                         self.exemplar.filter,
-                        spare_lod,
                         |s| {
                             let e = by_id.get(s as usize - 1).copied().unwrap_or(0);
                             all.get(e as usize).map_or(&*self.exemplar, |a| a)
@@ -544,7 +550,6 @@ impl Method for Erosion {
                 _ => super::footprint::apply_footprint_filtering_by(
                     &mut out,
                     self.exemplar.filter,
-                    spare_lod,
                     |_| &*self.exemplar,
                 ),
             })

@@ -580,7 +580,8 @@ fn recycled_buffers_are_refilled_and_give_identical_frames() {
     let mut fresh = Erosion::new(ErosionParams::default(), exemplar(), 5).expect("params");
     let want = step_all(&mut fresh, &c);
     let mut m = Erosion::new(ErosionParams::default(), exemplar(), 5).expect("params");
-    let mut handed_back: Option<(*const Vec2, *const f32, *const f32)> = None;
+    // (uv, values, levels) handed back, as addresses.
+    let mut handed_back: Option<(usize, usize, usize)> = None;
     for (k, w) in want.iter().enumerate() {
         let mut r = m.step(&c.ctx(k)).expect("step");
         assert!(
@@ -604,10 +605,17 @@ fn recycled_buffers_are_refilled_and_give_identical_frames() {
             bits(w.exemplar_lod.as_deref().expect("levels")),
             "frame {k}"
         );
-        // From the second frame on, the buffers are the ones handed back.
-        let ptrs = (uv.as_ptr(), lod.as_ptr(), values.as_ptr());
-        if let Some(before) = handed_back {
-            assert_eq!(before, ptrs, "frame {k} reused them");
+        // From the second frame on, the uv and values are the buffers
+        // handed back, and the ids live in the last frame's levels.
+        let source = r.source.as_deref().expect("ids");
+        let ptrs = (
+            uv.as_ptr() as usize,
+            values.as_ptr() as usize,
+            lod.as_ptr() as usize,
+        );
+        if let Some((uv_before, values_before, lod_before)) = handed_back {
+            assert_eq!((uv_before, values_before), (ptrs.0, ptrs.1), "frame {k}");
+            assert_eq!(source.as_ptr() as usize, lod_before, "frame {k}: ids");
         }
         handed_back = Some(ptrs);
         m.recycle(crate::methods::SpentBuffers {

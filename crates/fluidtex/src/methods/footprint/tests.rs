@@ -181,10 +181,9 @@ fn tile_levels_are_the_per_texel_levels() {
                 _ => p,
             };
         }
-        let lods = apply_footprint_filtering_by(&mut out, ExemplarFilter::Trilinear, None, |s| {
-            exemplar_of(s)
-        })
-        .expect("trilinear");
+        let lods =
+            apply_footprint_filtering_by(&mut out, ExemplarFilter::Trilinear, |s| exemplar_of(s))
+                .expect("trilinear");
         for y in 0..h as usize {
             for x in 0..w as usize {
                 let t = y * w as usize + x;

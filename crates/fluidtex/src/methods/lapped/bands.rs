@@ -48,18 +48,19 @@ pub struct TexelBuffers {
 impl TexelBuffers {
     /// Every texel outside the charts, values 0, uv NaN.
     pub fn new(width: u32, height: u32, channels: usize) -> TexelBuffers {
-        TexelBuffers::reusing(width, height, channels, None, None)
+        TexelBuffers::reusing(width, height, channels, None, None, None)
     }
 
-    /// [`TexelBuffers::new`], refilling `spare_uv` and `spare_values` (a
-    /// spent frame's buffers, [`crate::methods::Method::recycle`]) where
-    /// they have the size.
+    /// [`TexelBuffers::new`], refilling `spare_uv`, `spare_values` and
+    /// `spare_source` (a spent frame's buffers,
+    /// [`crate::methods::Method::recycle`]) where they have the size.
     pub fn reusing(
         width: u32,
         height: u32,
         channels: usize,
         spare_uv: Option<Vec<Vec2>>,
         spare_values: Option<Vec<f32>>,
+        spare_source: Option<Vec<u32>>,
     ) -> TexelBuffers {
         let n = width as usize * height as usize;
         TexelBuffers {
@@ -74,7 +75,7 @@ impl TexelBuffers {
             },
             // Filled on every core: at 6144² these two are 450 MB, whose
             // serial fill (and page faults) showed in every frame's time.
-            source: filled(n, SOURCE_OUTSIDE),
+            source: refilled(spare_source, n, SOURCE_OUTSIDE),
             uv: refilled(spare_uv, n, Vec2::NAN),
             layers: Vec::new(),
             lod: Vec::new(),
