@@ -313,8 +313,9 @@ pub struct Erosion {
     /// Each exemplar's statistics, measured on the first frame that
     /// matches its tone.
     tones: Option<Vec<ExemplarTone>>,
-    /// The last frame's uv and exemplar levels, when the caller handed them
-    /// back ([`Method::recycle`]): the next step fills them again.
+    /// The last frame's uv, values and exemplar levels, when the caller
+    /// handed them back ([`Method::recycle`]): the next step fills the uv
+    /// and values again and keeps its patch ids in the levels' buffer.
     spare: super::SpentBuffers,
 }
 
