@@ -152,8 +152,8 @@ fn frame_files(f: i32) -> Vec<String> {
 /// temporary is left; and after "space is freed" the same command with
 /// `--resume` writes exactly the files of an uninterrupted run.
 ///
-/// Writes per frame, in order: (from frame 1 on) switch.png, color.png,
-/// mesh.mtl, mesh.obj, mesh.glb, then the debug views source.exr and
+/// Writes per frame, in order: color.png, mesh.mtl, mesh.obj, mesh.glb,
+/// (from frame 1 on) switch.png, then the debug views source.exr and
 /// patches.png, stats.json, then state.bin.
 #[test]
 fn a_full_disk_mid_frame_leaves_no_counted_partial_frame_and_resume_matches() {
@@ -164,8 +164,8 @@ fn a_full_disk_mid_frame_leaves_no_counted_partial_frame_and_resume_matches() {
     let cases = [
         (3, "mesh.0000.obj", None),
         (8, "state.bin", Some(0)),
-        (9, "switch.0001.png", Some(0)),
-        (13, "mesh.0001.glb", Some(0)),
+        (12, "mesh.0001.glb", Some(0)),
+        (13, "switch.0001.png", Some(0)),
         (15, "patches.0001.png", Some(0)),
         (16, "stats.0001.json", Some(0)),
         (17, "state.bin", Some(1)),

@@ -261,17 +261,16 @@ fn check_frame_outputs(
         .map(|s| s.as_str().unwrap())
         .collect();
     assert_eq!(stages.first(), Some(&"read"));
-    // The writer's stages close the list: with debug outputs the coherence
-    // measurement (which lets the frame before go), the write, then the
-    // debug views.
+    // With debug outputs, the coherence measurement and then the debug
+    // views follow the write.
     let tail: Vec<&str> = stages
         .iter()
         .copied()
-        .skip_while(|s| *s != "write" && *s != "coherence")
+        .skip_while(|s| *s != "write")
         .collect();
     assert!(
-        matches!(tail.as_slice(), ["write"] | ["coherence", "write", "debug"]),
-        "the writer's stages: {tail:?}"
+        matches!(tail.as_slice(), ["write"] | ["write", "coherence", "debug"]),
+        "stages after the write: {tail:?}"
     );
     let timed: BTreeSet<&str> = stats["seconds"]
         .as_object()
@@ -727,8 +726,8 @@ fn resume_after_sigkill_gives_the_same_files() {
 /// Bug: a SIGKILL during a write leaves `.<name>.<random>.tmp` in the
 /// output folder, and `--resume` leaves it there for good.
 ///
-/// Deterministic: the run stops inside its 12th write
-/// (`FLUIDTEX_TEST_PAUSE_IN_WRITE=12`), the fourth file of frame 1, with
+/// Deterministic: the run stops inside its 11th write
+/// (`FLUIDTEX_TEST_PAUSE_IN_WRITE=11`), the third file of frame 1, with
 /// that file's temporary on disk, and the test kills it there; the real
 /// kill-inside-a-write path runs every time (no hand-made temporary).
 #[test]
@@ -739,18 +738,17 @@ fn resume_removes_the_temporary_of_a_killed_write() {
     ok(&erosion_args(&pattern, &reference));
     let out = dir.path().join("out");
     let args = erosion_args(&pattern, &out);
-    // Writes: frame 0's 7 files and state.bin, then frame 1's switch map
-    // (the coherence comes first), colour, mtl; 12 = its obj.
-    let paused = spawn_paused(&args, &[("FLUIDTEX_TEST_PAUSE_IN_WRITE", "12")]);
+    // Writes per frame: its 7 files, then state.bin; 11 = frame 1's third.
+    let paused = spawn_paused(&args, &[("FLUIDTEX_TEST_PAUSE_IN_WRITE", "11")]);
     let temporary = paused
         .line
-        .strip_prefix("fluidtex-test: paused in write 12: ")
+        .strip_prefix("fluidtex-test: paused in write 11: ")
         .unwrap()
         .to_string();
     let name = Path::new(&temporary).file_name().unwrap().to_string_lossy();
     assert!(name.starts_with(".mesh.0001.obj."), "{name}");
     paused.kill();
-    // Frame 1's first four files are temporaries (staged, never renamed);
+    // Frame 1's first three files are temporaries (staged, never renamed);
     // none of its files is visible.
     let left = temporaries(&out);
     let prefixes: Vec<String> = left
@@ -759,12 +757,7 @@ fn resume_removes_the_temporary_of_a_killed_write() {
         .collect();
     assert_eq!(
         prefixes,
-        [
-            ".color.0001.png",
-            ".mesh.0001.mtl",
-            ".mesh.0001.obj",
-            ".switch.0001.png"
-        ],
+        [".color.0001.png", ".mesh.0001.mtl", ".mesh.0001.obj"],
         "{left:?}"
     );
     for f in frame_files(1) {

@@ -772,12 +772,11 @@ impl FrameWriter<'_> {
         // then the state counts the frame; a failure before the state is
         // written leaves the frame uncounted and `--resume` redoes it.
         let mut files = Staging::new(Some(self.guard), job.hooks.write.as_ref());
-        // The ids of the debug outputs: the coherence numbers first, the
-        // one thing that needs the frame before, whose geometry (mesh,
-        // closest-point index, atlas: 130 MB at 300k triangles) is then let
-        // go instead of being held while this frame's files are encoded
-        // next to the method's fill of the frame after.
-        if let Some(ids) = source.as_deref().filter(|_| job.outputs.debug) {
+        self.write_frame(&mut files, &g, &channels, source.as_deref())?;
+        clock.lap("write");
+        // The ids of the debug outputs (coherence numbers, then the views).
+        let debug = source.filter(|_| job.outputs.debug);
+        if let Some(ids) = debug.as_deref() {
             let prev = previous.as_deref();
             if self.coherence_prev.is_none()
                 && let (Some(last), Some(prev)) = (self.resumed_after, prev)
@@ -808,13 +807,9 @@ impl FrameWriter<'_> {
             ));
             clock.lap("coherence");
         }
-        drop(previous);
-        self.write_frame(&mut files, &g, &channels, source.as_deref())?;
-        clock.lap("write");
-        // The channels (12 bytes a texel in colour alone) are measured and
-        // written: not held while the debug views are made from the ids.
+        // The channels (12 bytes a texel in colour alone) are written and
+        // measured: not held while the debug views are made from the ids.
         drop(channels);
-        let debug = source.filter(|_| job.outputs.debug);
         if let Some(ids) = debug {
             self.write_debug_views(&mut files, &g, ids)?;
             clock.lap("debug");
