@@ -148,18 +148,15 @@ fn texel<const N: usize>(data: &[f32], i: usize) -> [f32; N] {
 /// more than the lookup's own arithmetic.
 #[inline(always)]
 fn bilinear<const N: usize>(data: &[f32], f: &Footprint) -> [f32; N] {
-    let at = |i: usize| data.get(i * N..(i + 1) * N);
+    let at = |i: usize| {
+        data.get(i * N..(i + 1) * N)
+            .and_then(|s| <&[f32; N]>::try_from(s).ok())
+    };
     let [ia, ib, ic, id] = f.texels;
     let (Some(a), Some(b), Some(c), Some(d)) = (at(ia), at(ib), at(ic), at(id)) else {
         return bilinear_clipped::<N>(data, f);
     };
-    let mut o = [0.0f32; N];
-    for k in 0..N {
-        let top = a[k] + (b[k] - a[k]) * f.fx;
-        let bottom = c[k] + (d[k] - c[k]) * f.fx;
-        o[k] = top + (bottom - top) * f.fy;
-    }
-    o
+    lerp_texels([a, b, c, d], f)
 }
 
 /// [`bilinear`] where a texel lies past the end of `data` (which no
@@ -167,6 +164,13 @@ fn bilinear<const N: usize>(data: &[f32], f: &Footprint) -> [f32; N] {
 #[cold]
 fn bilinear_clipped<const N: usize>(data: &[f32], f: &Footprint) -> [f32; N] {
     let [a, b, c, d] = f.texels.map(|i| texel::<N>(data, i));
+    lerp_texels([&a, &b, &c, &d], f)
+}
+
+/// The bilinear blend of four texels (top-left, top-right, bottom-left,
+/// bottom-right) with the footprint's weights, channel by channel.
+#[inline(always)]
+fn lerp_texels<const N: usize>([a, b, c, d]: [&[f32; N]; 4], f: &Footprint) -> [f32; N] {
     let mut o = [0.0f32; N];
     for k in 0..N {
         let top = a[k] + (b[k] - a[k]) * f.fx;
