@@ -175,15 +175,57 @@ pub fn carry_by_velocity(
     dt: f32,
     from: Vec<SurfacePoint>,
 ) -> Carried {
-    let hint = search_hint(prev);
-    let at = Placed::of(prev, &from);
-    let carried: Vec<Option<Vec3>> = at.map(|i, p| {
-        let p = p?;
-        let v0 = interpolate(prev, prev_velocity, &from[i])?;
-        let v1 = next.sample(p + v0 * dt, hint)?;
-        Some(p + (v0 + v1) * (0.5 * dt))
-    });
-    Carried::locate_placed(hint, from, &at, &carried, next.index)
+    Departure::of(prev, prev_velocity, from).carry(next, dt)
+}
+
+/// What [`carry_by_velocity`] reads of frame t, taken while frame t is at
+/// hand: each sample point's position and velocity there. The frame job
+/// keeps this (a few hundred kB for 20 000 points) instead of frame t's
+/// mesh, closest-point index and atlas (~130 MB at 300k triangles), which
+/// it would otherwise hold until frame t+1 is measured.
+#[derive(Clone, Debug)]
+pub struct Departure {
+    hint: f32,
+    from: Vec<SurfacePoint>,
+    at: Placed,
+    /// `v_t` at each point; `None` where the point has no position or
+    /// velocity.
+    velocity: Vec<Option<Vec3>>,
+}
+
+impl Departure {
+    /// The points `from` of `prev`, whose per-vertex velocity is
+    /// `prev_velocity`.
+    pub fn of(prev: &TriMesh, prev_velocity: &[Vec3], from: Vec<SurfacePoint>) -> Departure {
+        let at = Placed::of(prev, &from);
+        let velocity = from
+            .par_iter()
+            .zip(at.positions.par_iter())
+            .map(|(sp, p)| p.and_then(|_| interpolate(prev, prev_velocity, sp)))
+            .collect();
+        Departure {
+            hint: search_hint(prev),
+            from,
+            at,
+            velocity,
+        }
+    }
+
+    /// The sample points, on frame t's mesh.
+    pub fn points(&self) -> &[SurfacePoint] {
+        &self.from
+    }
+
+    /// The points carried to frame t+1 (`next`) and located there.
+    pub fn carry(&self, next: FlowFrame<'_>, dt: f32) -> Carried {
+        let carried: Vec<Option<Vec3>> = self.at.map(|i, p| {
+            let p = p?;
+            let v0 = self.velocity[i]?;
+            let v1 = next.sample(p + v0 * dt, self.hint)?;
+            Some(p + (v0 + v1) * (0.5 * dt))
+        });
+        Carried::locate_placed(self.hint, self.from.clone(), &self.at, &carried, next.index)
+    }
 }
 
 /// Sample points' positions on their mesh (`None` where a point has none),
@@ -192,6 +234,7 @@ pub fn carry_by_velocity(
 /// close in space follow each other and revisit the same part of the tree
 /// (the coherence stage took half the time at 20 000 points on 85k
 /// triangles), and every answer is the same as in index order.
+#[derive(Clone, Debug)]
 struct Placed {
     positions: Vec<Option<Vec3>>,
     /// The positions as query keys; NaN where none (queried last).

@@ -30,6 +30,7 @@ use thiserror::Error;
 use std::sync::Arc;
 
 use crate::atlas::{AtlasError, AtlasParams};
+use crate::coherence::Departure;
 use crate::driver::{DrivenFrame, Driver, DriverError, FrameSink, PendingFrame};
 use crate::frame::{FrameGeometry, GeometryError, StageClock};
 use crate::io::image::{ExrOptions, ExrSample, PngDepth, PngOptions};
@@ -338,6 +339,8 @@ pub fn run(
                 formats,
                 first_frame,
                 spent_values: None,
+                switch_map: job.outputs.switch_map,
+                reload_pending: resumed_after.is_some(),
             };
             let looped = drive(job, source, &frames, &mut driver, &mut sink);
             // The frames already handed over are written (and counted)
@@ -547,6 +550,11 @@ struct FileSink<'w, 'a, 'o> {
     /// The float values of the last frame's colour atlas, once its 8-bit
     /// samples were taken ([`FrameSink::spent_values`]).
     spent_values: Option<Vec<f32>>,
+    /// `outputs.switch_map`: the switch map reads the frame before's atlas.
+    switch_map: bool,
+    /// Resumed and nothing submitted yet: the first frame's writer reloads
+    /// the coherence data of the frame before from its files.
+    reload_pending: bool,
 }
 
 impl FrameSink for FileSink<'_, '_, '_> {
@@ -577,9 +585,13 @@ impl FrameSink for FileSink<'_, '_, '_> {
         let preview = is_preview_frame(self.preview_every, self.first_frame, geometry.number);
         let (channels, spent) = written_channels(result.channels, &self.formats, !preview);
         self.spent_values = spent;
+        // The frame before is written already; its geometry goes along only
+        // where the writer reads more of it than the coherence data it kept.
+        let keep_previous = self.switch_map || std::mem::take(&mut self.reload_pending);
         self.writer.submit(WriteJob {
             geometry: Arc::clone(geometry),
-            previous: previous.cloned(),
+            previous_number: previous.map(|p| p.number),
+            previous: previous.filter(|_| keep_previous).cloned(),
             channels,
             source: result.source,
             method_stats: result.stats,
@@ -706,6 +718,11 @@ struct MethodInfo {
 /// A filled frame on its way to the writer.
 struct WriteJob {
     geometry: Arc<FrameGeometry>,
+    /// The number of the frame before, if any.
+    previous_number: Option<i32>,
+    /// The frame before, only with the switch map and for the first frame
+    /// of a resumed run ([`FileSink`]): otherwise the writer would hold
+    /// a third frame's geometry while the method fills the next.
     previous: Option<Arc<FrameGeometry>>,
     /// Channels dilated into the gutter, colour first.
     channels: Vec<OutChannel>,
@@ -742,6 +759,7 @@ impl FrameWriter<'_> {
     fn write(&mut self, w: WriteJob) -> Result<Written, PipelineError> {
         let WriteJob {
             geometry: g,
+            previous_number,
             previous,
             channels,
             source,
@@ -791,8 +809,8 @@ impl FrameWriter<'_> {
                 );
             }
             let current = WrittenTexels::of(&self.method.specs, &g.atlas, ids, &channels);
-            if let (Some(before), Some(prev)) = (&self.coherence_prev, prev)
-                && before.number == prev.number
+            if let Some(before) = &self.coherence_prev
+                && Some(before.number) == previous_number
                 && let Some(c) = self.measure_coherence(&mut files, prev, before, &g, &current)?
             {
                 stats.source_switch_share = Some(c.switch_share());
@@ -937,9 +955,10 @@ fn save_state(
 /// source and grey (the atlas is the driver's previous frame's).
 struct CoherencePrevious {
     number: i32,
-    /// The sample points and the values there; `None` when the frame has
-    /// no velocity or its data does not fit its atlas (no measurement).
-    points: Option<(Vec<SurfacePoint>, Vec<crate::coherence::PointValue>)>,
+    /// The sample points (with their positions and velocity) and the
+    /// values there; `None` when the frame has no velocity or its data does
+    /// not fit its atlas (no measurement).
+    points: Option<(Departure, Vec<crate::coherence::PointValue>)>,
     /// Written source and grey per texel, for `switch.F.png` only.
     full: Option<(Vec<u32>, Vec<f32>)>,
 }
@@ -955,6 +974,21 @@ fn coherence_points(
     crate::coherence::sample_surface(mesh, settings.samples, seed)
 }
 
+/// The sample points of frame `number` (mesh `mesh`) ready to be carried
+/// to the next frame, and `texels`' values there; `None` when the mesh has
+/// no velocity or the texels do not fit the atlas.
+fn departure_values(
+    mesh: &TriMesh,
+    number: i32,
+    settings: &crate::coherence::CoherenceSettings,
+    texels: &impl crate::coherence::Texels,
+) -> Option<(Departure, Vec<crate::coherence::PointValue>)> {
+    let velocity = mesh.velocity()?;
+    let points = coherence_points(mesh, number, settings);
+    let values = crate::coherence::point_values(&points, texels).ok()?;
+    Some((Departure::of(mesh, velocity, points), values))
+}
+
 impl CoherencePrevious {
     /// This frame's data as its files hold it (computed in memory: the
     /// files are committed together with the stats that carry the result).
@@ -965,11 +999,7 @@ impl CoherencePrevious {
         switch_map: bool,
     ) -> CoherencePrevious {
         use crate::coherence::Texels;
-        let points = g.mesh.velocity().and_then(|_| {
-            let points = coherence_points(&g.mesh, g.number, settings);
-            let values = crate::coherence::point_values(&points, current).ok()?;
-            Some((points, values))
-        });
+        let points = departure_values(&g.mesh, g.number, settings, current);
         let full = switch_map.then(|| {
             let n = current.source.len();
             let source = (0..n).into_par_iter().map(|i| current.source(i)).collect();
@@ -1170,11 +1200,7 @@ fn reload_coherence(
             source: &source,
             grey: &grey,
         };
-        let points = prev.mesh.velocity().and_then(|_| {
-            let points = coherence_points(&prev.mesh, last, settings);
-            let values = crate::coherence::point_values(&points, &texels).ok()?;
-            Some((points, values))
-        });
+        let points = departure_values(&prev.mesh, last, settings, &texels);
         let full = job.outputs.switch_map.then_some((source, grey));
         Ok(CoherencePrevious {
             number: last,
@@ -1202,17 +1228,17 @@ impl FrameWriter<'_> {
     fn measure_coherence(
         &self,
         files: &mut Staging<'_>,
-        prev: &FrameGeometry,
+        prev: Option<&FrameGeometry>,
         before: &CoherencePrevious,
         frame: &FrameGeometry,
         current: &WrittenTexels<'_>,
     ) -> Result<Option<crate::coherence::Coherence>, PipelineError> {
-        use crate::coherence::{self, TexelFrame, carry_by_velocity, switch_map};
+        use crate::coherence::{self, TexelFrame, switch_map};
         use crate::surface::velocity::FlowFrame;
-        let (Some(v0), Some(v1)) = (prev.mesh.velocity(), frame.mesh.velocity()) else {
+        let Some(v1) = frame.mesh.velocity() else {
             return Ok(None);
         };
-        let Some((points, values)) = &before.points else {
+        let Some((departure, values)) = &before.points else {
             return Ok(None);
         };
         let settings = &self.coherence_settings;
@@ -1222,18 +1248,20 @@ impl FrameWriter<'_> {
             index: &frame.index,
             velocity: v1,
         };
-        let carried = carry_by_velocity(&prev.mesh, v0, next, dt, points.clone());
+        let carried = departure.carry(next, dt);
         let Ok(found) = coherence::measure_from(&carried, values, current, settings) else {
             return Ok(None);
         };
-        let from = FlowFrame {
-            mesh: &prev.mesh,
-            index: &prev.index,
-            velocity: v0,
-        };
         if self.job.outputs.switch_map
             && let Some((source, grey)) = &before.full
+            && let Some(prev) = prev
+            && let Some(v0) = prev.mesh.velocity()
         {
+            let from = FlowFrame {
+                mesh: &prev.mesh,
+                index: &prev.index,
+                velocity: v0,
+            };
             let from_texels = TexelFrame {
                 atlas: &prev.atlas,
                 source,

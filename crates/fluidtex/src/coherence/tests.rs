@@ -373,3 +373,32 @@ fn values_kept_from_frame_t_measure_the_same() {
     // Values for other points are refused.
     assert!(measure_from(&c, &values[1..], &b.texels(), &settings()).is_err());
 }
+
+/// A departure taken of frame t carries its points as the step of the
+/// module doc does, written out here per point, after frame t's mesh is
+/// gone, and as often as asked.
+#[test]
+fn departure_outlives_its_frame_and_carries_by_the_second_order_step() {
+    let (a, b) = pair(true);
+    let s = settings();
+    let points = sample_surface(&a.mesh, s.samples, s.seed);
+    let velocity = a.mesh.velocity().expect("velocity");
+    let hint = search_hint(&a.mesh);
+    let carried: Vec<Option<Vec3>> = points
+        .iter()
+        .map(|sp| {
+            let p = position(&a.mesh, sp)?;
+            let v0 = interpolate(&a.mesh, velocity, sp)?;
+            let v1 = b.flow().sample(p + v0 * DT, hint)?;
+            Some(p + (v0 + v1) * (0.5 * DT))
+        })
+        .collect();
+    let want = Carried::locate(&a.mesh, points.clone(), &carried, &b.index);
+    let departure = Departure::of(&a.mesh, velocity, points.clone());
+    drop(a);
+    assert_eq!(departure.points(), points.as_slice());
+    let first = departure.carry(b.flow(), DT);
+    assert_eq!(first, want);
+    assert_eq!(departure.carry(b.flow(), DT), first);
+    assert!(first.to.iter().all(Option::is_some));
+}
