@@ -202,21 +202,23 @@ impl Candidates {
         frames: &[Vec<Option<TriFrame>>],
         tolerance: LocateTolerance,
     ) -> Candidates {
-        let per_patch: Vec<Vec<(u32, (u32, u32))>> = patches
+        let per_patch: Vec<Vec<(u32, u32)>> = patches
             .par_iter()
             .zip(frames.par_iter())
-            .enumerate()
-            .map(|(i, (p, frames))| {
+            .map(|(p, frames)| {
                 let mut out = Vec::new();
                 patch_pairs(fluid, index, p, frames, tolerance, |f, j| {
-                    out.push((f, (i as u32, j)));
+                    out.push((f, j));
                 });
                 out
             })
             .collect();
-        // Pushed in (patch, triangle) order, so each list is in that order.
-        let all: Vec<(u32, (u32, u32))> = per_patch.into_iter().flatten().collect();
-        Candidates(TriangleLists::build(&all, fluid.len()))
+        // Grouped in (patch, triangle) order, so each list is in that order.
+        Candidates(TriangleLists::from_groups(
+            &per_patch,
+            fluid.len(),
+            |i, j| (i as u32, j),
+        ))
     }
 
     /// The candidates without the patches that cannot show on a fluid
