@@ -134,6 +134,8 @@ impl<'m> Driver<'m> {
             })
             .into());
         }
+        self.method
+            .set_evaluation_buffers_read(sink.reads_evaluation_buffers());
         let ctx = FrameContext::new(self.dt, g, self.previous.as_deref());
         let mut result = self.method.step(&ctx).map_err(DriverError::from)?;
         clock.extend(&result.timings);

@@ -44,16 +44,30 @@ const TILE_COLUMNS: usize = 64;
 /// Leaves `out` as it is and returns `None` for
 /// [`ExemplarFilter::Unfiltered`].
 pub fn apply_footprint_filtering(out: &mut FillBuffers, exemplar: &Exemplar) -> Option<Vec<f32>> {
-    apply_footprint_filtering_by(out, exemplar.filter, |_| exemplar)
+    apply_footprint_filtering_by(out, exemplar.filter, Levels::Keep, |_| exemplar)
+}
+
+/// Whether the footprint pass returns the level of every texel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Levels {
+    /// An atlas-sized buffer of levels, for whoever reads them (an
+    /// evaluation, contrast tone matching).
+    Keep,
+    /// Each tile's levels in a scratch row, used and dropped: a `run` reads
+    /// no level, and the buffer (151 MB at 6144²) was the largest item of
+    /// the pass, held next to the values, the uv and the ids.
+    Drop,
 }
 
 /// [`apply_footprint_filtering`] where texels show different exemplars
 /// (several exemplars per surface): `exemplar_of(source)` is the exemplar
 /// of a texel's source (patch id + 1, never outside or uncovered); its size
 /// scales the footprint and its pyramid is read. `filter` applies to all.
+/// With [`Levels::Drop`] the values are the same and `None` is returned.
 pub fn apply_footprint_filtering_by<'e>(
     out: &mut FillBuffers,
     filter: ExemplarFilter,
+    levels: Levels,
     exemplar_of: impl Fn(u32) -> &'e Exemplar + Sync,
 ) -> Option<Vec<f32>> {
     if filter == ExemplarFilter::Unfiltered {
@@ -71,22 +85,39 @@ pub fn apply_footprint_filtering_by<'e>(
     let (w, c) = (*width as usize, *channels);
     let n = w * *height as usize;
     if n == 0 || c == 0 || source.len() != n || uv.len() != n || values.len() != n * c {
-        return Some(vec![f32::NAN; n]);
+        return (levels == Levels::Keep).then(|| vec![f32::NAN; n]);
     }
     // Zeroed pages the kernel maps on first touch: each tile writes every
     // level of its own texels below (NaN where there is none), on every
     // core and while they are in cache, instead of a serial pass over the
     // whole atlas first.
-    let mut lods = vec![0.0f32; n];
+    let mut lods = match levels {
+        Levels::Keep => vec![0.0f32; n],
+        Levels::Drop => Vec::new(),
+    };
+    let bands: Vec<Option<&mut [f32]>> = match levels {
+        Levels::Keep => lods.chunks_mut(TILE_ROWS * w).map(Some).collect(),
+        Levels::Drop => (0..n.div_ceil(TILE_ROWS * w)).map(|_| None).collect(),
+    };
     let (source, uv) = (source.as_slice(), uv.as_slice());
     let h = n / w;
     values
         .par_chunks_mut(TILE_ROWS * w * c)
-        .zip(lods.par_chunks_mut(TILE_ROWS * w))
+        .zip(bands)
         .enumerate()
-        .for_each(|(band, (values, lods))| {
-            let rows = lods.len() / w;
+        .for_each(|(band, (values, band_lods))| {
+            let rows = values.len() / (w * c);
             let mut steps = TileSteps::default();
+            // Levels go to the band's rows of the atlas-sized buffer (row
+            // stride the atlas width), or to one tile's scratch rows.
+            let mut scratch = Vec::new();
+            let (lods, stride, tiled) = match band_lods {
+                Some(l) => (l, w, false),
+                None => {
+                    scratch.resize(rows * TILE_COLUMNS, 0.0f32);
+                    (scratch.as_mut_slice(), TILE_COLUMNS, true)
+                }
+            };
             for x0 in (0..w).step_by(TILE_COLUMNS) {
                 let x1 = (x0 + TILE_COLUMNS).min(w);
                 let tile = Tile {
@@ -96,12 +127,14 @@ pub fn apply_footprint_filtering_by<'e>(
                     x1,
                     y0: band * TILE_ROWS,
                     rows,
+                    stride,
+                    x_base: if tiled { x0 } else { 0 },
                 };
                 tile_lods(source, uv, &tile, &exemplar_of, &mut steps, lods);
                 for r in 0..rows {
                     for x in x0..x1 {
                         let t = r * w + x;
-                        let lod = lods[t];
+                        let lod = lods[r * stride + x - tile.x_base];
                         if lod.is_nan() {
                             continue;
                         }
@@ -120,7 +153,7 @@ pub fn apply_footprint_filtering_by<'e>(
                 }
             }
         });
-    Some(lods)
+    (levels == Levels::Keep).then_some(lods)
 }
 
 /// The mip level (≥ 0) of texel `(x, y)` of a `width`-wide atlas from its
@@ -185,6 +218,10 @@ struct Tile {
     x1: usize,
     y0: usize,
     rows: usize,
+    /// Where the tile's levels go: row `r` at `r * stride`, column `x` at
+    /// `x − x_base` in it.
+    stride: usize,
+    x_base: usize,
 }
 
 /// Scratch rows of [`tile_lods`], kept across the tiles of a band.
@@ -199,8 +236,9 @@ struct TileSteps {
     down: Vec<f32>,
 }
 
-/// [`texel_lod`] of every texel of `tile`, written into `lods` (the band's
-/// levels, rows from `tile.y0`; NaN where [`texel_lod`] is `None`), the
+/// [`texel_lod`] of every texel of `tile`, written into `lods` (rows from
+/// `tile.y0` as the tile places them; NaN where
+/// [`texel_lod`] is `None`), the
 /// same values bit for bit. Each step between two neighbours is computed
 /// once and read by both, where [`texel_lod`] computes it from either side
 /// (the squared length of the negated difference is the same float): half
@@ -264,7 +302,7 @@ fn tile_lods<'e>(
         }
         for i in 0..cols {
             let t = row + tile.x0 + i;
-            let out = &mut lods[r * w + tile.x0 + i];
+            let out = &mut lods[r * tile.stride + tile.x0 - tile.x_base + i];
             let (s, p) = (source.get(t).copied(), uv.get(t).copied());
             if s.is_none_or(|s| s == OUTSIDE || s == UNCOVERED) || p.is_none_or(|p| !p.is_finite())
             {

@@ -255,6 +255,15 @@ pub trait Method: Send {
     fn recycle(&mut self, spent: SpentBuffers) {
         drop(spent);
     }
+
+    /// Whether the caller reads the per-texel uv and levels of the next
+    /// results ([`FrameResult::uv`], [`FrameResult::exemplar_lod`]): an
+    /// evaluation does, a `run` does not. A method may then skip the
+    /// buffers it makes only for the caller. The default ignores it; a
+    /// method assumes they are read until told otherwise.
+    fn set_evaluation_buffers_read(&mut self, read: bool) {
+        let _ = read;
+    }
 }
 
 /// Per-texel buffers of a [`FrameResult`] that nothing reads any more,

@@ -317,6 +317,9 @@ pub struct Erosion {
     /// handed them back ([`Method::recycle`]): the next step fills the uv
     /// and values again and keeps its patch ids in the levels' buffer.
     spare: super::SpentBuffers,
+    /// Whether the caller reads the levels per texel
+    /// ([`Method::set_evaluation_buffers_read`]); true until told otherwise.
+    levels_read: bool,
 }
 
 pub(crate) use crate::seed::mix;
@@ -369,6 +372,7 @@ impl Erosion {
             multi: None,
             tones: None,
             spare: super::SpentBuffers::default(),
+            levels_read: true,
         })
     }
 
@@ -501,12 +505,20 @@ impl Method for Erosion {
     fn step(&mut self, ctx: &FrameContext<'_>) -> Result<FrameResult, MethodError> {
         let mut clock = StageClock::default();
         let atlas = ctx.atlas;
+        // The footprint pass samples every covered texel (blends excepted).
+        let defer_values = self.variant != Variant::Blend
+            && self.exemplar.filter == crate::exemplar::ExemplarFilter::Trilinear;
+        // Deferred values are first written by the footprint pass, late in
+        // the frame: fresh zero pages until then, instead of the last
+        // frame's values held idle (453 MB at 6144²) through the
+        // advection, the update and the fill.
+        let spare_values = self.spare.values.take().filter(|_| !defer_values);
         let mut out = FillBuffers::reusing(
             atlas.width,
             atlas.height,
             self.exemplar.total_channels(),
             self.spare.uv.take(),
-            self.spare.values.take(),
+            spare_values,
             // The last frame's levels hold this frame's patch ids: a
             // fresh id buffer goes to the writer every frame, and levels
             // kept aside until the footprint pass would sit idle through
@@ -516,9 +528,7 @@ impl Method for Erosion {
                 .take()
                 .and_then(|lods| bytemuck::allocation::try_cast_vec(lods).ok()),
         );
-        // The footprint pass samples every covered texel (blends excepted).
-        out.defer_values = self.variant != Variant::Blend
-            && self.exemplar.filter == crate::exemplar::ExemplarFilter::Trilinear;
+        out.defer_values = defer_values;
         let mut counts = StepCounts::default();
         let mut blended = Blended::default();
         if ctx.mesh.is_empty() {
@@ -535,6 +545,14 @@ impl Method for Erosion {
             .multi
             .as_ref()
             .map(|_| exemplars::by_id(&self.state.patches, self.state.next_id));
+        // Contrast tone matching reads each texel's level.
+        let levels = if self.levels_read
+            || (self.variant == Variant::Erode && self.params.tone == Tone::Match)
+        {
+            super::footprint::Levels::Keep
+        } else {
+            super::footprint::Levels::Drop
+        };
         let exemplar_lod = (self.variant != Variant::Blend)
             .then(|| match (&self.multi, &by_id) {
                 (Some(m), Some(by_id)) => {
@@ -542,6 +560,7 @@ impl Method for Erosion {
                     super::footprint::apply_footprint_filtering_by(
                         &mut out,
                         self.exemplar.filter,
+                        levels,
                         |s| {
                             let e = by_id.get(s as usize - 1).copied().unwrap_or(0);
                             all.get(e as usize).map_or(&*self.exemplar, |a| a)
@@ -551,6 +570,7 @@ impl Method for Erosion {
                 _ => super::footprint::apply_footprint_filtering_by(
                     &mut out,
                     self.exemplar.filter,
+                    levels,
                     |_| &*self.exemplar,
                 ),
             })
@@ -592,6 +612,10 @@ impl Method for Erosion {
 
     fn recycle(&mut self, spent: super::SpentBuffers) {
         self.spare = spent;
+    }
+
+    fn set_evaluation_buffers_read(&mut self, read: bool) {
+        self.levels_read = read;
     }
 
     fn save_state(&self) -> Result<Vec<u8>, MethodError> {

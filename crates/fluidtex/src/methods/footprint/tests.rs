@@ -181,9 +181,24 @@ fn tile_levels_are_the_per_texel_levels() {
                 _ => p,
             };
         }
+        let mut dropped = FillBuffers::new(w, h, 1);
+        dropped.source.clone_from(&out.source);
+        dropped.uv.clone_from(&out.uv);
         let lods =
-            apply_footprint_filtering_by(&mut out, ExemplarFilter::Trilinear, |s| exemplar_of(s))
-                .expect("trilinear");
+            apply_footprint_filtering_by(&mut out, ExemplarFilter::Trilinear, Levels::Keep, |s| {
+                exemplar_of(s)
+            })
+            .expect("trilinear");
+        // Levels kept per tile only: the same values, no levels returned.
+        let none_kept = apply_footprint_filtering_by(
+            &mut dropped,
+            ExemplarFilter::Trilinear,
+            Levels::Drop,
+            |s| exemplar_of(s),
+        );
+        assert!(none_kept.is_none(), "{w}x{h}");
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&out.values), bits(&dropped.values), "{w}x{h}");
         for y in 0..h as usize {
             for x in 0..w as usize {
                 let t = y * w as usize + x;
