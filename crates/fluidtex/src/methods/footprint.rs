@@ -53,9 +53,9 @@ pub enum Levels {
     /// An atlas-sized buffer of levels, for whoever reads them (an
     /// evaluation, contrast tone matching).
     Keep,
-    /// Each tile's levels in a scratch row, used and dropped: a `run` reads
-    /// no level, and the buffer (151 MB at 6144²) was the largest item of
-    /// the pass, held next to the values, the uv and the ids.
+    /// Each tile's levels in scratch rows, used and dropped: a `run` reads
+    /// no level, and the buffer (151 MB at 6144²) was held next to the
+    /// values, the uv and the ids at the frame's peak of memory.
     Drop,
 }
 

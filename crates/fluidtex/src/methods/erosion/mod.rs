@@ -315,7 +315,9 @@ pub struct Erosion {
     tones: Option<Vec<ExemplarTone>>,
     /// The last frame's uv, values and exemplar levels, when the caller
     /// handed them back ([`Method::recycle`]): the next step fills the uv
-    /// and values again and keeps its patch ids in the levels' buffer.
+    /// again, and the values where the fill writes them (not deferred to
+    /// the footprint pass), and keeps its patch ids in the levels' buffer
+    /// where levels were kept.
     spare: super::SpentBuffers,
     /// Whether the caller reads the levels per texel
     /// ([`Method::set_evaluation_buffers_read`]); true until told otherwise.
