@@ -521,10 +521,11 @@ impl Method for Erosion {
             self.exemplar.total_channels(),
             self.spare.uv.take(),
             spare_values,
-            // The last frame's levels hold this frame's patch ids: a
-            // fresh id buffer goes to the writer every frame, and levels
-            // kept aside until the footprint pass would sit idle through
-            // the fill, the frame's largest moment (151 MB at 6144²).
+            // Where the caller kept levels (an evaluation) and handed them
+            // back, they hold this frame's patch ids: a fresh id buffer
+            // goes to the caller every frame, and levels kept aside until
+            // the footprint pass would sit idle through the fill (151 MB
+            // at 6144²). A run keeps no levels: its ids are fresh pages.
             self.spare
                 .exemplar_lod
                 .take()
