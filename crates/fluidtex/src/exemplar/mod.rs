@@ -43,7 +43,7 @@ pub use set::{ExemplarSelect, ExemplarSet, RegionImage};
 use crate::io::image_read::{self, ImageError};
 pub use crate::io::image_read::{Decoded, SampleFormat};
 use crate::texture::Texture;
-use sampling::{Lattice, blend, blend_levels};
+use sampling::{Lattice, bilinear, blend, blend_levels, lerp};
 
 /// How methods read the exemplar at an atlas texel.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -143,6 +143,9 @@ pub struct Exemplar {
     pub filter: ExemplarFilter,
     packed: Packed,
 }
+
+/// One level of the pyramid as a lookup reads it: its texels and lattice.
+type LevelRef<'a> = (&'a [f32], Lattice);
 
 /// All channels of a texel side by side (colour, then extras in order), so a
 /// lookup reads four contiguous runs instead of four per texture.
@@ -329,10 +332,52 @@ impl Exemplar {
     /// [`Exemplar::max_lod`] reads the 1 × 1 level, the exemplar's mean.
     #[inline]
     pub fn sample_all_lod(&self, u: f32, v: f32, lod: f32, out: &mut [f32]) {
+        let stride = self.packed.stride;
+        let ((fine, fine_lattice), coarse) = self.levels_at(lod);
+        let f = fine_lattice.footprint(u, v);
+        match coarse {
+            None => blend(fine, stride, &f, out),
+            Some(((coarse, coarse_lattice), t)) => {
+                let c = coarse_lattice.footprint(u, v);
+                blend_levels((fine, &f), (coarse, &c), stride, t, out);
+            }
+        }
+    }
+
+    /// [`Exemplar::sample_all_lod`] of an exemplar of exactly `N` channels
+    /// ([`Exemplar::total_channels`]; `None` for any other count), returned
+    /// by value. The values are the same bit for bit; with the channel
+    /// count known at compile time a caller's loop over texels inlines the
+    /// whole lookup instead of calling a function that dispatches on the
+    /// count for every texel.
+    #[inline(always)]
+    pub(crate) fn sample_lod_fixed<const N: usize>(
+        &self,
+        u: f32,
+        v: f32,
+        lod: f32,
+    ) -> Option<[f32; N]> {
+        if self.packed.stride != N {
+            return None;
+        }
+        let ((fine, fine_lattice), coarse) = self.levels_at(lod);
+        let a = bilinear::<N>(fine, &fine_lattice.footprint(u, v));
+        Some(match coarse {
+            None => a,
+            Some(((coarse, coarse_lattice), t)) => {
+                lerp(a, bilinear::<N>(coarse, &coarse_lattice.footprint(u, v)), t)
+            }
+        })
+    }
+
+    /// Where a lookup at `lod` reads: the level at or below it, and the
+    /// level above with its weight unless `lod` is a whole level (level 0
+    /// for `lod` ≤ 0 or NaN, the 1 × 1 level past [`Exemplar::max_lod`]).
+    #[inline(always)]
+    fn levels_at(&self, lod: f32) -> (LevelRef<'_>, Option<(LevelRef<'_>, f32)>) {
         let p = &self.packed;
         if lod.is_nan() || lod <= 0.0 || p.mips.is_empty() {
-            self.sample_all(u, v, out);
-            return;
+            return ((&p.data, p.lattice), None);
         }
         let lod = lod.min(p.mips.len() as f32);
         // `lod` is positive and at most the level count: the cast floors.
@@ -342,15 +387,8 @@ impl Exemplar {
             Some(l) => (l.data.as_slice(), l.lattice),
             None => (p.data.as_slice(), p.lattice),
         };
-        let (fine, fine_lattice) = level(k);
-        let f = fine_lattice.footprint(u, v);
-        if t == 0.0 || k == p.mips.len() {
-            blend(fine, p.stride, &f, out);
-        } else {
-            let (coarse, coarse_lattice) = level(k + 1);
-            let c = coarse_lattice.footprint(u, v);
-            blend_levels((fine, &f), (coarse, &c), p.stride, t, out);
-        }
+        let coarse = (t != 0.0 && k != p.mips.len()).then(|| (level(k + 1), t));
+        (level(k), coarse)
     }
 
     /// The coarsest mip level (1 × 1): the largest useful `lod`.

@@ -147,7 +147,7 @@ fn texel<const N: usize>(data: &[f32], i: usize) -> [f32; N] {
 /// them back whole, a store-forwarding stall on every lookup that cost
 /// more than the lookup's own arithmetic.
 #[inline(always)]
-fn bilinear<const N: usize>(data: &[f32], f: &Footprint) -> [f32; N] {
+pub(crate) fn bilinear<const N: usize>(data: &[f32], f: &Footprint) -> [f32; N] {
     let at = |i: usize| {
         data.get(i * N..(i + 1) * N)
             .and_then(|s| <&[f32; N]>::try_from(s).ok())
@@ -181,10 +181,21 @@ fn lerp_texels<const N: usize>([a, b, c, d]: [&[f32; N]; 4], f: &Footprint) -> [
 }
 
 #[inline(always)]
-fn write<const N: usize>(out: &mut [f32], values: [f32; N]) {
+pub(crate) fn write<const N: usize>(out: &mut [f32], values: [f32; N]) {
     for (o, v) in out.iter_mut().zip(values) {
         *o = v;
     }
+}
+
+/// `a + (b − a) t` channel by channel: the blend of two levels'
+/// lookups with weight `t` on the coarse one `b`.
+#[inline(always)]
+pub(crate) fn lerp<const N: usize>(a: [f32; N], b: [f32; N], t: f32) -> [f32; N] {
+    let mut o = [0.0f32; N];
+    for k in 0..N {
+        o[k] = a[k] + (b[k] - a[k]) * t;
+    }
+    o
 }
 
 /// Trilinear blend: the bilinear lookups `fine` and `coarse` (each its
@@ -204,13 +215,11 @@ pub(crate) fn blend_levels(
         coarse: (&[f32], &Footprint),
         t: f32,
     ) -> [f32; N] {
-        let a = bilinear::<N>(fine.0, fine.1);
-        let b = bilinear::<N>(coarse.0, coarse.1);
-        let mut o = [0.0f32; N];
-        for k in 0..N {
-            o[k] = a[k] + (b[k] - a[k]) * t;
-        }
-        o
+        lerp(
+            bilinear::<N>(fine.0, fine.1),
+            bilinear::<N>(coarse.0, coarse.1),
+            t,
+        )
     }
     match stride {
         4 => write(out, mix::<4>(fine, coarse, t)),

@@ -272,6 +272,59 @@ fn trilinear_mixes_the_two_levels_around_lod_and_tiles() {
     }
 }
 
+/// The fixed-width lookup answers for its own channel count only, with
+/// the general lookup's values bit for bit: at every kind of level (NaN,
+/// ≤ 0, between two levels, whole, past the coarsest) and at coordinates
+/// far outside the exemplar.
+#[test]
+fn fixed_width_lookup_is_the_general_lookup_bit_for_bit() {
+    fn fixed(e: &Exemplar, n: usize, u: f32, v: f32, lod: f32) -> Option<Vec<f32>> {
+        match n {
+            1 => e.sample_lod_fixed::<1>(u, v, lod).map(|a| a.to_vec()),
+            2 => e.sample_lod_fixed::<2>(u, v, lod).map(|a| a.to_vec()),
+            3 => e.sample_lod_fixed::<3>(u, v, lod).map(|a| a.to_vec()),
+            4 => e.sample_lod_fixed::<4>(u, v, lod).map(|a| a.to_vec()),
+            _ => e.sample_lod_fixed::<5>(u, v, lod).map(|a| a.to_vec()),
+        }
+    }
+    let mut rng = Pcg64::seed_from_u64(31);
+    for total in 1..=5usize {
+        let e = crate::methods::test_clip::noise_exemplar(16, total, total as u64);
+        let max = e.max_lod();
+        for _ in 0..400 {
+            let (u, v) = if rng.random_bool(0.05) {
+                (rng.random_range(-1e6..1e6), rng.random_range(-1e6..1e6))
+            } else {
+                (rng.random_range(-2.0..2.0), rng.random_range(-2.0..2.0))
+            };
+            let lod = match rng.random_range(0..8) {
+                0 => f32::NAN,
+                1 => -rng.random::<f32>(),
+                2 => 0.0,
+                3 => rng.random_range(1..=max as u32) as f32,
+                4 => max + rng.random_range(0.0..3.0),
+                _ => rng.random_range(0.0..max),
+            };
+            let mut want = vec![0.0f32; total];
+            e.sample_all_lod(u, v, lod, &mut want);
+            let bits = |x: &[f32]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            for n in 1..=5 {
+                let got = fixed(&e, n, u, v, lod);
+                if n == total {
+                    let got = got.expect("its own channel count");
+                    assert_eq!(
+                        bits(&got),
+                        bits(&want),
+                        "{total} channels, lod {lod} at ({u}, {v})"
+                    );
+                } else {
+                    assert!(got.is_none(), "{n} of {total} channels");
+                }
+            }
+        }
+    }
+}
+
 #[test]
 fn filter_defaults_to_trilinear() {
     let e = noisy_exemplar(8, 8, 1);

@@ -131,29 +131,78 @@ pub fn apply_footprint_filtering_by<'e>(
                     x_base: if tiled { x0 } else { 0 },
                 };
                 tile_lods(source, uv, &tile, &exemplar_of, &mut steps, lods);
-                for r in 0..rows {
-                    for x in x0..x1 {
-                        let t = r * w + x;
-                        let lod = lods[r * stride + x - tile.x_base];
-                        if lod.is_nan() {
-                            continue;
-                        }
-                        // Every covered texel: the fill may have deferred
-                        // its values to this pass; at lod 0 this is the
-                        // fill's own bilinear read, bit for bit.
-                        let at = (band * TILE_ROWS + r) * w + x;
-                        let (s, p) = (source[at], uv[at]);
-                        exemplar_of(s).sample_all_lod(
-                            p.x,
-                            p.y,
-                            lod,
-                            &mut values[t * c..(t + 1) * c],
-                        );
-                    }
+                let texels = TileTexels {
+                    tile: &tile,
+                    source,
+                    uv,
+                    lods,
+                };
+                match c {
+                    1 => sample_tile::<1>(&texels, values, &exemplar_of),
+                    2 => sample_tile::<2>(&texels, values, &exemplar_of),
+                    3 => sample_tile::<3>(&texels, values, &exemplar_of),
+                    4 => sample_tile::<4>(&texels, values, &exemplar_of),
+                    _ => sample_tile::<0>(&texels, values, &exemplar_of),
                 }
             }
         });
     (levels == Levels::Keep).then_some(lods)
+}
+
+/// What [`sample_tile`] reads: the tile, the atlas' sources and uv, and the
+/// tile's levels as [`tile_lods`] wrote them.
+struct TileTexels<'a> {
+    tile: &'a Tile,
+    source: &'a [u32],
+    uv: &'a [Vec2],
+    lods: &'a [f32],
+}
+
+/// Re-samples every covered texel of a tile into `values` (its band's
+/// rows, `c` channels a texel) at the texel's level. Every covered texel:
+/// the fill may have deferred its values to this pass; at lod 0 this is
+/// the fill's own bilinear read, bit for bit.
+///
+/// `N` is the channel count (0: any) so that each count gets a loop with
+/// the whole lookup inlined ([`Exemplar::sample_all_lod`] per texel was a
+/// call that dispatched on the count every time); a texel whose exemplar
+/// has another count takes the general lookup, with the same values.
+fn sample_tile<'e, const N: usize>(
+    texels: &TileTexels,
+    values: &mut [f32],
+    exemplar_of: &impl Fn(u32) -> &'e Exemplar,
+) {
+    let TileTexels {
+        tile,
+        source,
+        uv,
+        lods,
+    } = *texels;
+    let w = tile.width;
+    // The band's rows hold `c` values a texel.
+    let c = values.len() / (tile.rows * w).max(1);
+    for r in 0..tile.rows {
+        for x in tile.x0..tile.x1 {
+            let lod = lods[r * tile.stride + x - tile.x_base];
+            if lod.is_nan() {
+                continue;
+            }
+            let t = r * w + x;
+            let at = (tile.y0 + r) * w + x;
+            let (e, p) = (exemplar_of(source[at]), uv[at]);
+            let out = &mut values[t * c..(t + 1) * c];
+            // No exemplar has 0 channels: N = 0 always takes the general
+            // lookup.
+            match e.sample_lod_fixed::<N>(p.x, p.y, lod) {
+                Some(value) => {
+                    for (o, v) in out.iter_mut().zip(value) {
+                        *o = v;
+                    }
+                }
+                None => e.sample_all_lod(p.x, p.y, lod, out),
+            }
+        }
+    }
 }
 
 /// The mip level (≥ 0) of texel `(x, y)` of a `width`-wide atlas from its

@@ -114,3 +114,34 @@ pub(crate) fn grey_exemplar(
     .expect("valid");
     Exemplar::new(colour, SampleFormat::U8, Vec::new(), feature).expect("valid exemplar")
 }
+
+/// A `size`² exemplar of `total` channels (a colour of up to four, then
+/// one-channel extras) of seeded uniform noise in [0, 1): every channel
+/// count a lookup may specialise on, 5 and more included.
+pub(crate) fn noise_exemplar(size: u32, total: usize, seed: u64) -> crate::exemplar::Exemplar {
+    use crate::exemplar::{Exemplar, ExtraChannel, FeatureMap, FeatureOrigin, SampleFormat};
+    use crate::texture::Texture;
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+    let mut noise = |channels: usize| {
+        let data = (0..(size * size) as usize * channels)
+            .map(|_| rng.random::<f32>())
+            .collect();
+        Texture::from_data(size, size, channels, data).expect("sizes match")
+    };
+    let colour = noise(total.clamp(1, 4));
+    let extras = (4..total)
+        .map(|i| ExtraChannel {
+            name: format!("extra{i}"),
+            texture: noise(1),
+            format: SampleFormat::F32,
+        })
+        .collect();
+    let feature = FeatureMap::new(
+        Texture::filled(size, size, 1, 0.5),
+        FeatureOrigin::Builtin,
+        "test",
+    )
+    .expect("valid");
+    Exemplar::new(colour, SampleFormat::U8, extras, feature).expect("valid exemplar")
+}

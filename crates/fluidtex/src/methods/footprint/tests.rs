@@ -229,6 +229,76 @@ fn tile_levels_are_the_per_texel_levels() {
     );
 }
 
+/// Whatever the channel count (the pass has a loop of its own for each of
+/// 1 to 4 channels and a general one), every texel with a level holds the
+/// general lookup at that level, bit for bit, and every other texel keeps
+/// what the fill wrote.
+#[test]
+fn every_channel_count_holds_the_general_lookup_at_its_level() {
+    use crate::methods::test_clip::noise_exemplar;
+    let (w, h) = (70u32, 24u32);
+    for total in 1..=5usize {
+        let small = noise_exemplar(16, total, 1);
+        let large = noise_exemplar(64, total, 2);
+        let exemplar_of = |s: u32| if s == 2 { &large } else { &small };
+        let mut out = FillBuffers::new(w, h, total);
+        for y in 0..h as usize {
+            // uv steps from 0.01 to 0.09 a texel down the rows: levels 0
+            // and above on both exemplars.
+            let step = 0.01 * 1.1f32.powi(y as i32);
+            for x in 0..w as usize {
+                let t = y * w as usize + x;
+                out.source[t] = match x {
+                    0..30 => 1,
+                    30..60 => 2,
+                    _ if y % 2 == 0 => OUTSIDE,
+                    _ => UNCOVERED,
+                };
+                out.uv[t] = Vec2::new(x as f32 * step, y as f32 * step * 0.7 + x as f32 * 0.003);
+                for (k, v) in out.values[t * total..(t + 1) * total]
+                    .iter_mut()
+                    .enumerate()
+                {
+                    *v = 7.0 + (t * total + k) as f32;
+                }
+            }
+        }
+        let before = out.values.clone();
+        let lods =
+            apply_footprint_filtering_by(&mut out, ExemplarFilter::Trilinear, Levels::Keep, |s| {
+                exemplar_of(s)
+            })
+            .expect("trilinear");
+        let (mut positive, mut zero) = (0, 0);
+        for (t, &lod) in lods.iter().enumerate() {
+            let got = &out.values[t * total..(t + 1) * total];
+            if lod.is_nan() {
+                assert_eq!(
+                    got,
+                    &before[t * total..(t + 1) * total],
+                    "{total} channels, texel {t}"
+                );
+                continue;
+            }
+            if lod > 0.0 {
+                positive += 1;
+            } else {
+                zero += 1;
+            }
+            let mut want = vec![0.0f32; total];
+            let p = out.uv[t];
+            exemplar_of(out.source[t]).sample_all_lod(p.x, p.y, lod, &mut want);
+            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(
+                bits(got),
+                bits(&want),
+                "{total} channels, texel {t}, lod {lod}"
+            );
+        }
+        assert!(positive > 300 && zero > 100, "{total}: {positive} {zero}");
+    }
+}
+
 #[test]
 fn one_and_two_threads_give_identical_results() {
     let ex = crate::exemplar::builtin_pebbles(128, 3);
