@@ -181,7 +181,7 @@ fn lerp_texels<const N: usize>([a, b, c, d]: [&[f32; N]; 4], f: &Footprint) -> [
 }
 
 #[inline(always)]
-pub(crate) fn write<const N: usize>(out: &mut [f32], values: [f32; N]) {
+fn write<const N: usize>(out: &mut [f32], values: [f32; N]) {
     for (o, v) in out.iter_mut().zip(values) {
         *o = v;
     }
