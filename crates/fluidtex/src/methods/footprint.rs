@@ -133,6 +133,7 @@ pub fn apply_footprint_filtering_by<'e>(
                 tile_lods(source, uv, &tile, &exemplar_of, &mut steps, lods);
                 let texels = TileTexels {
                     tile: &tile,
+                    channels: c,
                     source,
                     uv,
                     lods,
@@ -149,17 +150,18 @@ pub fn apply_footprint_filtering_by<'e>(
     (levels == Levels::Keep).then_some(lods)
 }
 
-/// What [`sample_tile`] reads: the tile, the atlas' sources and uv, and the
-/// tile's levels as [`tile_lods`] wrote them.
+/// What [`sample_tile`] reads: the tile, the values a texel, the atlas'
+/// sources and uv, and the tile's levels as [`tile_lods`] wrote them.
 struct TileTexels<'a> {
     tile: &'a Tile,
+    channels: usize,
     source: &'a [u32],
     uv: &'a [Vec2],
     lods: &'a [f32],
 }
 
 /// Re-samples every covered texel of a tile into `values` (its band's
-/// rows, `c` channels a texel) at the texel's level. Every covered texel:
+/// rows, `channels` values a texel) at the texel's level. Every covered texel:
 /// the fill may have deferred its values to this pass; at lod 0 this is
 /// the fill's own bilinear read, bit for bit.
 ///
@@ -174,13 +176,12 @@ fn sample_tile<'e, const N: usize>(
 ) {
     let TileTexels {
         tile,
+        channels: c,
         source,
         uv,
         lods,
     } = *texels;
     let w = tile.width;
-    // The band's rows hold `c` values a texel.
-    let c = values.len() / (tile.rows * w).max(1);
     for r in 0..tile.rows {
         for x in tile.x0..tile.x1 {
             let lod = lods[r * tile.stride + x - tile.x_base];

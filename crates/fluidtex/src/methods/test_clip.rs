@@ -100,26 +100,32 @@ pub(crate) fn grey_exemplar(
     size: u32,
     value: impl Fn(u32, u32) -> f32,
 ) -> crate::exemplar::Exemplar {
-    use crate::exemplar::{Exemplar, FeatureMap, FeatureOrigin, SampleFormat};
+    use crate::exemplar::{Exemplar, SampleFormat};
     use crate::texture::Texture;
     let data = (0..size * size)
         .map(|i| value(i % size, i / size))
         .collect();
     let colour = Texture::from_data(size, size, 1, data).expect("sizes match");
-    let feature = FeatureMap::new(
-        Texture::filled(size, size, 1, 0.5),
+    Exemplar::new(colour, SampleFormat::U8, Vec::new(), flat_feature(size)).expect("valid exemplar")
+}
+
+/// A flat `size`² feature map: the tests' exemplars need one, not its
+/// shape.
+fn flat_feature(size: u32) -> crate::exemplar::FeatureMap {
+    use crate::exemplar::{FeatureMap, FeatureOrigin};
+    FeatureMap::new(
+        crate::texture::Texture::filled(size, size, 1, 0.5),
         FeatureOrigin::Builtin,
         "test",
     )
-    .expect("valid");
-    Exemplar::new(colour, SampleFormat::U8, Vec::new(), feature).expect("valid exemplar")
+    .expect("valid")
 }
 
 /// A `size`² exemplar of `total` channels (a colour of up to four, then
 /// one-channel extras) of seeded uniform noise in [0, 1): every channel
 /// count a lookup may specialise on, 5 and more included.
 pub(crate) fn noise_exemplar(size: u32, total: usize, seed: u64) -> crate::exemplar::Exemplar {
-    use crate::exemplar::{Exemplar, ExtraChannel, FeatureMap, FeatureOrigin, SampleFormat};
+    use crate::exemplar::{Exemplar, ExtraChannel, SampleFormat};
     use crate::texture::Texture;
     use rand::{Rng, SeedableRng};
     let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
@@ -137,11 +143,5 @@ pub(crate) fn noise_exemplar(size: u32, total: usize, seed: u64) -> crate::exemp
             format: SampleFormat::F32,
         })
         .collect();
-    let feature = FeatureMap::new(
-        Texture::filled(size, size, 1, 0.5),
-        FeatureOrigin::Builtin,
-        "test",
-    )
-    .expect("valid");
-    Exemplar::new(colour, SampleFormat::U8, extras, feature).expect("valid exemplar")
+    Exemplar::new(colour, SampleFormat::U8, extras, flat_feature(size)).expect("valid exemplar")
 }
