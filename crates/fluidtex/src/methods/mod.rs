@@ -155,6 +155,11 @@ pub enum Stat {
     UncoveredTexels,
     ForcedTexels,
     CandidatePairs,
+    /// Patch triangles dropped this frame because the erosion test can
+    /// never show a texel of them again.
+    TrianglesPruned,
+    /// Triangles held by all live patches after the frame.
+    PatchTriangles,
     /// Patch radius r in world units.
     Radius,
     /// Why the default radius is what it is (a sentence).
@@ -174,6 +179,8 @@ crate::named!(Stat {
     UncoveredTexels => "uncovered_texels",
     ForcedTexels => "forced_texels",
     CandidatePairs => "candidate_pairs",
+    TrianglesPruned => "triangles_pruned",
+    PatchTriangles => "patch_triangles",
     Radius => "radius",
     RadiusRule => "radius_rule",
     ExemplarSize => "exemplar_size",

@@ -322,6 +322,9 @@ pub struct Erosion {
     /// Whether the caller reads the levels per texel
     /// ([`Method::set_evaluation_buffers_read`]); true until told otherwise.
     levels_read: bool,
+    /// Whether wholly eroded triangles are dropped ([`Erosion::prune`]);
+    /// always, but for the tests' control run that shows what it bounds.
+    prune_eroded: bool,
 }
 
 pub(crate) use crate::seed::mix;
@@ -375,6 +378,7 @@ impl Erosion {
             tones: None,
             spare: super::SpentBuffers::default(),
             levels_read: true,
+            prune_eroded: true,
         })
     }
 
@@ -471,6 +475,13 @@ impl Erosion {
                 self.params.split_edges * median_edge_length(mesh)
             } else {
                 0.0
+            },
+            // Only where the triangles past δ_max are pruned (see
+            // [`Erosion::prune`]).
+            split_stretch: if self.variant == Variant::Erode && self.prune_eroded {
+                self.params.delta_max * exemplar_size
+            } else {
+                f32::INFINITY
             },
             texel_size: if atlas.scale > 0.0 {
                 (1.0 / atlas.scale) as f32
@@ -650,6 +661,8 @@ struct StepCounts {
     created: usize,
     forced: usize,
     candidate_pairs: usize,
+    /// Patch triangles dropped as wholly eroded for good.
+    pruned: usize,
     /// Patches no texel used.
     unused: usize,
     /// Set on the frame that chose the radius.
@@ -735,8 +748,9 @@ impl Erosion {
         }
         clock.lap("creation");
 
-        // 2. Weights (Eqs. 1-3).
+        // 2. Weights (Eqs. 1-3), then the triangles they erode for good.
         self.update_weights(&shape, ctx.dt);
+        counts.pruned = self.prune(&shape, test);
         clock.lap("weights");
 
         // 3. Lapped (or blended) fill.
@@ -845,6 +859,30 @@ impl Erosion {
             .patches
             .par_iter_mut()
             .for_each(|p| p.update_weights(shape, max_drop));
+    }
+
+    /// Drops, from every patch, the triangles that can never show a texel
+    /// again ([`Patch::prune_eroded`]), so a patch's cost follows what it
+    /// can still show, not its history; returns how many went. Only the
+    /// eroding method: `advect` never erodes and `blend-deformable` blends
+    /// by weights that may rise again.
+    fn prune(&mut self, shape: &PatchShape, test: ErosionTest) -> usize {
+        if self.variant != Variant::Erode || !self.prune_eroded {
+            return 0;
+        }
+        let tests = self.multi.as_ref().map(|m| m.tests.as_slice());
+        let weights_can_rise = self.params.weights == WeightMode::Paper;
+        self.state
+            .patches
+            .par_iter_mut()
+            .map(|p| {
+                let test = tests
+                    .and_then(|t| t.get(p.exemplar as usize))
+                    .copied()
+                    .unwrap_or(test);
+                p.prune_eroded(&test, shape, weights_can_rise)
+            })
+            .sum()
     }
 
     /// The erosion tests of this run, built on the first frame with a
@@ -1034,6 +1072,15 @@ impl Erosion {
         stats.set(Stat::UncoveredTexels, uncovered_after);
         stats.set(Stat::ForcedTexels, counts.forced);
         stats.set(Stat::CandidatePairs, counts.candidate_pairs);
+        stats.set(Stat::TrianglesPruned, counts.pruned);
+        stats.set(
+            Stat::PatchTriangles,
+            self.state
+                .patches
+                .iter()
+                .map(|p| p.triangles.len())
+                .sum::<usize>(),
+        );
         if let Some(r) = self.state.radius {
             stats.set(Stat::Radius, serde_json::json!(r));
         }

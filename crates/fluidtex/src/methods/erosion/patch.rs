@@ -13,6 +13,7 @@ use glam::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 
 use super::distortion::{distortion, triangle_quality_from};
+use super::erode::{ErosionTest, Verdict};
 use crate::mesh::{Topology, TriMesh};
 use crate::surface::velocity::FlowInterval;
 use crate::surface::{SurfaceIndex, SurfacePoint, closest_point_on_triangle, map_in_query_order};
@@ -42,6 +43,11 @@ pub struct PatchShape {
     /// as the fluid mesh it rides on; 0 disables it (the paper). See
     /// [`Patch::refine`].
     pub split_length: f32,
+    /// Edges longer than this many times their rest length in world units
+    /// (rest × S) are never split: their triangles are past the distortion
+    /// bound (δ_max for the erosion method; `f32::INFINITY` for the
+    /// baselines, which never erode). See [`Patch::refine`].
+    pub split_stretch: f32,
     /// A new patch starts with w = 1 on its pinned vertices, whatever Q_V
     /// (progressive weights; the paper's w_V = Q_V·B_V from the first frame
     /// when false). Flattening a curved region can leave the centre's Q_V so
@@ -189,9 +195,10 @@ pub struct Patch {
     /// Rest coordinates = exemplar uv, fixed at creation; the centre p is at (0.5, 0.5).
     pub rest: Vec<Vec2>,
     pub triangles: Vec<[u32; 3]>,
-    /// Vertices whose B_V is held at 1: those within r/4 of p (Eq. 2) and
-    /// the corners of the triangle that held p, so the texel that created
-    /// the patch is never eroded by it (the paper's own guard, made exact).
+    /// Vertices whose B_V is held at 1: those within r/4 of p (Eq. 2), the
+    /// corners of the triangle that held p, so the texel that created the
+    /// patch is never eroded by it (the paper's own guard, made exact), and
+    /// interior vertices that [`Patch::prune`] left on the border.
     pub pinned: Vec<bool>,
     /// w_V = Q_V · B_V (Eq. 3), refreshed by [`Patch::update_weights`];
     /// kept across frames (and in the saved state) because progressive
@@ -286,7 +293,7 @@ impl Patch {
             exemplar: 0,
         };
         // The copied fluid triangles lie on the surface, so do their edge midpoints.
-        patch.refine(shape.split_length, Some);
+        patch.refine(shape.split_length, shape.split_stretch, Some);
         patch.update_weights(shape, None);
         if shape.whole_centre {
             for (w, &pinned) in patch.weight.iter_mut().zip(&patch.pinned) {
@@ -338,7 +345,7 @@ impl Patch {
         // finds *some* surface within 10 r, is split at every frame, and the
         // patch grows without bound (tens of GB within 16 frames).
         let gap = shape.far_distance.min(GAP_FRACTION * shape.radius);
-        if self.refine(shape.split_length, |q| {
+        if self.refine(shape.split_length, shape.split_stretch, |q| {
             next.closest(q, gap).map(|h| h.point)
         }) {
             still = false;
@@ -349,7 +356,14 @@ impl Patch {
 
     /// Splits every edge longer than `max_length` at its midpoint, until
     /// none is left or [`MAX_SPLIT_ROUNDS`] rounds have run; returns whether
-    /// anything was split. Not in the paper: a stretched patch triangle is a
+    /// anything was split. An edge longer than `max_stretch` times its rest
+    /// length in world units (rest × S) is left whole: its triangles are
+    /// past δ_max (Q_T = 0), eroding for good, and splitting them would
+    /// multiply exactly the triangles a violent flow tears apart (each round
+    /// quadruples them, 4⁶ per triangle in one frame); with the bound an
+    /// edge is split at most log2(max_stretch · rest / max_length) times
+    /// over its whole life, so a patch holds a bounded multiple of the
+    /// triangles it was made with. `f32::INFINITY`: no bound. Not in the paper: a stretched patch triangle is a
     /// long chord of the curved fluid surface, its middle far from the
     /// surface, so texels there fail to locate in it and its coverage
     /// flickers from frame to frame as the surface is re-meshed. The new
@@ -359,11 +373,17 @@ impl Patch {
     /// unchanged up to that projection. Edges are split longest first, and
     /// each round splits only edges whose triangles no other split of the
     /// round touched, so the result does not depend on any hash order.
-    pub fn refine(&mut self, max_length: f32, project: impl Fn(Vec3) -> Option<Vec3>) -> bool {
+    pub fn refine(
+        &mut self,
+        max_length: f32,
+        max_stretch: f32,
+        project: impl Fn(Vec3) -> Option<Vec3>,
+    ) -> bool {
         if max_length <= 0.0 || !max_length.is_finite() {
             return false;
         }
         let limit = max_length * max_length;
+        let stretch2 = max_stretch * max_stretch;
         let mut changed = false;
         for _ in 0..MAX_SPLIT_ROUNDS {
             // (squared length, edge, triangle) for every long edge side.
@@ -372,7 +392,8 @@ impl Patch {
                 for e in 0..3 {
                     let (a, b) = (t[e], t[(e + 1) % 3]);
                     let l = self.positions[a as usize].distance_squared(self.positions[b as usize]);
-                    if l > limit {
+                    let rest = self.rest[a as usize].distance_squared(self.rest[b as usize]);
+                    if l > limit && !(l > stretch2 * rest) {
                         long.push((l, [a.min(b), a.max(b)], k as u32));
                     }
                 }
@@ -436,6 +457,87 @@ impl Patch {
             changed = true;
         }
         changed
+    }
+
+    /// Drops the triangles that can never show a texel again (see
+    /// [`Patch::prune`]): those the erosion test erodes wholly
+    /// ([`ErosionTest::triangle_verdict`]) at this frame's weights, and,
+    /// when weights may rise again (`weights_can_rise`, the paper's w_V
+    /// recomputed every frame), only those whose distortion has also passed
+    /// δ_max (Q_T = 0, Eq. 1). Returns how many went; a still patch is
+    /// skipped (its weights, so its verdicts, are last frame's, already
+    /// pruned).
+    pub fn prune_eroded(
+        &mut self,
+        test: &ErosionTest,
+        shape: &PatchShape,
+        weights_can_rise: bool,
+    ) -> usize {
+        if self.still || self.weight.len() != self.positions.len() {
+            return 0;
+        }
+        let s = shape.exemplar_size;
+        let dead: Vec<bool> = self
+            .triangles
+            .iter()
+            .map(|t| {
+                let uv = t.map(|v| self.rest[v as usize]);
+                let w = t.map(|v| self.weight[v as usize]);
+                test.triangle_verdict(uv, w) == Verdict::Eroded
+                    && (!weights_can_rise || {
+                        let q = t.map(|v| self.positions[v as usize]);
+                        distortion(uv.map(|p| p * s), q).delta >= shape.delta_max as f64
+                    })
+            })
+            .collect();
+        self.prune(&dead)
+    }
+
+    /// Removes the triangles `dead` marks (indexed like `triangles`) and the
+    /// vertices only they used; returns how many triangles went.
+    ///
+    /// Not in the paper, which keeps every triangle a patch was made with:
+    /// under stretching, a wholly eroded part of a patch is still advected,
+    /// split ([`Patch::refine`]) and located every frame, and since splitting
+    /// follows the stretch it grows with the patch's history, not with what
+    /// the patch shows (a 38k-triangle liquid at a large radius reached 10⁸
+    /// candidate pairs and the machine's whole memory within 23 frames).
+    ///
+    /// A vertex that was interior and lies on the patch's border only because
+    /// its outer triangles went keeps B_V = 1 (it becomes `pinned`): B_V of
+    /// Eq. 2 marks the border the patch was carried to, and making the rim of
+    /// every pruned region a new border would erode the patch from there
+    /// inwards, one ring of triangles after another, which is not the
+    /// deformation-driven erosion the weights stand for.
+    pub fn prune(&mut self, dead: &[bool]) -> usize {
+        let removed = dead.iter().filter(|&&d| d).count();
+        if removed == 0 || dead.len() != self.triangles.len() {
+            return 0;
+        }
+        let n = self.positions.len();
+        let border_before = Topology::new(n, &self.triangles);
+        let keep = |k: usize| !dead[k];
+        self.triangles = (0..dead.len())
+            .filter(|&k| keep(k))
+            .map(|k| self.triangles[k])
+            .collect();
+        if self.lod.len() == dead.len() {
+            self.lod = (0..dead.len())
+                .filter(|&k| keep(k))
+                .map(|k| self.lod[k])
+                .collect();
+        } else {
+            self.lod.clear();
+        }
+        let border_after = Topology::new(n, &self.triangles);
+        for (v, pinned) in self.pinned.iter_mut().enumerate() {
+            let v = v as u32;
+            if !border_before.is_boundary_vertex(v) && border_after.is_boundary_vertex(v) {
+                *pinned = true;
+            }
+        }
+        self.compact();
+        removed
     }
 
     /// Drops vertices no triangle uses, renumbering the rest in order.

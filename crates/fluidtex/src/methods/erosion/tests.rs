@@ -39,6 +39,7 @@ pub(super) fn shape(radius: f32) -> PatchShape {
         texel_size: 0.0,
         feature_width: 1.0,
         split_length: 0.0,
+        split_stretch: f32::INFINITY,
         whole_centre: false,
     }
 }
@@ -148,6 +149,7 @@ fn weights_follow_eqs_1_to_3_on_a_hand_built_patch() {
         texel_size: 0.0,
         feature_width: 1.0,
         split_length: 0.0,
+        split_stretch: f32::INFINITY,
         whole_centre: false,
     };
     let rest: Vec<Vec2> = mesh.positions.iter().map(|p| p.truncate()).collect();
@@ -288,8 +290,9 @@ fn sources(r: &FrameResult) -> &[u32] {
 
 #[test]
 fn lapped_fill_matches_a_brute_force_reference() {
-    let calm = fill_against_brute_force("differential-rotation", 4);
-    let sheared = fill_against_brute_force("vortex", 10);
+    let calm = fill_against_brute_force("differential-rotation", 4, true);
+    // Unpruned, so the sheared patches still hold wholly eroded triangles.
+    let sheared = fill_against_brute_force("vortex", 10, false);
     // Both fills skip the feature lookup on wholly kept triangles and the
     // sheared one passes over wholly eroded ones: the reference does not.
     let [test, kept, eroded] = [0, 1, 2].map(|k| calm[k] + sheared[k]);
@@ -365,10 +368,11 @@ fn the_candidate_search_is_the_plain_search_within_the_prism_boxes() {
 /// Runs erosion on `frames` frames of scene `name` and checks every texel
 /// of the last fill against a brute-force lapped decision; returns how many
 /// patch triangles had each [`Verdict`] (Test, Kept, Eroded).
-fn fill_against_brute_force(name: &str, frames: i32) -> [usize; 3] {
+fn fill_against_brute_force(name: &str, frames: i32, prune: bool) -> [usize; 3] {
     let c = scene(name, 12, frames, 96);
     let ex = exemplar();
     let mut method = Erosion::new(ErosionParams::default(), Arc::clone(&ex), 7).expect("params");
+    method.prune_eroded = prune;
     let results = step_all(&mut method, &c);
     let last = results.last().expect("frames");
     assert_eq!(last.stats["forced_texels"], 0);
@@ -1272,7 +1276,7 @@ fn refining_a_stretched_patch_splits_every_long_edge_and_keeps_its_texture() {
         .collect();
     patch.weight = weights.clone();
     let limit = 0.15;
-    assert!(patch.refine(limit, Some));
+    assert!(patch.refine(limit, f32::INFINITY, Some));
     // No edge is left longer than the limit.
     for t in &patch.triangles {
         for e in 0..3 {
@@ -1336,8 +1340,8 @@ fn refining_a_stretched_patch_splits_every_long_edge_and_keeps_its_texture() {
     }
     assert!(checked > 100, "only {checked} points inside the patch");
     // A second pass has nothing left to do; a zero limit never splits.
-    assert!(!patch.clone().refine(limit, Some));
-    assert!(!before.clone().refine(0.0, Some));
+    assert!(!patch.clone().refine(limit, f32::INFINITY, Some));
+    assert!(!before.clone().refine(0.0, f32::INFINITY, Some));
 }
 
 #[test]
@@ -1353,7 +1357,7 @@ fn refinement_leaves_an_edge_whole_where_its_midpoint_has_no_surface() {
         q.x *= 4.0;
     }
     let before = patch.clone();
-    assert!(!patch.refine(0.15, |_| None));
+    assert!(!patch.refine(0.15, f32::INFINITY, |_| None));
     assert_eq!(patch, before);
 }
 
@@ -1415,7 +1419,7 @@ fn a_patch_spread_over_two_droplets_stops_growing_when_far_vertices_are_kept() {
     let project = |q: Vec3| index.closest(q, keep_far.far_distance).map(|h| h.point);
     let mut grown = Vec::new();
     for _ in 0..3 {
-        control.refine(keep_far.split_length, project);
+        control.refine(keep_far.split_length, f32::INFINITY, project);
         grown.push(control.triangles.len());
     }
     assert!(
@@ -1492,5 +1496,190 @@ fn last_frame_flow<'a>(
         dt: 1.0 / 24.0,
         substeps: 1,
         search_hint: 0.1,
+    }
+}
+
+/// Per frame of `clip`: the triangles held by all live patches and the
+/// candidate pairs, at patch radius `radius`, with the bounds on patch
+/// cost (pruning and the split limit) on or off.
+fn patch_cost(clip: &Clip, radius: f32, bounded: bool) -> Vec<(usize, usize)> {
+    let params = ErosionParams {
+        radius: Some(radius),
+        ..ErosionParams::default()
+    };
+    let mut method = Erosion::new(params, exemplar(), 3).expect("params");
+    method.prune_eroded = bounded;
+    (0..clip.meshes.len())
+        .map(|k| {
+            let r = method.step(&clip.ctx(k)).expect("step");
+            let held: usize = method
+                .state()
+                .patches
+                .iter()
+                .map(|p| p.triangles.len())
+                .sum();
+            assert_eq!(r.stats["patch_triangles"], held);
+            let pairs = r.stats["candidate_pairs"].as_u64().expect("pairs") as usize;
+            (held, pairs)
+        })
+        .collect()
+}
+
+#[test]
+fn patch_cost_follows_the_surface_not_the_history() {
+    // A sphere whose angular speed grows with height: the surface stays the
+    // same, the shear on the patches grows without end, and nothing leaves
+    // the surface. Unbounded, every patch keeps (and keeps splitting) the
+    // triangles it can no longer show, so what the patches hold grows with
+    // the length of the run.
+    let c = scene("differential-rotation", 12, 96, 96);
+    let bounded = patch_cost(&c, 0.6, true);
+    let control = patch_cost(&c, 0.6, false);
+    let (held_10, pairs_10) = bounded[10];
+    for (k, &(held, pairs)) in bounded.iter().enumerate().skip(10) {
+        assert!(
+            held <= 2 * held_10 && pairs <= 2 * pairs_10,
+            "frame {k}: {held} triangles, {pairs} pairs against {held_10}, {pairs_10} at frame 10"
+        );
+    }
+    // Control: the same run without the bounds grows past 2× and is still
+    // growing at the end.
+    let (control_10, control_pairs_10) = control[10];
+    let (last, last_pairs) = control[95];
+    assert!(
+        last > 2 * control_10 && last_pairs > 2 * control_pairs_10,
+        "the unbounded control should grow: {:?}",
+        control.iter().step_by(8).collect::<Vec<_>>()
+    );
+    assert!(control[95].0 > control[80].0 && control[80].0 > control[64].0);
+}
+
+#[test]
+fn pruning_drops_exactly_the_wholly_eroded_triangles_and_keeps_the_border() {
+    let mesh = grid(20, 0.1);
+    let s = shape(0.5);
+    let test = ErosionTest::new(2f32.sqrt(), 0.1);
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
+    let mut pruned_any = 0;
+    for case in 0..20 {
+        let at = SurfacePoint::new(rng.random_range(300..500), [0.2, 0.3, 0.5]);
+        let mut patch = create_on(&mesh, at, &s, rng.random::<f32>() * 6.0);
+        // Random weights, low on one side, so some triangles are wholly eroded.
+        let side = Vec2::new(rng.random::<f32>() - 0.5, rng.random::<f32>() - 0.5);
+        for (w, q) in patch.weight.iter_mut().zip(&patch.rest) {
+            *w = (0.5 + 4.0 * (*q - Vec2::splat(0.5)).dot(side)).clamp(0.0, 1.0);
+        }
+        let before = patch.clone();
+        let topology = Topology::new(before.positions.len(), &before.triangles);
+        let verdicts: Vec<_> = (before.triangles.iter())
+            .map(|t| {
+                test.triangle_verdict(
+                    t.map(|v| before.rest[v as usize]),
+                    t.map(|v| before.weight[v as usize]),
+                )
+            })
+            .collect();
+        let removed = patch.prune_eroded(&test, &s, false);
+        let kept: Vec<[Vec3; 3]> = (before.triangles.iter().zip(&verdicts))
+            .filter(|(_, v)| **v != erode::Verdict::Eroded)
+            .map(|(t, _)| t.map(|v| before.positions[v as usize]))
+            .collect();
+        assert_eq!(removed, before.triangles.len() - kept.len(), "case {case}");
+        pruned_any += removed;
+        // The kept triangles, in order, with their corners' data unchanged.
+        let after: Vec<[Vec3; 3]> = (patch.triangles.iter())
+            .map(|t| t.map(|v| patch.positions[v as usize]))
+            .collect();
+        assert_eq!(after, kept, "case {case}");
+        let after_topology = Topology::new(patch.positions.len(), &patch.triangles);
+        for (v, q) in patch.positions.iter().enumerate() {
+            let old = before
+                .positions
+                .iter()
+                .position(|p| p == q)
+                .expect("old vertex");
+            assert_eq!(patch.rest[v], before.rest[old]);
+            assert_eq!(patch.weight[v], before.weight[old]);
+            // A vertex left on the border by pruning keeps B_V = 1; a
+            // vertex of the border it was carried to does not.
+            let was_border = topology.is_boundary_vertex(old as u32);
+            let is_border = after_topology.is_boundary_vertex(v as u32);
+            let expect = before.pinned[old] || (is_border && !was_border);
+            assert_eq!(patch.pinned[v], expect, "case {case}, vertex {v}");
+        }
+        // Pruning again removes nothing.
+        assert_eq!(patch.prune_eroded(&test, &s, false), 0);
+    }
+    assert!(pruned_any > 100, "{pruned_any}");
+}
+
+#[test]
+fn paper_weights_prune_only_triangles_past_the_distortion_bound() {
+    let mesh = grid(20, 0.1);
+    let s = shape(0.5);
+    let test = ErosionTest::new(2f32.sqrt(), 0.1);
+    let mut patch = create_on(&mesh, SurfacePoint::new(421, [0.2, 0.3, 0.5]), &s, 0.0);
+    patch.weight.iter_mut().for_each(|w| *w = 0.0);
+    // Every triangle is wholly eroded, none distorted: paper weights may
+    // rise again, so nothing goes.
+    assert_eq!(patch.clone().prune_eroded(&test, &s, true), 0);
+    // Stretched 4× along x (δ = 4 > δ_max = 3): all go.
+    let n = patch.triangles.len();
+    patch.positions.iter_mut().for_each(|q| q.x *= 4.0);
+    assert_eq!(patch.prune_eroded(&test, &s, true), n);
+    assert!(patch.triangles.is_empty() && patch.positions.is_empty());
+}
+
+#[test]
+fn an_edge_stretched_past_the_distortion_bound_is_not_split() {
+    let mesh = grid(20, 0.1);
+    let mut s = shape(0.5);
+    s.split_length = 0.15;
+    s.split_stretch = s.delta_max * s.exemplar_size;
+    let patch = create_on(&mesh, SurfacePoint::new(421, [0.2, 0.3, 0.5]), &s, 0.0);
+    let (n, m) = (patch.triangles.len(), patch.positions.len());
+    // At ×3.1 the edges along x are past the bound, the diagonals (×2.3)
+    // not yet; at ×50 both are.
+    for (k, splits) in [(1.4f32, true), (2.9, true), (3.1, true), (50.0, false)] {
+        let mut stretched = patch.clone();
+        stretched.positions.iter_mut().for_each(|q| q.x *= k);
+        let mut unbounded = stretched.clone();
+        assert_eq!(
+            stretched.refine(s.split_length, s.split_stretch, Some),
+            splits,
+            "×{k}"
+        );
+        assert!(
+            unbounded.refine(s.split_length, f32::INFINITY, Some),
+            "×{k}"
+        );
+        if !splits {
+            assert_eq!(
+                (stretched.triangles.len(), stretched.positions.len()),
+                (n, m)
+            );
+        }
+        // Every edge left long is stretched past the bound.
+        for t in &stretched.triangles {
+            for e in 0..3 {
+                let (a, b) = (t[e] as usize, t[(e + 1) % 3] as usize);
+                let l = stretched.positions[a].distance(stretched.positions[b]);
+                let rest = stretched.rest[a].distance(stretched.rest[b]) * s.exemplar_size;
+                assert!(
+                    l <= s.split_length || l > 3.0 * rest * 0.999,
+                    "×{k}: {l} {rest}"
+                );
+            }
+        }
+        // Below the bound it changes nothing; past it, it splits less.
+        if k < s.delta_max {
+            assert_eq!(unbounded, stretched, "×{k}");
+        } else {
+            assert!(unbounded.triangles.len() > stretched.triangles.len());
+        }
+        // Splitting again changes nothing: the bound holds for good.
+        let again = stretched.clone();
+        assert!(!stretched.refine(s.split_length, s.split_stretch, Some));
+        assert_eq!(stretched, again);
     }
 }
