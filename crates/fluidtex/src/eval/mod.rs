@@ -906,8 +906,18 @@ fn shown_scale(lod: Option<&[f32]>) -> f64 {
 /// frame by frame ([`Thresholds::summarize_against_floor`]): call it with
 /// all the runs of one scene once they are done. Without a floor run the
 /// verdicts stay n/a and each run gets a note saying so.
+///
+/// A frame is judged on the points both runs cover at both ends (the
+/// evaluation's common support, [`FrameRecord::switch_same_points`]): a
+/// method that covers advect's holes with new patches is not charged for
+/// the switches advect does not have to make there, and advect is not
+/// credited for the points it leaves uncovered. Where the points were not
+/// recorded (a run measured on other points), each run's own share stands
+/// in. The cell shows the judged shares; each run's own-point share is
+/// kept in a note, for information.
 pub fn judge_against_floor(runs: &mut [MethodRun], thresholds: &Thresholds) {
     let floor_name = thresholds.source_switch.floor_method.clone();
+    compare_on_same_points(runs, &floor_name);
     let floor: Option<Vec<(i32, f64)>> = runs.iter().find(|r| r.method == floor_name).map(|r| {
         r.frames
             .iter()
@@ -915,11 +925,6 @@ pub fn judge_against_floor(runs: &mut [MethodRun], thresholds: &Thresholds) {
             .collect()
     });
     for run in runs.iter_mut() {
-        let values: Vec<f64> = run
-            .frames
-            .iter()
-            .map(|f| f.value(Metric::SourceSwitch))
-            .collect();
         let Some(floor) = &floor else {
             run.notes.push(format!(
                 "source switch share: not judged, it is judged against {floor_name} on the \
@@ -927,16 +932,20 @@ pub fn judge_against_floor(runs: &mut [MethodRun], thresholds: &Thresholds) {
             ));
             continue;
         };
-        let floor_values: Vec<f64> = run
+        let (values, floor_values): (Vec<f64>, Vec<f64>) = run
             .frames
             .iter()
-            .map(|f| {
-                floor
-                    .iter()
-                    .find(|(n, _)| *n == f.frame)
-                    .map_or(f64::NAN, |&(_, v)| v)
+            .map(|f| match f.switch_same_points {
+                [mine, theirs] if mine.is_finite() && theirs.is_finite() => (mine, theirs),
+                _ => (
+                    f.value(Metric::SourceSwitch),
+                    floor
+                        .iter()
+                        .find(|(n, _)| *n == f.frame)
+                        .map_or(f64::NAN, |&(_, v)| v),
+                ),
             })
-            .collect();
+            .unzip();
         let summary = thresholds.summarize_against_floor(&values, &floor_values);
         if let Some(s) = run
             .summaries
@@ -946,8 +955,50 @@ pub fn judge_against_floor(runs: &mut [MethodRun], thresholds: &Thresholds) {
             *s = summary;
         }
     }
-    compare_on_same_points(runs, &floor_name);
+    judge_aligned_against_floor(runs, thresholds);
     note_switch_peaks(runs);
+}
+
+/// The flow-aligned share where the floor method itself stays below the
+/// absolute rule on the scene: every run then passes when its median share
+/// is at most `flow.max_aligned_shortfall_under_floor` below the floor's
+/// (a flow the image measurement cannot follow well there fails every
+/// method alike, and the rule keeps what can still be told apart: whether
+/// a method follows it worse than a texture that rides it by
+/// construction). Elsewhere the absolute rule stands.
+fn judge_aligned_against_floor(runs: &mut [MethodRun], thresholds: &Thresholds) {
+    let floor_name = &thresholds.source_switch.floor_method;
+    let Some(floor) = runs
+        .iter()
+        .find(|r| &r.method == floor_name)
+        .and_then(|r| r.summary(Metric::FlowAligned))
+        .map(|s| s.median)
+        .filter(|m| m.is_finite() && *m < thresholds.flow.min_aligned_share)
+    else {
+        return;
+    };
+    let allowed = floor - thresholds.flow.max_aligned_shortfall_under_floor;
+    let lead = "flow aligned share: judged against";
+    for run in runs.iter_mut() {
+        run.notes.retain(|n| !n.starts_with(lead));
+        let Some(s) = run
+            .summaries
+            .iter_mut()
+            .find(|s| s.metric == Metric::FlowAligned)
+        else {
+            continue;
+        };
+        if !s.median.is_finite() {
+            continue;
+        }
+        s.verdict = metrics::Verdict::of(s.median >= allowed);
+        run.notes.push(format!(
+            "{lead} {floor_name}'s {:.3} less {} (advect is below the absolute {:.2} here)",
+            floor,
+            thresholds.flow.max_aligned_shortfall_under_floor,
+            thresholds.flow.min_aligned_share
+        ));
+    }
 }
 
 /// The lower median of per-frame values (as every cell of the report gives
@@ -966,18 +1017,32 @@ fn median_and_worst(values: &[(i32, f64)]) -> Option<(f64, (i32, f64))> {
 /// The lead of the note [`note_switch_peaks`] writes.
 const PEAK_NOTE: &str = "source switch share: the worst frame is";
 
+/// Frames of a run, counted from its first, that the wave rule leaves
+/// out: the patches born together on the first frame wear out together
+/// about one lifetime later (half a second at 24 fps), a start-up wave the
+/// README describes; the rule judges the frames after it (12–47 of a
+/// 48-frame run).
+pub const FIRST_LIFETIME_FRAMES: i32 = 12;
+
 /// A note per run with its worst frame's switch share as a multiple of the
-/// run's median frame: the fast-flow rule of the evaluation (no frame above
-/// twice the median, no synchronised erosion waves), given as information.
-/// Over a window that starts with the run, every patch of the first frame
-/// wears out at about the same time, so the window's first frames pull the
-/// median down; over a longer window the same flow may stay below 2×.
+/// run's median frame, over the frames after the first lifetime
+/// ([`FIRST_LIFETIME_FRAMES`]; all frames of a run shorter than twice
+/// that): the fast-flow rule of the evaluation (no frame above twice the
+/// median, no synchronised erosion waves), given as information.
 fn note_switch_peaks(runs: &mut [MethodRun]) {
     for run in runs.iter_mut() {
         run.notes.retain(|n| !n.starts_with(PEAK_NOTE));
+        let first = run.frames.iter().map(|f| f.frame).min().unwrap_or(0);
+        let last = run.frames.iter().map(|f| f.frame).max().unwrap_or(0);
+        let from = if last - first + 1 >= 2 * FIRST_LIFETIME_FRAMES {
+            first + FIRST_LIFETIME_FRAMES
+        } else {
+            first
+        };
         let shares: Vec<(i32, f64)> = run
             .frames
             .iter()
+            .filter(|f| f.frame >= from)
             .map(|f| (f.frame, f.value(Metric::SourceSwitch)))
             .filter(|(_, v)| v.is_finite())
             .collect();
@@ -995,9 +1060,9 @@ fn note_switch_peaks(runs: &mut [MethodRun]) {
 }
 
 /// Each run's switch share beside the floor run's on the points both cover
-/// at both ends, frame by frame ([`FrameRecord::switch_same_points`]), and
-/// a note with the excess over the floor there (information: the verdict
-/// stays on each run's own points, as the thresholds file defines it).
+/// at both ends, frame by frame ([`FrameRecord::switch_same_points`], what
+/// [`judge_against_floor`] judges), and a note with each run's share on its
+/// own points against the floor's, for information.
 fn compare_on_same_points(runs: &mut [MethodRun], floor_name: &str) {
     let Some(floor) = runs.iter().find(|r| r.method == floor_name) else {
         return;
@@ -1007,10 +1072,15 @@ fn compare_on_same_points(runs: &mut [MethodRun], floor_name: &str) {
         .iter()
         .map(|f| (f.frame, f.point_sources.clone()))
         .collect();
-    let lead = format!("source switch share on the points {floor_name} also covers");
+    let floor_own: Vec<(i32, f64)> = floor
+        .frames
+        .iter()
+        .map(|f| (f.frame, f.value(Metric::SourceSwitch)))
+        .collect();
+    let lead = "source switch share on each run's own points";
     for run in runs.iter_mut() {
         // Judging again replaces what an earlier call found.
-        run.notes.retain(|n| !n.starts_with(&lead));
+        run.notes.retain(|n| !n.starts_with(lead));
         let mut excess = Vec::new();
         for f in &mut run.frames {
             f.switch_same_points = [f64::NAN; 2];
@@ -1022,10 +1092,13 @@ fn compare_on_same_points(runs: &mut [MethodRun], floor_name: &str) {
             }
             if let Ok((mine, theirs)) = metrics::source_switch_same_points(&f.point_sources, fp) {
                 f.switch_same_points = [mine.share(), theirs.share()];
-                let d = mine.share() - theirs.share();
-                if d.is_finite() {
-                    excess.push((f.frame, d));
-                }
+            }
+        }
+        for f in &run.frames {
+            let own = floor_own.iter().find(|(n, _)| *n == f.frame);
+            let d = f.value(Metric::SourceSwitch) - own.map_or(f64::NAN, |o| o.1);
+            if d.is_finite() {
+                excess.push((f.frame, d));
             }
         }
         if run.method == floor_name {
@@ -1035,8 +1108,8 @@ fn compare_on_same_points(runs: &mut [MethodRun], floor_name: &str) {
             continue;
         };
         run.notes.push(format!(
-            "{lead} at both ends: {:+.1} points against {floor_name}'s in the median \
-             frame, {:+.1} at worst (frame {})",
+            "{lead} (information; the verdict is on the points both cover): {:+.1} points \
+             against {floor_name}'s in the median frame, {:+.1} at worst (frame {})",
             100.0 * median,
             100.0 * worst.1,
             worst.0

@@ -500,8 +500,10 @@ fn source_switch_is_judged_against_advect_on_the_same_frames() {
     let with_shares = |name: &str, shares: [f64; 3]| {
         let mut r = base.clone();
         r.method = name.into();
+        // Without recorded points each run's own share is judged.
         for (f, s) in r.frames.iter_mut().zip(shares) {
             f.values[k] = s;
+            f.point_sources.clear();
         }
         r
     };
@@ -535,6 +537,23 @@ fn source_switch_is_judged_against_advect_on_the_same_frames() {
     assert!(runs[0].frames[0].switch_same_points[0].is_nan());
     // A run measured on other points is not compared.
     assert!(runs[2].frames[2].switch_same_points[0].is_nan());
+    // The verdict is on the points both cover: erosion's 5 % on its own
+    // points passed, but on the common support of frame 1 it switches 50 %
+    // against advect's 0 %; the cell shows the judged shares.
+    assert_eq!(v(&runs[0]), Verdict::Fail);
+    let cell = *runs[0].summary(Metric::SourceSwitch).unwrap();
+    assert_eq!((cell.min, cell.max), (0.5, 0.5));
+    // Frame 2 alone on common support: both 50 %, within 2 points.
+    runs[0].frames[1].point_sources.clear();
+    judge_against_floor(&mut runs, &thresholds);
+    assert_eq!(v(&runs[0]), Verdict::Pass);
+    assert_eq!(
+        runs[0].summary(Metric::SourceSwitch).unwrap().max,
+        0.5,
+        "frame 1 falls back to its own 5 %, frame 2 is judged at 50 % against 50 %"
+    );
+    runs[0].frames[1].point_sources = vec![[1, 1], [1, 2], [3, 4]];
+    judge_against_floor(&mut runs, &thresholds);
     let notes_with = |r: &MethodRun, needle: &str| {
         r.notes
             .iter()
@@ -542,12 +561,13 @@ fn source_switch_is_judged_against_advect_on_the_same_frames() {
             .cloned()
             .collect::<Vec<_>>()
     };
-    let note = |r: &MethodRun| notes_with(r, "also covers");
+    let note = |r: &MethodRun| notes_with(r, "own points");
     assert_eq!(
         note(&runs[0]),
         [
-            "source switch share on the points advect also covers at both ends: +0.0 points \
-             against advect's in the median frame, +50.0 at worst (frame 1)"
+            "source switch share on each run's own points (information; the verdict is on \
+             the points both cover): +2.0 points against advect's in the median frame, +2.0 \
+             at worst (frame 1)"
         ]
     );
     assert!(
@@ -577,6 +597,38 @@ fn source_switch_is_judged_against_advect_on_the_same_frames() {
     judge_against_floor(&mut runs, &thresholds);
     assert!(peaks(&runs[2]).is_empty());
     assert_eq!(peaks(&runs[0]).len(), 1);
+    // A 48-frame run: the start-up wave (frames 0-11, the first lifetime)
+    // is left out of the peak rule; a wave after it is not.
+    let long = |wave_at: usize| {
+        let mut r = base.clone();
+        r.method = "waves".into();
+        r.frames = (0..48)
+            .map(|n| {
+                let mut f = base.frames[1].clone();
+                f.frame = n;
+                f.point_sources.clear();
+                f.values[k] = if n as usize == wave_at { 0.3 } else { 0.05 };
+                f
+            })
+            .collect();
+        r
+    };
+    let mut waves = vec![long(5), long(30)];
+    judge_against_floor(&mut waves, &thresholds);
+    assert_eq!(
+        peaks(&waves[0]),
+        [
+            "source switch share: the worst frame is 1.0x the median frame (5.0 % at frame 12, \
+          median 5.0 %)"
+        ]
+    );
+    assert_eq!(
+        peaks(&waves[1]),
+        [
+            "source switch share: the worst frame is 6.0x the median frame (30.0 % at frame 30, \
+          median 5.0 %)"
+        ]
+    );
     // Without advect there is nothing to judge against.
     let mut alone = vec![with_shares("erosion", [f64::NAN, 0.05, 0.05])];
     judge_against_floor(&mut alone, &thresholds);
@@ -587,6 +639,48 @@ fn source_switch_is_judged_against_advect_on_the_same_frames() {
             .iter()
             .any(|n| n.contains("advect was not run"))
     );
+}
+
+#[test]
+fn flow_aligned_share_is_judged_against_advect_only_where_advect_fails_the_absolute_rule() {
+    let (scene, settings) = prepared("rigid-rotation", 16, 0..=1, 64, 64);
+    let exemplar = pattern(64);
+    let base = run(
+        &scene,
+        &mut painted(&scene, &exemplar, true, false),
+        &settings,
+    );
+    let with_aligned = |name: &str, median: f64| {
+        let mut r = base.clone();
+        r.method = name.into();
+        let s = r
+            .summaries
+            .iter_mut()
+            .find(|s| s.metric == Metric::FlowAligned)
+            .unwrap();
+        s.median = median;
+        s.verdict = Verdict::of(median >= 0.90);
+        r
+    };
+    let thresholds = Thresholds::committed().unwrap();
+    let v = |r: &MethodRun| r.summary(Metric::FlowAligned).unwrap().verdict;
+    // advect at 0.80: 0.78 is within 0.03 of it, 0.76 is not.
+    let mut runs = vec![
+        with_aligned("erosion", 0.78),
+        with_aligned("advect", 0.80),
+        with_aligned("blend", 0.76),
+    ];
+    judge_against_floor(&mut runs, &thresholds);
+    assert_eq!(
+        [v(&runs[0]), v(&runs[1]), v(&runs[2])],
+        [Verdict::Pass, Verdict::Pass, Verdict::Fail]
+    );
+    assert!(runs[0].notes.iter().any(|n| n.contains("advect's 0.800")));
+    // Where advect passes the absolute rule, it stands for everyone: 0.89
+    // fails although advect's 0.91 is within 0.03.
+    let mut runs = vec![with_aligned("erosion", 0.89), with_aligned("advect", 0.91)];
+    judge_against_floor(&mut runs, &thresholds);
+    assert_eq!([v(&runs[0]), v(&runs[1])], [Verdict::Fail, Verdict::Pass]);
 }
 
 #[test]

@@ -107,6 +107,10 @@ pub struct FlowThresholds {
     pub max_median_epe_px: f64,
     /// Smallest passing share of aligned pixels, in [0, 1]. 0.90.
     pub min_aligned_share: f64,
+    /// On a scene where the floor method (advect) itself stays below
+    /// `min_aligned_share`, a method passes when its aligned share is at
+    /// most this much below the floor's instead, in [0, 1]. 0.03.
+    pub max_aligned_shortfall_under_floor: f64,
 }
 
 /// Silhouette margin used by flow and popping in renders.
@@ -261,7 +265,7 @@ pub enum Verdict {
 }
 
 impl Verdict {
-    fn of(pass: bool) -> Verdict {
+    pub(crate) fn of(pass: bool) -> Verdict {
         if pass { Verdict::Pass } else { Verdict::Fail }
     }
 
@@ -449,6 +453,12 @@ impl Thresholds {
                 "flow.min_aligned_share",
                 fl.min_aligned_share,
                 share(fl.min_aligned_share),
+                "[0, 1]",
+            ),
+            (
+                "flow.max_aligned_shortfall_under_floor",
+                fl.max_aligned_shortfall_under_floor,
+                share(fl.max_aligned_shortfall_under_floor),
                 "[0, 1]",
             ),
             (
@@ -674,6 +684,7 @@ mod tests {
         assert_eq!(t.flow.min_cos, 0.9);
         assert_eq!(t.flow.max_median_epe_px, 0.25);
         assert_eq!(t.flow.min_aligned_share, 0.90);
+        assert_eq!(t.flow.max_aligned_shortfall_under_floor, 0.03);
         assert_eq!(t.popping.sigma_factor, 0.5);
         assert_eq!(t.popping.max_mean_share, 0.02);
         assert_eq!(t.popping.max_worst_share, 0.05);
