@@ -13,8 +13,10 @@ this render show the object from the same side, the same way up; a mirrored
 or rotated texture shows as a difference.
 
 Usage (Blender 3.4, headless):
-    blender -b --factory-startup -P tools/blender_render.py -- MESH.obj OUT.png [--size 512] [--samples 24]
-or tools/blender_render.sh MESH.obj OUT.png.
+    blender -b --factory-startup -P tools/blender_render.py -- MESH.obj OUT.png [--size 512] [--samples 24] [--zoom 1] [--box x0,y0,z0,x1,y1,z1]
+or tools/blender_render.sh MESH.obj OUT.png [SIZE [SAMPLES [--zoom Z] [--box ...]]].
+With --box every frame of a sequence gets the same camera (close-ups of
+consecutive frames, to see whether the texture moves with the liquid).
 
 Exits non-zero when the import lacks what fluidtex wrote: no mesh, no UV
 layer, or a material without an image texture feeding its base colour.
@@ -45,7 +47,22 @@ def parse_args():
         default=1.0,
         help="magnify the centre of the view by this factor, for close-ups of seams [1]",
     )
+    p.add_argument(
+        "--box",
+        help="frame this box (x0,y0,z0,x1,y1,z1) instead of the mesh's bounds: the same "
+        "camera for every frame of a sequence, so consecutive frames can be compared",
+    )
     return p.parse_args(argv)
+
+
+def parse_box(text):
+    try:
+        v = [float(x) for x in text.split(",")]
+    except ValueError:
+        v = []
+    if len(v) != 6 or not all(math.isfinite(x) for x in v):
+        fail(f"--box {text}: expected six numbers x0,y0,z0,x1,y1,z1")
+    return Vector(v[:3]), Vector(v[3:])
 
 
 def fail(msg):
@@ -176,7 +193,7 @@ def main():
     meshes = import_obj(args.obj)
     for obj in meshes:
         check_material(obj)
-    lo, hi = bounds(meshes)
+    lo, hi = parse_box(args.box) if args.box else bounds(meshes)
     verts = sum(len(o.data.vertices) for o in meshes)
     faces = sum(len(o.data.polygons) for o in meshes)
     print(f"blender_render: {args.obj}: {verts} vertices, {faces} faces, bbox {tuple(lo)} {tuple(hi)}")

@@ -205,7 +205,7 @@ impl EvalSettings {
 /// from above would see edge-on).
 pub fn default_view(scene: &str) -> Vec3 {
     match scene {
-        "vortex" | "stop" | "shear" => Vec3::new(0.05, 0.15, -1.0),
+        "vortex" | "vortex-16" | "stop" | "shear" => Vec3::new(0.05, 0.15, -1.0),
         _ => Vec3::new(-0.3, -1.0, -0.35),
     }
 }

@@ -135,7 +135,10 @@ fn flow_definition(name: &str) -> Option<Definition> {
                     radius: 0.15,
                 },
                 field: Field::Enright,
-                amplitude: Amplitude::Cosine { period: 3.0 },
+                amplitude: Amplitude::Cosine {
+                    period: 3.0,
+                    speed: 1.0,
+                },
             },
             (DVec3::ZERO, DVec3::ONE),
             params(64, 0, 72),
@@ -145,10 +148,28 @@ fn flow_definition(name: &str) -> Option<Definition> {
             PulledBack {
                 shape: PUCK,
                 field: Field::SingleVortex,
-                amplitude: Amplitude::Cosine { period: 8.0 },
+                amplitude: Amplitude::Cosine {
+                    period: 8.0,
+                    speed: 1.0,
+                },
             },
             VORTEX_DOMAIN,
             params(96, 0, 192),
+        ),
+        // The same vortex at half the speed with T = 16 s: the path of the
+        // T = 8 s vortex taken twice as slowly (frame 2k here is frame k
+        // there), a moderately sheared flow.
+        "vortex-16" => pulled_back(
+            PulledBack {
+                shape: PUCK,
+                field: Field::SingleVortex,
+                amplitude: Amplitude::Cosine {
+                    period: 16.0,
+                    speed: 0.5,
+                },
+            },
+            VORTEX_DOMAIN,
+            params(96, 0, 384),
         ),
         // A quarter turn per second about the vertical axis through the
         // centre: one full turn over frames 0–96.

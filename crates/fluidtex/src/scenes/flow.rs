@@ -25,8 +25,10 @@ use serde_json::json;
 pub enum Amplitude {
     /// a = 1, τ = t.
     Constant,
-    /// a = cos(πt/T): forward for T/2, back for T/2; τ = (T/π) sin(πt/T), so τ(T) = 0.
-    Cosine { period: f64 },
+    /// a = s·cos(πt/T): forward for T/2, back for T/2; τ = s·(T/π)
+    /// sin(πt/T), so τ(T) = 0. With s = T₀/T the path is that of period T₀
+    /// taken T/T₀ times slower.
+    Cosine { period: f64, speed: f64 },
     /// a = 1 until `hold`, then cos² down to exactly 0 at `hold + ramp`, and 0 after.
     Ramp { hold: f64, ramp: f64 },
 }
@@ -36,7 +38,7 @@ impl Amplitude {
     pub fn a(&self, t: f64) -> f64 {
         match *self {
             Amplitude::Constant => 1.0,
-            Amplitude::Cosine { period } => (PI * t / period).cos(),
+            Amplitude::Cosine { period, speed } => speed * (PI * t / period).cos(),
             Amplitude::Ramp { hold, ramp } => {
                 if t <= hold {
                     1.0
@@ -54,7 +56,7 @@ impl Amplitude {
     pub fn tau(&self, t: f64) -> f64 {
         match *self {
             Amplitude::Constant => t,
-            Amplitude::Cosine { period } => period / PI * (PI * t / period).sin(),
+            Amplitude::Cosine { period, speed } => speed * period / PI * (PI * t / period).sin(),
             Amplitude::Ramp { hold, ramp } => {
                 if t <= hold {
                     t
@@ -71,9 +73,12 @@ impl Amplitude {
     pub fn to_json(self) -> serde_json::Value {
         match self {
             Amplitude::Constant => json!({"kind": "constant", "formula": "a(t) = 1"}),
-            Amplitude::Cosine { period } => {
+            Amplitude::Cosine { period, speed } if speed == 1.0 => {
                 json!({"kind": "cosine", "formula": "a(t) = cos(pi t / T)", "T": period})
             }
+            Amplitude::Cosine { period, speed } => json!({
+                "kind": "cosine", "formula": "a(t) = s cos(pi t / T)", "T": period, "s": speed,
+            }),
             Amplitude::Ramp { hold, ramp } => json!({
                 "kind": "ramp",
                 "formula": "a = 1 for t <= t1; cos^2(pi/2 (t - t1)/(t2 - t1)) on [t1, t2]; 0 after",
@@ -499,7 +504,10 @@ mod tests {
     fn tau_is_the_integral_of_a() {
         let amps = [
             Amplitude::Constant,
-            Amplitude::Cosine { period: 3.0 },
+            Amplitude::Cosine {
+                period: 3.0,
+                speed: 1.0,
+            },
             Amplitude::Ramp {
                 hold: 1.0,
                 ramp: 0.75,
@@ -527,7 +535,10 @@ mod tests {
 
     #[test]
     fn cosine_flows_return_to_the_start() {
-        let amp = Amplitude::Cosine { period: 3.0 };
+        let amp = Amplitude::Cosine {
+            period: 3.0,
+            speed: 1.0,
+        };
         assert!(amp.tau(3.0).abs() < 1e-15);
         let mut rng = Pcg64::seed_from_u64(1);
         for _ in 0..20 {

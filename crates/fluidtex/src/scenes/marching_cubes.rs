@@ -505,7 +505,10 @@ mod tests {
                 radius: 0.15,
             },
             field: Field::Enright,
-            amplitude: Amplitude::Cosine { period: 3.0 },
+            amplitude: Amplitude::Cosine {
+                period: 3.0,
+                speed: 1.0,
+            },
         };
         let c = extract(&motion, 1.5, &grid);
         // Dense: count sign-changing cells over the whole grid.

@@ -197,6 +197,10 @@ pub fn catalogue() -> &'static [(&'static str, &'static str)] {
             "single 2-D vortex (T = 8 s) swirling a closed rounded puck; texture seen on its top face",
         ),
         (
+            "vortex-16",
+            "the vortex at half speed, T = 16 s: its path taken twice as slowly, a moderate shear",
+        ),
+        (
             "rigid-rotation",
             "sphere in rigid rotation about z: geometry constant, texture must turn rigidly",
         ),

@@ -10,9 +10,10 @@ use super::*;
 use crate::mesh::Topology;
 use crate::surface::SurfaceIndex;
 
-const ANALYTIC: [&str; 7] = [
+const ANALYTIC: [&str; 8] = [
     "enright",
     "vortex",
+    "vortex-16",
     "rigid-rotation",
     "differential-rotation",
     "shear",
@@ -24,7 +25,7 @@ const ANALYTIC: [&str; 7] = [
 fn small(name: &str) -> SceneParams {
     let mut p = default_params(name).expect("known scene");
     p.resolution = match name {
-        "vortex" | "stop" => 48,
+        "vortex" | "vortex-16" | "stop" => 48,
         "shear" => 16,
         _ => 24,
     };
@@ -68,6 +69,7 @@ fn formula(name: &str, x: Vec3, t: f64) -> Option<Vec3> {
             ) * (PI * t / 3.0).cos()
         }
         "vortex" => vortex * (PI * t / 8.0).cos(),
+        "vortex-16" => vortex * 0.5 * (PI * t / 16.0).cos(),
         "rigid-rotation" => DVec3::Z.cross(c) * (0.5 * PI),
         "differential-rotation" => DVec3::Z.cross(c) * (0.25 * PI + 0.25 * PI / 0.3 * c.z),
         "shear" => DVec3::new(0.5 * c.y, 0.0, 0.0),
@@ -633,4 +635,37 @@ mod viscous_scene_tests {
             })
         );
     }
+}
+
+#[test]
+fn the_slow_vortex_takes_the_fast_ones_path_twice_as_slowly() {
+    let (mut fast, mut slow) = (scene("vortex"), scene("vortex-16"));
+    for k in [3, 12] {
+        let (a, b) = (
+            fast.frame(k).expect("frame"),
+            slow.frame(2 * k).expect("frame"),
+        );
+        assert_eq!(a.triangles.len(), b.triangles.len(), "frame {k}");
+        let far = a
+            .positions
+            .iter()
+            .zip(&b.positions)
+            .map(|(p, q)| p.distance(*q))
+            .fold(0.0f32, f32::max);
+        assert!(far < 1e-4, "frame {k}: {far}");
+        // Half the speed at twice the time.
+        let (va, vb) = (a.velocity().expect("v"), b.velocity().expect("v"));
+        assert!(
+            (va[0] * 0.5 - vb[0]).length() < 1e-4,
+            "{:?} {:?}",
+            va[0],
+            vb[0]
+        );
+    }
+    // Control: the same frame numbers differ.
+    let (a, b) = (
+        fast.frame(12).expect("frame"),
+        slow.frame(12).expect("frame"),
+    );
+    assert!(a.positions.len() != b.positions.len() || a.positions != b.positions);
 }
