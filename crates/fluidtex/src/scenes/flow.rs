@@ -73,7 +73,7 @@ impl Amplitude {
     pub fn to_json(self) -> serde_json::Value {
         match self {
             Amplitude::Constant => json!({"kind": "constant", "formula": "a(t) = 1"}),
-            Amplitude::Cosine { period, speed } if speed == 1.0 => {
+            Amplitude::Cosine { period, speed: 1.0 } => {
                 json!({"kind": "cosine", "formula": "a(t) = cos(pi t / T)", "T": period})
             }
             Amplitude::Cosine { period, speed } => json!({

@@ -393,7 +393,9 @@ impl Patch {
                     let (a, b) = (t[e], t[(e + 1) % 3]);
                     let l = self.positions[a as usize].distance_squared(self.positions[b as usize]);
                     let rest = self.rest[a as usize].distance_squared(self.rest[b as usize]);
-                    if l > limit && !(l > stretch2 * rest) {
+                    // NaN (no bound, zero rest length) splits as before.
+                    let bound = stretch2 * rest;
+                    if l > limit && (l <= bound || bound.is_nan()) {
                         long.push((l, [a.min(b), a.max(b)], k as u32));
                     }
                 }
