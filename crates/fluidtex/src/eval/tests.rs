@@ -577,21 +577,24 @@ fn source_switch_is_judged_against_advect_on_the_same_frames() {
     // The worst frame against the median one, for every run with switches:
     // boiling's 20 % against its lower median of 4 % is 5x.
     let peaks = |r: &MethodRun| notes_with(r, "worst frame is");
-    assert_eq!(
-        peaks(&runs[2]),
-        [
-            "source switch share: the worst frame is 5.0x the median frame (20.0 % at frame 2, \
-          median 4.0 %)"
-        ]
+    // The peak note of a run: worst frame `text`, e.g. "5.0x ... (20.0 % at frame 2".
+    let peak_is = |r: &MethodRun, text: &str, median: &str| {
+        assert_eq!(
+            peaks(r),
+            [format!(
+                "source switch share: the worst frame is {text}, median {median})"
+            )],
+            "{}",
+            r.method
+        );
+    };
+    peak_is(
+        &runs[2],
+        "5.0x the median frame (20.0 % at frame 2",
+        "4.0 %",
     );
-    assert_eq!(
-        peaks(&runs[1]),
-        [
-            "source switch share: the worst frame is 1.0x the median frame (3.0 % at frame 1, \
-          median 3.0 %)"
-        ],
-        "of equal frames the first is the worst"
-    );
+    // Of equal frames the first is the worst.
+    peak_is(&runs[1], "1.0x the median frame (3.0 % at frame 1", "3.0 %");
     // Judging again replaces the note; a run that never switches has none.
     runs[2] = with_shares("boiling", [f64::NAN, 0.0, 0.0]);
     judge_against_floor(&mut runs, &thresholds);
@@ -615,19 +618,15 @@ fn source_switch_is_judged_against_advect_on_the_same_frames() {
     };
     let mut waves = vec![long(5), long(30)];
     judge_against_floor(&mut waves, &thresholds);
-    assert_eq!(
-        peaks(&waves[0]),
-        [
-            "source switch share: the worst frame is 1.0x the median frame (5.0 % at frame 12, \
-          median 5.0 %)"
-        ]
+    peak_is(
+        &waves[0],
+        "1.0x the median frame (5.0 % at frame 12",
+        "5.0 %",
     );
-    assert_eq!(
-        peaks(&waves[1]),
-        [
-            "source switch share: the worst frame is 6.0x the median frame (30.0 % at frame 30, \
-          median 5.0 %)"
-        ]
+    peak_is(
+        &waves[1],
+        "6.0x the median frame (30.0 % at frame 30",
+        "5.0 %",
     );
     // Without advect there is nothing to judge against.
     let mut alone = vec![with_shares("erosion", [f64::NAN, 0.05, 0.05])];
