@@ -356,14 +356,7 @@ impl Patch {
 
     /// Splits every edge longer than `max_length` at its midpoint, until
     /// none is left or [`MAX_SPLIT_ROUNDS`] rounds have run; returns whether
-    /// anything was split. An edge longer than `max_stretch` times its rest
-    /// length in world units (rest × S) is left whole: its triangles are
-    /// past δ_max (Q_T = 0), eroding for good, and splitting them would
-    /// multiply exactly the triangles a violent flow tears apart (each round
-    /// quadruples them, 4⁶ per triangle in one frame); with the bound an
-    /// edge is split at most log2(max_stretch · rest / max_length) times
-    /// over its whole life, so a patch holds a bounded multiple of the
-    /// triangles it was made with. `f32::INFINITY`: no bound. Not in the paper: a stretched patch triangle is a
+    /// anything was split. Not in the paper: a stretched patch triangle is a
     /// long chord of the curved fluid surface, its middle far from the
     /// surface, so texels there fail to locate in it and its coverage
     /// flickers from frame to frame as the surface is re-meshed. The new
@@ -373,6 +366,16 @@ impl Patch {
     /// unchanged up to that projection. Edges are split longest first, and
     /// each round splits only edges whose triangles no other split of the
     /// round touched, so the result does not depend on any hash order.
+    ///
+    /// An edge longer than `max_stretch` times its rest length in world
+    /// units (rest × S) is left whole (`f32::INFINITY`: no bound): its
+    /// triangles are past δ_max (Q_T = 0), eroding for good, and splitting
+    /// them would multiply exactly the triangles a violent flow tears apart
+    /// (each round quadruples them, up to 4⁶ per triangle in one frame).
+    /// With the bound, halving keeps an edge's stretch, so an edge is split
+    /// about log2(max_stretch · rest / max_length) times over its whole
+    /// life at most, and a patch holds a bounded multiple of the triangles
+    /// it was made with.
     pub fn refine(
         &mut self,
         max_length: f32,
