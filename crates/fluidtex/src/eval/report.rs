@@ -266,7 +266,7 @@ impl Report {
             "`{}`  \natlas {}², seed {}, exemplar {}, {:.0} s in all. Thresholds: \
              `metrics/thresholds.toml` (committed). Cells: median [min, max] over frames, \
              PASS/FAIL of the committed rule (source switch share: every frame at most 0.02 \
-             above advect's on the same frame; n/a without an advect run).\n",
+             above advect's on the same frame and the points both cover; n/a without an advect run).\n",
             self.command, self.atlas_size, self.seed, self.exemplar, self.seconds
         );
         for n in &self.not_measured {
@@ -364,7 +364,7 @@ impl Report {
              {:.0} s in all. Thresholds: <code>metrics/thresholds.toml</code> (committed). \
              Cells: median [min, max] over frames, PASS/FAIL of the committed rule \
              (contrast: min; flow: median; popping: mean and worst; source switch share: \
-             every frame at most 0.02 above advect's on the same frame; others: worst).</p>",
+             every frame at most 0.02 above advect's on the same frame and the points both cover; others: worst).</p>",
             esc(&self.command),
             self.atlas_size,
             self.seed,
