@@ -64,6 +64,18 @@ def box(name, lo, hi):
     return ob
 
 
+def liquid_source(ob, velocity):
+    """Makes `ob` a one-off source of liquid (its volume, at frame 1) moving
+    at `velocity`, hidden from renders."""
+    fm = ob.modifiers.new("Fluid", "FLUID")
+    fm.fluid_type = "FLOW"
+    fm.flow_settings.flow_type = "LIQUID"
+    fm.flow_settings.flow_behavior = "GEOMETRY"
+    fm.flow_settings.use_initial_velocity = True
+    fm.flow_settings.velocity_coord = velocity
+    ob.hide_render = True
+
+
 def build(a, cache):
     scene = bpy.context.scene
     # remove the factory cube / camera / light
@@ -90,27 +102,14 @@ def build(a, cache):
     # all walls closed (default border collisions)
 
     # dam: tall block of water against the -x wall
-    dam = box("Dam", (-0.97, -0.47, 0.03), (-0.45, 0.47, 1.0))
-    fm = dam.modifiers.new("Fluid", "FLUID")
-    fm.fluid_type = "FLOW"
-    fm.flow_settings.flow_type = "LIQUID"
-    fm.flow_settings.flow_behavior = "GEOMETRY"
-    fm.flow_settings.use_initial_velocity = True
-    fm.flow_settings.velocity_coord = (1.5, 0.0, 0.0)
-    dam.hide_render = True
+    liquid_source(box("Dam", (-0.97, -0.47, 0.03), (-0.45, 0.47, 1.0)), (1.5, 0.0, 0.0))
 
     # a ball thrown at the far (+x) wall from mid-air
     bpy.ops.mesh.primitive_uv_sphere_add(radius=0.2, location=(0.2, 0.1, 0.8))
     ball = bpy.context.object
     ball.name = "Ball"
     bpy.ops.object.transform_apply(location=True, rotation=True, scale=True)
-    fm = ball.modifiers.new("Fluid", "FLUID")
-    fm.fluid_type = "FLOW"
-    fm.flow_settings.flow_type = "LIQUID"
-    fm.flow_settings.flow_behavior = "GEOMETRY"
-    fm.flow_settings.use_initial_velocity = True
-    fm.flow_settings.velocity_coord = (4.0, -1.0, -1.0)
-    ball.hide_render = True
+    liquid_source(ball, (4.0, -1.0, -1.0))
     return domain
 
 
