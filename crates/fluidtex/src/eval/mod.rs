@@ -993,7 +993,7 @@ fn judge_aligned_against_floor(runs: &mut [MethodRun], thresholds: &Thresholds) 
         }
         s.verdict = metrics::Verdict::of(s.median >= allowed);
         run.notes.push(format!(
-            "{lead} {floor_name}'s {:.3} less {} (advect is below the absolute {:.2} here)",
+            "{lead} {floor_name}'s {:.3} less {} ({floor_name} is below the absolute {:.2} here)",
             floor,
             thresholds.flow.max_aligned_shortfall_under_floor,
             thresholds.flow.min_aligned_share
