@@ -467,8 +467,9 @@ fn scene_then_run_with_erosion_covers_every_texel() {
         assert_eq!((color.width, color.height), (128, 128));
         // Coherence with the frame before (none for the first frame): the
         // share is a share, and switch.F.png marks the same texels: the
-        // ids of this frame's covered texels are red or grey (or dark blue
-        // where the point carried back found no patch), the rest black.
+        // ids of this frame's covered texels are red, amber or grey (or
+        // dark blue where the point carried back found no patch), the rest
+        // black.
         let switch = out.join(format!("switch.{tag}.png"));
         if f == 0 {
             assert!(stats.get("source_switch_share").is_none());
@@ -478,12 +479,21 @@ fn scene_then_run_with_erosion_covers_every_texel() {
         let share = stats["source_switch_share"].as_f64().unwrap();
         assert!((0.0..=1.0).contains(&share), "frame {f}: {share}");
         assert!(stats.get("colour_follow_ratio").is_some(), "frame {f}");
+        // Every switch is forced by the flow or not, as the method says.
+        let forced = stats["switch_forced_share"].as_f64().unwrap();
+        let unforced = stats["switch_unforced_share"].as_f64().unwrap();
+        assert!(
+            (forced + unforced - share).abs() < 1e-9,
+            "frame {f}: {forced} + {unforced} against {share}"
+        );
+        assert!(stats["holder_distorted_share"].as_f64().unwrap() <= 1.0);
         let map = image(&switch);
         assert_eq!((map.width, map.height), (128, 128));
         for (px, &id) in map.data.chunks_exact(3).zip(&ids.data) {
             let known = [
                 [0.0, 0.0, 0.0],
                 [1.0, 0.0, 0.0],
+                [1.0, 0.75, 0.0],
                 [0.5, 0.5, 0.5],
                 [0.1, 0.1, 0.35],
             ];

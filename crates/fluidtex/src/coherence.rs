@@ -39,8 +39,10 @@ use rayon::prelude::*;
 use crate::atlas::{Atlas, BAND_HEIGHT};
 use crate::mesh::TriMesh;
 use crate::metrics::{
-    self, ColourFollow, MetricsError, SOURCE_OUTSIDE, SourceSwitch, Thresholds, is_patch,
+    self, ColourFollow, MetricsError, SOURCE_OUTSIDE, SourceSwitch, SwitchCauses, Thresholds,
+    is_patch,
 };
+use crate::provenance::{RENEWAL_UNKNOWN, renewal_forced};
 use crate::surface::velocity::FlowFrame;
 use crate::surface::{SurfaceIndex, SurfacePoint, map_in_query_order};
 use crate::texture::Texture;
@@ -267,6 +269,13 @@ pub trait Texels: Sync {
     /// Grey value of texel `i` (luminance of the gutter-dilated colour
     /// atlas, [`metrics::luminance`]), NaN out of range.
     fn grey(&self, i: usize) -> f32;
+    /// Renewal byte of texel `i` ([`crate::provenance::RENEWAL_HELD`] and
+    /// the other flags): what became of the patch that showed the point
+    /// the frame before. [`RENEWAL_UNKNOWN`] where the method does not say.
+    fn renewal(&self, i: usize) -> u8 {
+        let _ = i;
+        RENEWAL_UNKNOWN
+    }
     /// Both per-texel arrays fit the atlas.
     fn validate(&self) -> Result<(), MetricsError>;
 }
@@ -280,6 +289,9 @@ pub struct TexelFrame<'a> {
     /// Grey value per texel (luminance of the gutter-dilated colour atlas,
     /// [`metrics::luminance`]).
     pub grey: &'a [f32],
+    /// Renewal byte per texel ([`Texels::renewal`]); empty where the
+    /// method records none.
+    pub renewal: &'a [u8],
 }
 
 impl Texels for TexelFrame<'_> {
@@ -295,9 +307,18 @@ impl Texels for TexelFrame<'_> {
         self.grey.get(i).copied().unwrap_or(f32::NAN)
     }
 
+    fn renewal(&self, i: usize) -> u8 {
+        self.renewal.get(i).copied().unwrap_or(RENEWAL_UNKNOWN)
+    }
+
     fn validate(&self) -> Result<(), MetricsError> {
         metrics::check_len("source", self.source, self.atlas.width, self.atlas.height)?;
-        metrics::check_len("grey", self.grey, self.atlas.width, self.atlas.height)
+        metrics::check_len("grey", self.grey, self.atlas.width, self.atlas.height)?;
+        if self.renewal.is_empty() {
+            Ok(())
+        } else {
+            metrics::check_len("renewal", self.renewal, self.atlas.width, self.atlas.height)
+        }
     }
 }
 
@@ -314,17 +335,22 @@ fn atlas_position(frame: &impl Texels, sp: &SurfacePoint) -> Option<Vec2> {
     p.is_finite().then_some(p)
 }
 
-/// The source at `sp` (the texel containing it), [`SOURCE_OUTSIDE`]
-/// where there is none.
-fn source_at(frame: &impl Texels, sp: &SurfacePoint) -> u32 {
+/// The index of the texel containing `sp`, if it lies in the atlas.
+fn texel_at(frame: &impl Texels, sp: &SurfacePoint) -> Option<usize> {
     let atlas = frame.atlas();
     let (w, h) = (atlas.width as f32, atlas.height as f32);
     match atlas_position(frame, sp) {
         Some(p) if p.x >= 0.0 && p.y >= 0.0 && p.x < w && p.y < h => {
-            frame.source(p.y as usize * atlas.width as usize + p.x as usize)
+            Some(p.y as usize * atlas.width as usize + p.x as usize)
         }
-        _ => SOURCE_OUTSIDE,
+        _ => None,
     }
+}
+
+/// The source at `sp` (the texel containing it), [`SOURCE_OUTSIDE`]
+/// where there is none.
+fn source_at(frame: &impl Texels, sp: &SurfacePoint) -> u32 {
+    texel_at(frame, sp).map_or(SOURCE_OUTSIDE, |i| frame.source(i))
 }
 
 /// The grey value at `sp`, bilinear and clamped at the atlas border;
@@ -377,6 +403,9 @@ pub fn point_values(
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Coherence {
     pub switch: SourceSwitch,
+    /// The switches split into forced and unforced (all zero where the
+    /// method records no renewal).
+    pub causes: SwitchCauses,
     pub follow: ColourFollow,
 }
 
@@ -454,12 +483,15 @@ fn measure_points(
         }
     }
     let texels_per_unit = after.atlas().scale as f32;
-    let per_point: Vec<(u32, u32, f32, f32, f32, f32)> = (0..n)
+    let per_point: Vec<(u32, u32, f32, f32, f32, f32, u8)> = (0..n)
         .into_par_iter()
         .map(|i| {
-            let (s1, c1) = match &carried.to[i] {
-                Some(to) => (source_at(after, to), grey_at(after, to)),
-                None => (SOURCE_OUTSIDE, f32::NAN),
+            let (s1, c1, r1) = match &carried.to[i] {
+                Some(to) => match texel_at(after, to) {
+                    Some(t) => (after.source(t), grey_at(after, to), after.renewal(t)),
+                    None => (SOURCE_OUTSIDE, grey_at(after, to), RENEWAL_UNKNOWN),
+                },
+                None => (SOURCE_OUTSIDE, f32::NAN, RENEWAL_UNKNOWN),
             };
             let c2 = carried.still[i]
                 .as_ref()
@@ -471,6 +503,7 @@ fn measure_points(
                 c1,
                 c2,
                 carried.moved[i] * texels_per_unit,
+                r1,
             )
         })
         .collect();
@@ -478,8 +511,10 @@ fn measure_points(
         |k: usize| -> Vec<f32> { per_point.iter().map(|p| [p.2, p.3, p.4, p.5][k]).collect() };
     let s0: Vec<u32> = per_point.iter().map(|p| p.0).collect();
     let s1: Vec<u32> = per_point.iter().map(|p| p.1).collect();
+    let r1: Vec<u8> = per_point.iter().map(|p| p.6).collect();
     let found = Coherence {
         switch: metrics::source_switch(&s0, &s1)?,
+        causes: metrics::switch_causes(&s0, &s1, &r1)?,
         follow: metrics::colour_follow(
             &column(0),
             &column(1),
@@ -501,19 +536,25 @@ pub enum SwitchTexel {
     Unmeasured,
     /// The same patch as where the point was at frame t.
     Same,
-    /// Another patch than where the point was at frame t.
+    /// Another patch than where the point was at frame t, not forced by
+    /// the flow as far as the method says (or it does not say).
     Switched,
+    /// Another patch, forced by the flow: the patch of frame t is past the
+    /// distortion bound here, or none showed the point
+    /// ([`crate::provenance::renewal_forced`]).
+    Forced,
 }
 
 impl SwitchTexel {
-    /// The colour in `switch.F.png`: switched red, same grey, unmeasured
-    /// dark blue, outside black.
+    /// The colour in `switch.F.png`: unforced (or unexplained) switch red,
+    /// forced switch amber, same grey, unmeasured dark blue, outside black.
     pub fn colour(self) -> [f32; 3] {
         match self {
             SwitchTexel::Outside => [0.0, 0.0, 0.0],
             SwitchTexel::Unmeasured => [0.1, 0.1, 0.35],
             SwitchTexel::Same => [0.5, 0.5, 0.5],
             SwitchTexel::Switched => [1.0, 0.0, 0.0],
+            SwitchTexel::Forced => [1.0, 0.75, 0.0],
         }
     }
 }
@@ -551,6 +592,9 @@ pub fn switch_map(
                         let back = carry_back(&sp, before_flow, after_flow, dt, hint);
                         match back.map(|b| source_at(before, &b)) {
                             Some(s) if is_patch(s) && s == here => SwitchTexel::Same,
+                            Some(s) if is_patch(s) && renewal_forced(after.renewal(i)) => {
+                                SwitchTexel::Forced
+                            }
                             Some(s) if is_patch(s) => SwitchTexel::Switched,
                             _ => SwitchTexel::Unmeasured,
                         }

@@ -208,6 +208,22 @@ pub struct FrameStats {
     /// method that leaves holes with one that fills them.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub source_changed_share: Option<f64>,
+    /// Of the points of `source_switch_share`, the share that switched
+    /// because the flow forced it: the patch that showed the point the
+    /// frame before is stretched past δ_max there, or none showed it
+    /// ([`crate::metrics::SwitchCauses`]); methods that record each texel's
+    /// previous patch only (erosion, advect).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub switch_forced_share: Option<f64>,
+    /// The share that switched though the patch of the frame before is
+    /// within δ_max there: switches the method chose, not the flow.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub switch_unforced_share: Option<f64>,
+    /// The share whose patch of the frame before is past δ_max there,
+    /// switched or not; on `advect`, which never renews, the share of the
+    /// surface the distortion bound would renew (the renewal floor).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub holder_distorted_share: Option<f64>,
     /// Colour follow ratio over the same points (see
     /// [`crate::metrics::colour_follow`]); `null` when too few points moved.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -340,6 +356,7 @@ pub fn run(
                 first_frame,
                 spent_values: None,
                 switch_map: job.outputs.switch_map,
+                debug: job.outputs.debug,
                 reload_pending: resumed_after.is_some(),
             };
             let looped = drive(job, source, &frames, &mut driver, &mut sink);
@@ -552,6 +569,8 @@ struct FileSink<'w, 'a, 'o> {
     spent_values: Option<Vec<f32>>,
     /// `outputs.switch_map`: the switch map reads the frame before's atlas.
     switch_map: bool,
+    /// `outputs.debug`: the coherence numbers read the renewal bytes.
+    debug: bool,
     /// Resumed and nothing submitted yet: the first frame's writer reloads
     /// the coherence data of the frame before from its files.
     reload_pending: bool,
@@ -594,6 +613,7 @@ impl FrameSink for FileSink<'_, '_, '_> {
             previous: previous.filter(|_| keep_previous).cloned(),
             channels,
             source: result.source,
+            renewal: result.renewal.filter(|_| self.debug),
             method_stats: result.stats,
             clock: std::mem::take(clock),
             state,
@@ -727,6 +747,9 @@ struct WriteJob {
     /// Channels dilated into the gutter, colour first.
     channels: Vec<OutChannel>,
     source: Option<Vec<u32>>,
+    /// The method's renewal bytes ([`crate::methods::FrameResult::renewal`]):
+    /// which switches the flow forced, for the coherence numbers.
+    renewal: Option<Vec<u8>>,
     method_stats: crate::methods::MethodStats,
     /// Stages so far; the writer adds its own.
     clock: StageClock,
@@ -763,6 +786,7 @@ impl FrameWriter<'_> {
             previous,
             channels,
             source,
+            renewal,
             method_stats,
             mut clock,
             state,
@@ -808,13 +832,19 @@ impl FrameWriter<'_> {
                     &mut warnings,
                 );
             }
-            let current = WrittenTexels::of(&self.method.specs, &g.atlas, ids, &channels);
+            let current = WrittenTexels::of(&self.method.specs, &g.atlas, ids, &channels)
+                .with_renewal(renewal.as_deref().unwrap_or_default());
             if let Some(before) = &self.coherence_prev
                 && Some(before.number) == previous_number
                 && let Some(c) = self.measure_coherence(&mut files, prev, before, &g, &current)?
             {
                 stats.source_switch_share = Some(c.switch_share());
                 stats.source_changed_share = Some(c.switch.changed_share());
+                if c.causes.covered > 0 {
+                    stats.switch_forced_share = Some(c.causes.forced_share());
+                    stats.switch_unforced_share = Some(c.causes.unforced_share());
+                    stats.holder_distorted_share = Some(c.causes.distorted_share());
+                }
                 stats.colour_follow_ratio = Some(c.follow_ratio());
             }
             self.coherence_prev = Some(CoherencePrevious::of(
@@ -1028,6 +1058,8 @@ struct WrittenTexels<'a> {
     source: &'a [u32],
     /// The colour atlas and its file format; `None` without channels.
     colour: Option<(&'a OutChannel, ChannelFormat)>,
+    /// The method's renewal bytes; empty where it records none.
+    renewal: &'a [u8],
 }
 
 impl<'a> WrittenTexels<'a> {
@@ -1045,7 +1077,13 @@ impl<'a> WrittenTexels<'a> {
             atlas,
             source,
             colour,
+            renewal: &[],
         }
+    }
+
+    /// With the method's renewal bytes (`renewal`, empty: none).
+    fn with_renewal(self, renewal: &'a [u8]) -> WrittenTexels<'a> {
+        WrittenTexels { renewal, ..self }
     }
 }
 
@@ -1083,9 +1121,19 @@ impl crate::coherence::Texels for WrittenTexels<'_> {
         }
     }
 
+    fn renewal(&self, i: usize) -> u8 {
+        self.renewal
+            .get(i)
+            .copied()
+            .unwrap_or(crate::provenance::RENEWAL_UNKNOWN)
+    }
+
     fn validate(&self) -> Result<(), crate::metrics::MetricsError> {
         let (w, h) = (self.atlas.width, self.atlas.height);
         crate::metrics::check_len("source", self.source, w, h)?;
+        if !self.renewal.is_empty() {
+            crate::metrics::check_len("renewal", self.renewal, w, h)?;
+        }
         // As many grey values as `written_grey` would give.
         let greys = self.colour.map_or(0, |(c, _)| c.texels());
         let expected = w as usize * h as usize;
@@ -1199,6 +1247,7 @@ fn reload_coherence(
             atlas: &prev.atlas,
             source: &source,
             grey: &grey,
+            renewal: &[],
         };
         let points = departure_values(&prev.mesh, last, settings, &texels);
         let full = job.outputs.switch_map.then_some((source, grey));
@@ -1266,6 +1315,7 @@ impl FrameWriter<'_> {
                 atlas: &prev.atlas,
                 source,
                 grey,
+                renewal: &[],
             };
             if let Ok(map) = switch_map(&from_texels, from, current, next, dt) {
                 let image = coherence::switch_image(&map, frame.atlas.width, frame.atlas.height);
@@ -2180,6 +2230,7 @@ mod tests {
                         atlas: &atlas,
                         source: &source,
                         colour: Some((written, format)),
+                        renewal: &[],
                     };
                     texels.validate().expect("fits");
                     for (i, g) in whole.iter().enumerate() {
@@ -2192,6 +2243,7 @@ mod tests {
             atlas: &atlas,
             source: &source,
             colour: None,
+            renewal: &[],
         };
         assert!(texels.validate().is_err(), "no colour: nothing to measure");
         assert_eq!(texels.source(0), SOURCE_OUTSIDE);

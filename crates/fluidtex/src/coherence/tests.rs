@@ -79,6 +79,7 @@ impl Frame {
             atlas: &self.atlas,
             source: &self.source,
             grey: &self.grey,
+            renewal: &[],
         }
     }
 
@@ -401,4 +402,99 @@ fn departure_outlives_its_frame_and_carries_by_the_second_order_step() {
     assert_eq!(first, want);
     assert_eq!(departure.carry(b.flow(), DT), first);
     assert!(first.to.iter().all(Option::is_some));
+}
+
+/// Per texel of `frame`'s atlas, `byte(world point)` on the charts and
+/// [`RENEWAL_UNKNOWN`] off them.
+fn renewal_of(frame: &Frame, byte: impl Fn(Vec3) -> u8) -> Vec<u8> {
+    let w = frame.atlas.width as usize;
+    let mut out = vec![RENEWAL_UNKNOWN; frame.source.len()];
+    for band in frame.atlas.bands() {
+        for span in &band.spans {
+            for (x, bary) in frame.atlas.span_barycentrics(span) {
+                let p = SurfacePoint::new(span.triangle, bary).position(&frame.mesh);
+                out[span.y as usize * w + x as usize] = byte(p);
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn switches_split_into_forced_and_unforced_by_the_renewal_at_their_end() {
+    use crate::provenance::{RENEWAL_DISTORTED, RENEWAL_HELD};
+    let s = settings();
+    let a = Frame::new(turned(0.0), |p| p, keep);
+    let back = Mat3::from_rotation_z(-THETA);
+    // The cap z > 0.5 switches; the method says its half x > 0 was forced
+    // (a holder past δ_max) and its half x < 0 was not.
+    let b = Frame::new(
+        turned(THETA),
+        move |p| back * p,
+        |p, id| if p.z > 0.5 { id + 100_000 } else { id },
+    );
+    let renewal = renewal_of(&b, |p| {
+        if p.z > 0.5 && p.x > 0.0 {
+            RENEWAL_HELD | RENEWAL_DISTORTED
+        } else {
+            RENEWAL_HELD
+        }
+    });
+    let with_renewal = TexelFrame {
+        renewal: &renewal,
+        ..b.texels()
+    };
+    let c = carry(&a, &b);
+    let m = measure(&c, &a.texels(), &with_renewal, &s).expect("valid");
+    // Every covered point is classified, and every switch is one or the other.
+    assert_eq!(m.causes.covered, m.switch.covered);
+    assert_eq!(m.causes.forced + m.causes.unforced, m.switch.switched);
+    // The forced ones are the switched points landing in the cap's x > 0
+    // half: about half the cap (an eighth of the sphere).
+    let forced_half = (c.to.iter().zip(&c.from))
+        .filter(|(to, _)| {
+            to.as_ref().is_some_and(|q| {
+                let p = q.position(&b.mesh);
+                p.z > 0.5 && p.x > 0.0
+            })
+        })
+        .count() as f64
+        / c.from.len() as f64;
+    assert!((forced_half - 0.125).abs() < 0.015, "{forced_half}");
+    assert!(
+        (m.causes.forced_share() - forced_half).abs() < 0.005,
+        "{} vs {forced_half}",
+        m.causes.forced_share()
+    );
+    assert_eq!(m.causes.forced, m.causes.distorted);
+    // Without renewal bytes nothing is classified.
+    let plain = measure(&c, &a.texels(), &b.texels(), &s).expect("valid");
+    assert_eq!(plain.causes, metrics::SwitchCauses::default());
+    assert!(plain.causes.forced_share().is_nan());
+
+    // The switch map paints the forced half amber and the rest red.
+    let map = switch_map(&a.texels(), a.flow(), &with_renewal, b.flow(), DT).expect("valid");
+    let w = b.atlas.width as usize;
+    let (mut forced, mut unforced, mut wrong) = (0, 0, 0);
+    for band in b.atlas.bands() {
+        for span in &band.spans {
+            for (x, bary) in b.atlas.span_barycentrics(span) {
+                let p = SurfacePoint::new(span.triangle, bary).position(&b.mesh);
+                // A texel's width of slack around the cap and its halves.
+                if p.z < 0.52 || p.x.abs() < 0.02 {
+                    continue;
+                }
+                match (map[span.y as usize * w + x as usize], p.x > 0.0) {
+                    (SwitchTexel::Forced, true) => forced += 1,
+                    (SwitchTexel::Switched, false) => unforced += 1,
+                    (SwitchTexel::Forced, false) | (SwitchTexel::Switched, true) => wrong += 1,
+                    // Chart borders whose point carried back finds no texel.
+                    _ => {}
+                }
+            }
+        }
+    }
+    assert!(forced > 1000 && unforced > 1000, "{forced} {unforced}");
+    assert_eq!(wrong, 0);
+    assert_ne!(SwitchTexel::Forced.colour(), SwitchTexel::Switched.colour());
 }

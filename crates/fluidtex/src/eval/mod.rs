@@ -287,6 +287,11 @@ pub struct FrameRecord {
     /// ([`metrics::source_switch_same_points`]), set by
     /// [`judge_against_floor`]; NaN where not measured.
     pub switch_same_points: [f64; 2],
+    /// For information beside the switch share: the shares of forced and
+    /// unforced switches and of points whose previous patch is past δ_max
+    /// ([`metrics::SwitchCauses`]; on advect, the renewal floor); NaN where
+    /// the method records no renewal.
+    pub switch_causes: [f64; 3],
 }
 
 impl FrameRecord {
@@ -448,6 +453,8 @@ struct AtlasView<'r> {
     colour: &'r Texture,
     source: Option<&'r [u32]>,
     uv: Option<&'r [Vec2]>,
+    /// The method's renewal bytes ([`crate::methods::FrameResult::renewal`]).
+    renewal: Option<&'r [u8]>,
     /// Chart texels: from the method's provenance where it has one, else
     /// from the atlas itself.
     charts: Vec<bool>,
@@ -477,6 +484,7 @@ impl FrameSink for MetricsSink<'_> {
             colour,
             source,
             uv: result.uv.as_deref().filter(|u| u.len() == n_texels),
+            renewal: result.renewal.as_deref().filter(|r| r.len() == n_texels),
             charts: match source {
                 Some(s) => chart_mask(s),
                 None => frame.chart.iter().map(|&c| c != u32::MAX).collect(),
@@ -490,7 +498,8 @@ impl FrameSink for MetricsSink<'_> {
         };
         let anisotropy = self.atlas_metrics(k, frame, result, &view, &mut set)?;
         let rendered = self.render_metrics(frame, prev, &view, &mut set)?;
-        let point_sources = self.coherence_metrics(frame, prev, &view, &mut set)?;
+        let (point_sources, switch_causes) =
+            self.coherence_metrics(frame, prev, &view, &mut set)?;
         if frame.still {
             self.stop.push(colour);
             if let Some(p) = &self.previous_still
@@ -516,6 +525,7 @@ impl FrameSink for MetricsSink<'_> {
             anisotropy,
             point_sources,
             switch_same_points: [f64::NAN; 2],
+            switch_causes,
         });
         self.previous_view = Some(rendered);
         Ok(())
@@ -799,14 +809,14 @@ impl MetricsSink<'_> {
     /// points carried here. Without per-texel sources nothing is covered
     /// (no switch share) but the colour still says whether the texture
     /// follows. Returns each point's sources at both ends (empty on the
-    /// first frame).
+    /// first frame) and [`FrameRecord::switch_causes`].
     fn coherence_metrics(
         &mut self,
         frame: &PreparedFrame,
         prev: Option<&PreparedFrame>,
         view: &AtlasView<'_>,
         set: &mut impl FnMut(Metric, f64),
-    ) -> Result<Vec<[u32; 2]>, EvalError> {
+    ) -> Result<(Vec<[u32; 2]>, [f64; 3]), EvalError> {
         let n_texels = view.charts.len();
         let texels = (
             view.source
@@ -814,6 +824,7 @@ impl MetricsSink<'_> {
             metrics::luminance(view.colour),
         );
         let mut points = Vec::new();
+        let mut causes = [f64::NAN; 3];
         if let (Some(p), Some((ps, pg))) = (prev, &self.previous_texels)
             && let Some(carried) = &p.carried
         {
@@ -823,11 +834,13 @@ impl MetricsSink<'_> {
                     atlas: &p.geometry.atlas,
                     source: ps,
                     grey: pg,
+                    renewal: &[],
                 },
                 &crate::coherence::TexelFrame {
                     atlas: &frame.geometry.atlas,
                     source: &texels.0,
                     grey: &texels.1,
+                    renewal: view.renewal.unwrap_or_default(),
                 },
                 &crate::coherence::CoherenceSettings::from_thresholds(self.thresholds),
             )
@@ -835,9 +848,14 @@ impl MetricsSink<'_> {
             set(Metric::SourceSwitch, c.switch_share());
             set(Metric::ColourFollow, c.follow_ratio());
             points = sources;
+            causes = [
+                c.causes.forced_share(),
+                c.causes.unforced_share(),
+                c.causes.distorted_share(),
+            ];
         }
         self.previous_texels = Some(texels);
-        Ok(points)
+        Ok((points, causes))
     }
 
     /// The run: per-frame records and their summaries.

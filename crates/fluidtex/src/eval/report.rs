@@ -50,6 +50,9 @@ pub struct FrameJson {
     /// This method's and the floor method's source switch share on the
     /// points both cover at both ends (information beside the switch share).
     pub switch_same_points: [f64; 2],
+    /// Shares of forced and unforced switches and of points whose previous
+    /// patch is past δ_max (information beside the switch share).
+    pub switch_causes: [f64; 3],
 }
 
 /// One method on one scene.
@@ -63,6 +66,13 @@ pub struct MethodReport {
     /// Per-frame p95 anisotropy σ₁/σ₂ over frames (information only: the
     /// distortion verdict is on δ).
     pub anisotropy: Option<Spread>,
+    /// Per-frame forced switch share over frames (information only).
+    pub switch_forced: Option<Spread>,
+    /// Per-frame unforced switch share over frames (information only).
+    pub switch_unforced: Option<Spread>,
+    /// Per-frame share of points whose previous patch is past δ_max; on
+    /// advect, the renewal floor (information only).
+    pub holder_distorted: Option<Spread>,
     /// Exemplar texels per atlas texel the fidelity reference used.
     pub fidelity_scale: f64,
     pub metrics: Vec<MetricCell>,
@@ -79,6 +89,9 @@ impl MethodReport {
             seconds_per_frame: Spread { median, min, max },
             patches: patch_counts(run).map(|(median, min, max)| Spread { median, min, max }),
             anisotropy: spread(run.frames.iter().map(|r| r.anisotropy)),
+            switch_forced: spread(run.frames.iter().map(|r| r.switch_causes[0])),
+            switch_unforced: spread(run.frames.iter().map(|r| r.switch_causes[1])),
+            holder_distorted: spread(run.frames.iter().map(|r| r.switch_causes[2])),
             fidelity_scale: run.fidelity_scale,
             metrics: run
                 .summaries
@@ -107,6 +120,7 @@ impl MethodReport {
                     still: r.still,
                     anisotropy: r.anisotropy,
                     switch_same_points: r.switch_same_points,
+                    switch_causes: r.switch_causes,
                     values: PER_FRAME
                         .iter()
                         .zip(r.values)
@@ -248,6 +262,24 @@ fn spread(values: impl Iterator<Item = f64>) -> Option<Spread> {
 
 /// Title of the information column shown after distortion.
 const ANISOTROPY: &str = "anisotropy p95 (info)";
+/// Titles of the information columns shown after the source switch share.
+const SWITCH_SPLIT: [&str; 3] = [
+    "switches forced (info)",
+    "switches unforced (info)",
+    "holder past δ_max (info; advect: renewal floor)",
+];
+
+impl MethodReport {
+    /// The texts of the [`SWITCH_SPLIT`] columns.
+    fn switch_split_texts(&self) -> [String; 3] {
+        [
+            &self.switch_forced,
+            &self.switch_unforced,
+            &self.holder_distorted,
+        ]
+        .map(|s| s.as_ref().map_or("—".into(), spread_text))
+    }
+}
 
 fn spread_text(s: &Spread) -> String {
     format!("{} [{}, {}]", num(s.median), num(s.min), num(s.max))
@@ -294,6 +326,12 @@ impl Report {
                     let _ = write!(head, " {ANISOTROPY} |");
                     rule.push_str(" --- |");
                 }
+                if m == Metric::SourceSwitch {
+                    for title in SWITCH_SPLIT {
+                        let _ = write!(head, " {title} |");
+                        rule.push_str(" --- |");
+                    }
+                }
             }
             head.push_str(" s/frame | patches |");
             rule.push_str(" --- | --- |");
@@ -306,6 +344,11 @@ impl Report {
                     if c == Metric::Distortion {
                         let text = m.anisotropy.as_ref().map_or("—".into(), spread_text);
                         let _ = write!(row, " {text} |");
+                    }
+                    if c == Metric::SourceSwitch {
+                        for text in m.switch_split_texts() {
+                            let _ = write!(row, " {text} |");
+                        }
                     }
                 }
                 let _ = write!(
@@ -442,6 +485,11 @@ fn scene_table(s: &mut String, scene: &SceneReport) {
         if m == Metric::Distortion {
             let _ = write!(s, "<th>{ANISOTROPY}</th>");
         }
+        if m == Metric::SourceSwitch {
+            for title in SWITCH_SPLIT {
+                let _ = write!(s, "<th>{}</th>", esc(title));
+            }
+        }
     }
     s.push_str("<th>s/frame</th><th>patches</th></tr>\n");
     for m in &scene.methods {
@@ -457,6 +505,11 @@ fn scene_table(s: &mut String, scene: &SceneReport) {
             if c == Metric::Distortion {
                 let text = m.anisotropy.as_ref().map_or("—".into(), spread_text);
                 let _ = write!(s, "<td>{}</td>", esc(&text));
+            }
+            if c == Metric::SourceSwitch {
+                for text in m.switch_split_texts() {
+                    let _ = write!(s, "<td>{}</td>", esc(&text));
+                }
             }
         }
         let _ = writeln!(

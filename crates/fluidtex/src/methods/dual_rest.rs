@@ -187,6 +187,8 @@ fn cross_fade(a: FrameResult, b: FrameResult, wa: f32) -> FrameResult {
         uv,
         layers: Some(mix.layers),
         exemplar_lod,
+        // Two layers cross-faded: no single previous holder per texel.
+        renewal: None,
         stats,
         timings,
     }

@@ -134,6 +134,11 @@ pub struct FrameResult {
     /// ([`footprint`]; NaN where no source). `None`: every texel was read
     /// at level 0 (unfiltered or blended), as far as the method knows.
     pub exemplar_lod: Option<Vec<f32>>,
+    /// Per texel, what became of the patch that showed its point the frame
+    /// before ([`crate::provenance::RENEWAL_HELD`] and the other flags):
+    /// whether a source switch there was forced by the flow. `None` for
+    /// methods that do not track it.
+    pub renewal: Option<Vec<u8>>,
     /// Method statistics for `stats.F.json` (patches alive, created, ...).
     pub stats: MethodStats,
     /// Seconds per stage, in order.

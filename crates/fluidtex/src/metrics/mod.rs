@@ -109,7 +109,9 @@ pub use image_flow::image_motion;
 pub use luma::luminance;
 pub use mask::{chart_mask, interior_mask};
 pub use popping::{Popping, popping};
-pub use source_switch::{SourceSwitch, is_patch, source_switch, source_switch_same_points};
+pub use source_switch::{
+    SourceSwitch, SwitchCauses, is_patch, source_switch, source_switch_same_points, switch_causes,
+};
 pub use stop::{StaticStop, bit_identical, size_cost_ratio};
 pub use thresholds::{
     ColourFollowThresholds, ContrastThresholds, CoverageThresholds, DistortionThresholds,

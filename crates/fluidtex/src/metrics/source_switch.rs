@@ -29,6 +29,7 @@
 //! only one way would halve it for the method that leaves holes.
 
 use super::{MetricsError, SOURCE_OUTSIDE, SOURCE_UNCOVERED};
+use crate::provenance::{RENEWAL_DISTORTED, RENEWAL_UNKNOWN, renewal_forced, renewal_unforced};
 
 /// Source switches of one frame pair.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -104,6 +105,90 @@ pub fn source_switch(before: &[u32], after: &[u32]) -> Result<SourceSwitch, Metr
     Ok(out)
 }
 
+/// The switches of one frame pair split by what forced them, from the
+/// renewal byte at each point's end (t+1) that the method recorded
+/// ([`crate::provenance::RENEWAL_HELD`]): *forced* where the patch that
+/// showed the point at t is past the distortion bound δ_max there or no
+/// patch showed it, *unforced* where that patch is within the bound yet
+/// no longer shows it. Counted on the points [`source_switch`] covers.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SwitchCauses {
+    /// Points with a patch at both ends whose renewal is known.
+    pub covered: usize,
+    /// Of those, switched and forced.
+    pub forced: usize,
+    /// Of those, switched and unforced.
+    pub unforced: usize,
+    /// Of those, points whose previous patch is past δ_max at t+1, switched
+    /// or not: on a run that never renews a patch (advect) this is the
+    /// *renewal floor*, the share of the surface the distortion bound
+    /// would renew.
+    pub distorted: usize,
+}
+
+impl SwitchCauses {
+    fn share(&self, n: usize) -> f64 {
+        if self.covered == 0 {
+            f64::NAN
+        } else {
+            n as f64 / self.covered as f64
+        }
+    }
+
+    /// forced / covered (NaN when no renewal is known).
+    pub fn forced_share(&self) -> f64 {
+        self.share(self.forced)
+    }
+
+    /// unforced / covered (NaN when no renewal is known).
+    pub fn unforced_share(&self) -> f64 {
+        self.share(self.unforced)
+    }
+
+    /// distorted / covered (NaN when no renewal is known).
+    pub fn distorted_share(&self) -> f64 {
+        self.share(self.distorted)
+    }
+}
+
+/// [`SwitchCauses`] of the points with sources `before` (t) and `after`
+/// (t+1) and renewal bytes `renewal` (t+1), sample by sample. Every
+/// switch with a known renewal is one or the other: one whose previous
+/// holder still shows the point by the method's reckoning (the carry and
+/// the method's own patch advection put the point on different sides of a
+/// border) is unforced, as is the texel-rounding floor at borders.
+pub fn switch_causes(
+    before: &[u32],
+    after: &[u32],
+    renewal: &[u8],
+) -> Result<SwitchCauses, MetricsError> {
+    for (what, len) in [
+        ("sources after the carry", after.len()),
+        ("renewal bytes", renewal.len()),
+    ] {
+        if len != before.len() {
+            return Err(MetricsError::Length {
+                what,
+                expected: before.len(),
+                got: len,
+            });
+        }
+    }
+    let mut out = SwitchCauses::default();
+    for ((&a, &b), &r) in before.iter().zip(after).zip(renewal) {
+        if !(is_patch(a) && is_patch(b)) || r == RENEWAL_UNKNOWN {
+            continue;
+        }
+        out.covered += 1;
+        out.distorted += usize::from(r & RENEWAL_DISTORTED != 0);
+        if a != b {
+            out.forced += usize::from(renewal_forced(r));
+            out.unforced += usize::from(renewal_unforced(r));
+        }
+    }
+    Ok(out)
+}
+
 /// Two runs' switches over the *same* carried points, counted only where
 /// both have a patch at both ends: `(run, floor)`. Each run's own
 /// [`source_switch`] counts the points it covers, and a method that covers
@@ -137,6 +222,36 @@ pub fn source_switch_same_points(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn switches_split_by_the_renewal_at_their_end() {
+        use crate::provenance::{RENEWAL_HELD as H, RENEWAL_SHOWN as S};
+        const D: u8 = RENEWAL_DISTORTED;
+        const U: u8 = RENEWAL_UNKNOWN;
+        let before = [1, 1, 1, 1, 1, 1, 1, SOURCE_UNCOVERED, 1];
+        let after = [2, 2, 2, 2, 1, 1, 2, 2, 2];
+        let renewal = [0, H | D, H, H | S, H | S | D, H | S, U, 0, H];
+        let c = switch_causes(&before, &after, &renewal).expect("same lengths");
+        // Point 6 has no known renewal, point 7 no patch at t.
+        assert_eq!(
+            c,
+            SwitchCauses {
+                covered: 7,
+                forced: 2,
+                unforced: 3,
+                distorted: 2,
+            }
+        );
+        assert_eq!(c.forced_share(), 2.0 / 7.0);
+        assert_eq!(c.unforced_share(), 3.0 / 7.0);
+        assert_eq!(c.distorted_share(), 2.0 / 7.0);
+        let none = switch_causes(&[1], &[2], &[U]).expect("same lengths");
+        assert!(none.unforced_share().is_nan());
+        assert!(matches!(
+            switch_causes(&[1, 2], &[1, 2], &[0]),
+            Err(MetricsError::Length { .. })
+        ));
+    }
 
     #[test]
     fn only_points_covered_at_both_ends_count() {

@@ -493,6 +493,10 @@ pub struct FillContext<'a> {
     /// says of all its points ([`FillContext::erosion_verdicts`]); a triangle not listed
     /// (an empty slice) is tested texel by texel.
     pub verdicts: &'a [Vec<Verdict>],
+    /// The same verdicts at the weights of the frame before
+    /// ([`FillContext::verdicts_before`]), for the renewal record; empty
+    /// when the fill records none.
+    pub verdicts_before: &'a [Vec<Verdict>],
 }
 
 /// Where a surface point lies in a patch.
@@ -519,6 +523,10 @@ struct CornerData {
     uv: [Vec2; 3],
     w: [f32; 3],
     lod: f32,
+    /// The weights of the frame before (0 for a patch created this frame).
+    w_before: [f32; 3],
+    /// The triangle is past δ_max ([`Patch::distorted`]).
+    distorted: bool,
 }
 
 impl CornerData {
@@ -530,6 +538,8 @@ impl CornerData {
             uv: t.map(|v| patch.rest[v as usize]),
             w: t.map(|v| patch.weight[v as usize]),
             lod: patch.lod.get(j as usize).copied().unwrap_or(0.0),
+            w_before: t.map(|v| patch.weight_before.get(v as usize).copied().unwrap_or(0.0)),
+            distorted: patch.distorted.get(j as usize).copied().unwrap_or(false),
         }
     }
 
@@ -548,6 +558,16 @@ impl CornerData {
             w,
             lod: self.lod,
         }
+    }
+
+    /// [`CornerData::located`] with the weights of the frame before.
+    #[inline]
+    fn located_before(&self, j: u32, bary: [f32; 3]) -> Located {
+        CornerData {
+            w: self.w_before,
+            ..*self
+        }
+        .located(j, bary)
     }
 }
 
@@ -657,6 +677,17 @@ impl FillContext<'_> {
             .unwrap_or(Verdict::Test)
     }
 
+    /// The verdict of triangle `j` of patch `i` at the weights of the frame
+    /// before ([`Verdict::Test`] when none was computed).
+    #[inline]
+    fn verdict_before(&self, i: u32, j: u32) -> Verdict {
+        self.verdicts_before
+            .get(i as usize)
+            .and_then(|v| v.get(j as usize))
+            .copied()
+            .unwrap_or(Verdict::Test)
+    }
+
     /// The exemplar patch `i` (index in the patch list) shows.
     #[inline]
     pub fn exemplar_of(&self, i: u32) -> &Exemplar {
@@ -701,16 +732,38 @@ impl FillContext<'_> {
     /// skip the feature lookup on triangles wholly kept and pass over
     /// patches wholly eroded ([`Candidates::without_eroded`]).
     pub fn erosion_verdicts(&self) -> Vec<Vec<Verdict>> {
+        self.verdicts_at(|p| Some(&p.weight))
+    }
+
+    /// [`FillContext::erosion_verdicts`] at the weights of the frame before
+    /// ([`Patch::weight_before`]): where each patch could have shown a
+    /// texel then. A patch created this frame showed nothing (all
+    /// [`Verdict::Eroded`]).
+    pub fn verdicts_before(&self) -> Vec<Vec<Verdict>> {
+        self.verdicts_at(|p| {
+            (p.weight_before.len() == p.positions.len()).then_some(&p.weight_before)
+        })
+    }
+
+    /// The triangle verdicts at per-vertex weights `weights` of a patch
+    /// (`None`: every triangle eroded).
+    fn verdicts_at(
+        &self,
+        weights: impl Fn(&Patch) -> Option<&Vec<f32>> + Sync,
+    ) -> Vec<Vec<Verdict>> {
         self.patches
             .par_iter()
             .enumerate()
             .map(|(i, p)| {
+                let Some(weight) = weights(p) else {
+                    return vec![Verdict::Eroded; p.triangles.len()];
+                };
                 let (_, test) = self.erosion_of(i as u32);
                 p.triangles
                     .iter()
                     .map(|t| {
                         let uv = t.map(|v| p.rest[v as usize]);
-                        let w = t.map(|v| p.weight[v as usize]);
+                        let w = t.map(|v| weight[v as usize]);
                         test.triangle_verdict(uv, w)
                     })
                     .collect()
@@ -762,6 +815,7 @@ pub(crate) struct SpanCandidate {
     pub(crate) hi: u32,
     frame: TriFrame,
     verdict: Verdict,
+    verdict_before: Verdict,
     corners: CornerData,
 }
 
@@ -792,6 +846,7 @@ struct CandidateLines {
     tri: u32,
     frame: TriFrame,
     verdict: Verdict,
+    verdict_before: Verdict,
     corners: CornerData,
     /// `at_corners[q][c]`: quantity q (l1, l2, h) at corner c.
     at_corners: [[f32; 3]; 3],
@@ -840,6 +895,7 @@ impl SpanPruner {
                 tri: j,
                 frame,
                 verdict: ctx.verdict(i, j),
+                verdict_before: ctx.verdict_before(i, j),
                 corners: CornerData::of(&ctx.patches[i as usize], j),
                 at_corners,
                 slope,
@@ -897,6 +953,7 @@ impl SpanPruner {
                     hi: hi.min(n.saturating_sub(1)),
                     frame: line.frame,
                     verdict: line.verdict,
+                    verdict_before: line.verdict_before,
                     corners: line.corners,
                 });
             }
@@ -921,6 +978,88 @@ impl FillContext<'_> {
             self.decide(c.patch, c.corners.located(c.tri, bary), c.verdict)
         })
     }
+}
+
+impl FillContext<'_> {
+    /// [`FillContext::resolve_in_span`] (the same hit, by the same tests in
+    /// the same order) and the texel's renewal byte: the *previous holder*
+    /// is the first patch in candidate order (oldest first) that holds the
+    /// point and whose texel there survived erosion at the weights of the
+    /// frame before, which is the lapped decision of the frame before on
+    /// the carried patches. The search goes past the hit only while no
+    /// holder is found (weights that rise again, a texel new to the
+    /// surface), so it costs little beyond the hit's own search.
+    #[inline]
+    fn resolve_with_renewal(&self, cands: &[SpanCandidate], k: u32, x: Vec3) -> (Option<Hit>, u8) {
+        use crate::provenance::{RENEWAL_DISTORTED, RENEWAL_HELD, RENEWAL_SHOWN};
+        let mut hit = None;
+        let mut holder: Option<(u32, bool)> = None;
+        for group in cands.chunk_by(|a, b| a.patch == b.patch) {
+            let listed = group
+                .iter()
+                .filter(|c| c.lo <= k && k <= c.hi)
+                .map(|c| (c, &c.frame));
+            let Some((c, bary)) = self.best_holder(listed, x) else {
+                continue;
+            };
+            if hit.is_none() {
+                hit = self.decide(c.patch, c.corners.located(c.tri, bary), c.verdict);
+            }
+            if holder.is_none() {
+                let held = match c.verdict_before {
+                    Verdict::Kept => true,
+                    Verdict::Eroded => false,
+                    Verdict::Test => {
+                        let l = c.corners.located_before(c.tri, bary);
+                        self.kept(c.patch, l.uv, l.w, l.lod)
+                    }
+                };
+                if held {
+                    holder = Some((c.patch, c.corners.distorted));
+                }
+            }
+            if hit.is_some() && holder.is_some() {
+                break;
+            }
+        }
+        let renewal = match holder {
+            None => 0,
+            Some((patch, distorted)) => {
+                let mut r = RENEWAL_HELD;
+                if hit.is_some_and(|h: Hit| h.patch == patch) {
+                    r |= RENEWAL_SHOWN;
+                }
+                if distorted {
+                    r |= RENEWAL_DISTORTED;
+                }
+                r
+            }
+        };
+        (hit, renewal)
+    }
+}
+
+/// Per patch triangle, [`Verdict::Eroded`] only where it is eroded both at
+/// this frame's weights (`now`) and at the frame before's (`before`), and
+/// [`Verdict::Test`] elsewhere: the triangles [`Candidates::without_eroded`]
+/// may drop when the fill also looks for each texel's previous holder.
+pub fn eroded_now_and_before(now: &[Vec<Verdict>], before: &[Vec<Verdict>]) -> Vec<Vec<Verdict>> {
+    now.iter()
+        .enumerate()
+        .map(|(i, v)| {
+            v.iter()
+                .enumerate()
+                .map(|(j, &n)| {
+                    let b = before.get(i).and_then(|b| b.get(j)).copied();
+                    if n == Verdict::Eroded && b == Some(Verdict::Eroded) {
+                        Verdict::Eroded
+                    } else {
+                        Verdict::Test
+                    }
+                })
+                .collect()
+        })
+        .collect()
 }
 
 /// A span's candidates grouped by patch (in candidate order: oldest
@@ -975,9 +1114,17 @@ pub fn fill(
     let defer = out.defer_values;
     let merged = fill_bands(atlas, out.rows(), |band, mut rows| {
         let mut uncovered = Vec::new();
+        let track = !rows.renewal.is_empty();
         walk_band(ctx, atlas, candidates, band, |texel, cands| {
             let t = texel.t;
-            match ctx.resolve_in_span(cands, texel.k, texel.p) {
+            let resolved = if track {
+                let (hit, renewal) = ctx.resolve_with_renewal(cands, texel.k, texel.p);
+                rows.renewal[t] = renewal;
+                hit
+            } else {
+                ctx.resolve_in_span(cands, texel.k, texel.p)
+            };
+            match resolved {
                 Some(hit) => {
                     if !defer {
                         let values = rows.values_of(t);

@@ -325,6 +325,10 @@ pub struct Erosion {
     /// Whether wholly eroded triangles are dropped ([`Erosion::prune`]);
     /// always, but for the tests' control run that shows what it bounds.
     prune_eroded: bool,
+    /// Whether the lapped fill records each texel's renewal
+    /// ([`crate::methods::FrameResult::renewal`]); always, but for the
+    /// tests' control run that shows the record changes no output.
+    track_renewal: bool,
 }
 
 pub(crate) use crate::seed::mix;
@@ -379,6 +383,7 @@ impl Erosion {
             spare: super::SpentBuffers::default(),
             levels_read: true,
             prune_eroded: true,
+            track_renewal: true,
         })
     }
 
@@ -543,6 +548,12 @@ impl Method for Erosion {
                 .and_then(|lods| bytemuck::allocation::try_cast_vec(lods).ok()),
         );
         out.defer_values = defer_values;
+        // The lapped fill records what became of each texel's previous
+        // holder (the forced / unforced split of the switches); the blended
+        // fill shows every layer and has no single holder.
+        if self.variant != Variant::Blend && self.track_renewal {
+            out = out.with_renewal();
+        }
         let mut counts = StepCounts::default();
         let mut blended = Blended::default();
         if ctx.mesh.is_empty() {
@@ -619,6 +630,7 @@ impl Method for Erosion {
         }
         result.source = Some(out.source);
         result.uv = Some(out.uv);
+        result.renewal = (!out.renewal.is_empty()).then_some(out.renewal);
         result.layers = blended.layers;
         result.timings = clock.stages;
         Ok(result)
@@ -743,6 +755,7 @@ impl Erosion {
             vertex_normals: ctx.normals,
         };
         // Initial distribution (frame 0, or a surface that reappears).
+        let first_new_id = self.state.next_id;
         if self.state.patches.is_empty() {
             counts.created += self.seed_distribution(ctx, &surface, &shape, radius, align);
         }
@@ -750,6 +763,12 @@ impl Erosion {
 
         // 2. Weights (Eqs. 1-3), then the triangles they erode for good.
         self.update_weights(&shape, ctx.dt);
+        // A patch placed this frame showed nothing the frame before.
+        for p in &mut self.state.patches {
+            if p.id >= first_new_id {
+                p.weight_before.clear();
+            }
+        }
         counts.pruned = self.prune(&shape, test);
         clock.lap("weights");
 
@@ -773,10 +792,17 @@ impl Erosion {
                 tolerance,
                 multi: multi_fill.as_ref(),
                 verdicts: &[],
+                verdicts_before: &[],
             };
             let verdicts = unjudged.erosion_verdicts();
+            let before = if out.renewal.is_empty() {
+                Vec::new()
+            } else {
+                unjudged.verdicts_before()
+            };
             let fill_ctx = FillContext {
                 verdicts: &verdicts,
+                verdicts_before: &before,
                 ..unjudged
             };
             self.fill(ctx, &fill_ctx, out, counts, &mut blended)
@@ -795,6 +821,7 @@ impl Erosion {
             tolerance,
             multi: multi_fill.as_ref(),
             verdicts: &[],
+            verdicts_before: &[],
         };
         let (seed, random) = (self.seed, self.params.random_rotation);
         let rotation = move |at| rotation_for(seed, random, location_key(at));
@@ -938,7 +965,14 @@ impl Erosion {
             blended.used = Some(outcome.used);
             outcome.uncovered
         } else {
-            let candidates = candidates.without_eroded(fill_ctx.verdicts);
+            // Looking for each texel's previous holder keeps the triangles
+            // that erode this frame.
+            let candidates = if out.renewal.is_empty() {
+                candidates.without_eroded(fill_ctx.verdicts)
+            } else {
+                let dead = fill::eroded_now_and_before(fill_ctx.verdicts, fill_ctx.verdicts_before);
+                candidates.without_eroded(&dead)
+            };
             fill::fill(fill_ctx, ctx.atlas, &candidates, out)
         }
     }

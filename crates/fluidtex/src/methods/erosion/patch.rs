@@ -204,6 +204,16 @@ pub struct Patch {
     /// kept across frames (and in the saved state) because progressive
     /// weights depend on the previous frame's.
     pub weight: Vec<f32>,
+    /// The weights as the frame before left them, per current vertex (set
+    /// by [`Patch::update_weights`] after this frame's advection and splits,
+    /// kept through its prune; empty for a patch created this frame): which point the patch showed the frame before,
+    /// for the renewal record ([`crate::provenance::RENEWAL_HELD`]).
+    #[serde(skip)]
+    pub weight_before: Vec<f32>,
+    /// Per triangle: past the distortion bound (δ_t ≥ δ_max, Q_T = 0 of
+    /// Eq. 1) at this frame's positions; refreshed with the weights.
+    #[serde(skip)]
+    pub distorted: Vec<bool>,
     /// Per triangle: the feature-map level matching one atlas texel's
     /// footprint on it (log2 of feature texels per atlas texel along the
     /// most compressed direction), refreshed with the weights.
@@ -288,6 +298,8 @@ impl Patch {
             triangles: sub.triangles,
             pinned,
             weight: Vec::new(),
+            weight_before: Vec::new(),
+            distorted: Vec::new(),
             lod: Vec::new(),
             still: false,
             exemplar: 0,
@@ -534,6 +546,14 @@ impl Patch {
         } else {
             self.lod.clear();
         }
+        if self.distorted.len() == dead.len() {
+            self.distorted = (0..dead.len())
+                .filter(|&k| keep(k))
+                .map(|k| self.distorted[k])
+                .collect();
+        } else {
+            self.distorted.clear();
+        }
         let border_after = Topology::new(n, &self.triangles);
         for (v, pinned) in self.pinned.iter_mut().enumerate() {
             let v = v as u32;
@@ -571,13 +591,12 @@ impl Patch {
             .filter(pick)
             .map(|i| self.pinned[i])
             .collect();
-        if self.weight.len() == used.len() {
-            self.weight = (0..used.len())
-                .filter(pick)
-                .map(|i| self.weight[i])
-                .collect();
-        } else {
-            self.weight.clear();
+        for weights in [&mut self.weight, &mut self.weight_before] {
+            if weights.len() == used.len() {
+                *weights = (0..used.len()).filter(pick).map(|i| weights[i]).collect();
+            } else {
+                weights.clear();
+            }
         }
         for t in &mut self.triangles {
             *t = t.map(|v| remap[v as usize]);
@@ -604,6 +623,7 @@ impl Patch {
         // uv per world unit of rest shape × feature texels per uv × world per atlas texel.
         let base = shape.texel_size / s * shape.feature_width;
         self.lod.clear();
+        self.distorted.clear();
         for t in &self.triangles {
             let rest = t.map(|v| self.rest[v as usize] * s);
             let q = t.map(|v| self.positions[v as usize]);
@@ -616,6 +636,7 @@ impl Patch {
             } else {
                 0.0
             });
+            self.distorted.push(d.delta >= shape.delta_max as f64);
             let quality =
                 triangle_quality_from(d.delta, shape.delta_onset as f64, shape.delta_max as f64);
             for &v in t {
@@ -625,6 +646,11 @@ impl Patch {
         }
         let topology = Topology::new(n, &self.triangles);
         let previous = std::mem::take(&mut self.weight);
+        self.weight_before = if previous.len() == n {
+            previous.clone()
+        } else {
+            Vec::new()
+        };
         let mut target: Vec<f32> = (0..n)
             .map(|v| {
                 let q_v = if count[v] > 0 {

@@ -19,6 +19,9 @@ use crate::methods::test_clip::{Clip, scene};
 use crate::methods::{
     FrameContext, FrameResult, Method, PreviousFrame, SOURCE_OUTSIDE, SOURCE_UNCOVERED,
 };
+use crate::provenance::{
+    RENEWAL_DISTORTED, RENEWAL_HELD, RENEWAL_SHOWN, RENEWAL_UNKNOWN, renewal_unforced,
+};
 use crate::surface::{SurfaceIndex, SurfacePoint};
 
 /// A flat n×n grid of cells in z = 0, centred on the origin, at rest.
@@ -162,6 +165,8 @@ fn weights_follow_eqs_1_to_3_on_a_hand_built_patch() {
         triangles: mesh.triangles.clone(),
         pinned: (0..9).map(|v| v == 0).collect(),
         weight: Vec::new(),
+        weight_before: Vec::new(),
+        distorted: Vec::new(),
         lod: Vec::new(),
         still: false,
         exemplar: 0,
@@ -796,6 +801,7 @@ fn blend_fill_is_the_weight_normalised_mix_of_every_covering_patch() {
         tolerance,
         multi: None,
         verdicts: &[],
+        verdicts_before: &[],
     };
     let candidates = Candidates::build(&fluid, &index, &patches, &frames, tolerance);
     let mut out = FillBuffers::new(atlas.width, atlas.height, ex.total_channels());
@@ -1682,4 +1688,110 @@ fn an_edge_stretched_past_the_distortion_bound_is_not_split() {
         assert!(!stretched.refine(s.split_length, s.split_stretch, Some));
         assert_eq!(stretched, again);
     }
+}
+
+fn renewal(r: &FrameResult) -> &[u8] {
+    r.renewal
+        .as_deref()
+        .expect("the lapped fill records renewal")
+}
+
+#[test]
+fn recording_the_renewal_changes_no_output() {
+    // A sheared scene: patches erode, new ones appear, triangles go.
+    let c = scene("vortex", 10, 12, 96);
+    let mut tracked = Erosion::new(ErosionParams::default(), exemplar(), 4).expect("params");
+    let mut plain = Erosion::new(ErosionParams::default(), exemplar(), 4).expect("params");
+    plain.track_renewal = false;
+    let (a, b) = (step_all(&mut tracked, &c), step_all(&mut plain, &c));
+    let mut unforced = 0;
+    for (k, (a, b)) in a.iter().zip(&b).enumerate() {
+        assert_eq!(sources(a), sources(b), "frame {k}");
+        for (x, y) in a.channels.iter().zip(&b.channels) {
+            assert!(
+                x.data
+                    .iter()
+                    .zip(&y.data)
+                    .all(|(p, q)| p.to_bits() == q.to_bits()),
+                "frame {k}"
+            );
+        }
+        assert!(b.renewal.is_none());
+        unforced += renewal(a).iter().filter(|&&r| renewal_unforced(r)).count();
+    }
+    // The control is not vacuous: the vortex erodes patches within δ_max.
+    assert!(unforced > 0);
+}
+
+#[test]
+fn renewal_bytes_say_who_held_each_texel() {
+    let c = scene("vortex", 10, 16, 96);
+    let mut m = Erosion::new(ErosionParams::default(), exemplar(), 4).expect("params");
+    let results = step_all(&mut m, &c);
+    for (k, r) in results.iter().enumerate() {
+        let mut seen = [0usize; 8];
+        for (&s, &b) in sources(r).iter().zip(renewal(r)) {
+            if s == SOURCE_OUTSIDE {
+                assert_eq!(b, RENEWAL_UNKNOWN, "frame {k}: off the charts");
+                continue;
+            }
+            assert_ne!(b, RENEWAL_UNKNOWN, "frame {k}: a chart texel");
+            assert!(b < 8, "frame {k}: {b:#x}");
+            // Shown by its holder means held, and a texel nobody covers now
+            // is shown by nobody.
+            assert!(b & RENEWAL_SHOWN == 0 || b & RENEWAL_HELD != 0);
+            if s == SOURCE_UNCOVERED {
+                assert_eq!(b & RENEWAL_SHOWN, 0);
+            }
+            seen[b as usize] += 1;
+        }
+        if k == 0 {
+            // No patch showed anything before the first frame.
+            assert_eq!(seen[0], seen.iter().sum::<usize>(), "frame 0: {seen:?}");
+        } else {
+            // Mostly carried; some holders eroded within δ_max.
+            let total: usize = seen.iter().sum();
+            let carried = seen[(RENEWAL_HELD | RENEWAL_SHOWN) as usize];
+            assert!(carried * 2 > total, "frame {k}: {seen:?}");
+        }
+    }
+    let last = renewal(results.last().expect("frames"));
+    assert!(last.contains(&RENEWAL_HELD), "an undistorted holder eroded");
+}
+
+#[test]
+fn advect_holders_always_show_and_only_distortion_forces() {
+    // advect never erodes: whoever held a texel still shows it, and the
+    // only renewal it would need is the distortion bound's, growing with
+    // the shear (the renewal floor of the vortex).
+    let c = scene("vortex", 10, 16, 96);
+    let mut m = Erosion::with_variant(Variant::Advect, ErosionParams::default(), exemplar(), 4)
+        .expect("params");
+    let results = step_all(&mut m, &c);
+    let distorted: Vec<f64> = results
+        .iter()
+        .skip(1)
+        .map(|r| {
+            let mut held = 0usize;
+            let mut past = 0usize;
+            for (&s, &b) in sources(r).iter().zip(renewal(r)) {
+                if !crate::metrics::is_patch(s) || b & RENEWAL_HELD == 0 {
+                    continue;
+                }
+                assert_ne!(b & RENEWAL_SHOWN, 0, "an advect holder always shows");
+                held += 1;
+                past += usize::from(b & RENEWAL_DISTORTED != 0);
+            }
+            past as f64 / held.max(1) as f64
+        })
+        .collect();
+    assert_eq!(distorted[0], 0.0, "{distorted:?}");
+    assert!(
+        *distorted.last().expect("frames") > 0.2,
+        "the vortex shears past δ_max: {distorted:?}"
+    );
+    assert!(
+        distorted.windows(2).filter(|w| w[1] < w[0]).count() <= 3,
+        "{distorted:?}"
+    );
 }

@@ -37,6 +37,10 @@ pub struct TexelBuffers {
     /// Exemplar mip level per texel (NaN where none); empty unless
     /// [`TexelBuffers::with_layers`].
     pub lod: Vec<f32>,
+    /// Per texel, what became of the patch that showed its point the frame
+    /// before ([`crate::provenance::RENEWAL_HELD`] and the other flags);
+    /// empty unless [`TexelBuffers::with_renewal`].
+    pub renewal: Vec<u8>,
     /// When set, the erosion fill records only source and uv and leaves
     /// `values` to a later pass that samples every covered texel once, at
     /// its footprint's level ([`crate::methods::footprint`]): a level-0
@@ -79,6 +83,7 @@ impl TexelBuffers {
             uv: refilled(spare_uv, n, Vec2::NAN),
             layers: Vec::new(),
             lod: Vec::new(),
+            renewal: Vec::new(),
             defer_values: false,
         }
     }
@@ -88,6 +93,13 @@ impl TexelBuffers {
         let n = self.source.len();
         self.layers = vec![0; n];
         self.lod = filled(n, f32::NAN);
+        self
+    }
+
+    /// Also a renewal byte per texel ([`crate::provenance::RENEWAL_UNKNOWN`]
+    /// until the fill records one).
+    pub fn with_renewal(mut self) -> TexelBuffers {
+        self.renewal = filled(self.source.len(), crate::provenance::RENEWAL_UNKNOWN);
         self
     }
 
@@ -101,6 +113,7 @@ impl TexelBuffers {
             uv: &mut self.uv,
             layers: &mut self.layers,
             lod: &mut self.lod,
+            renewal: &mut self.renewal,
         }
     }
 }
@@ -141,6 +154,8 @@ pub struct TexelRows<'a> {
     pub layers: &'a mut [u8],
     /// Exemplar mip level per texel; may be empty.
     pub lod: &'a mut [f32],
+    /// Renewal byte per texel; may be empty.
+    pub renewal: &'a mut [u8],
 }
 
 impl TexelRows<'_> {
@@ -200,9 +215,10 @@ where
         .zip(cut(out.uv, texels, 1, n))
         .zip(cut(out.layers, texels, 1, n))
         .zip(cut(out.lod, texels, 1, n))
+        .zip(cut(out.renewal, texels, 1, n))
         .zip(bands)
         .map(
-            |(((((values, source), uv), layers), lod), band)| TexelRows {
+            |((((((values, source), uv), layers), lod), renewal), band)| TexelRows {
                 base: band.y0 as usize * w,
                 channels: c,
                 values,
@@ -210,6 +226,7 @@ where
                 uv,
                 layers,
                 lod,
+                renewal,
             },
         )
         .collect();
