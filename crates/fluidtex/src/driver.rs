@@ -63,6 +63,13 @@ pub trait FrameSink {
         true
     }
 
+    /// Whether [`FrameSink::frame`] reads the result's renewal bytes (the
+    /// forced / unforced split of the switches); when not, the method may
+    /// skip recording them.
+    fn reads_renewal(&self) -> bool {
+        true
+    }
+
     /// The last frame's interleaved channel values, when the sink took what
     /// it needs of them and has no further use for the buffer; the driver
     /// hands it back to the method ([`Method::recycle`]). The default keeps
@@ -136,6 +143,7 @@ impl<'m> Driver<'m> {
         }
         self.method
             .set_evaluation_buffers_read(sink.reads_evaluation_buffers());
+        self.method.set_renewal_read(sink.reads_renewal());
         let ctx = FrameContext::new(self.dt, g, self.previous.as_deref());
         let mut result = self.method.step(&ctx).map_err(DriverError::from)?;
         clock.extend(&result.timings);

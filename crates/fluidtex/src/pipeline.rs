@@ -588,6 +588,11 @@ impl FrameSink for FileSink<'_, '_, '_> {
         self.spent_values.take()
     }
 
+    /// The coherence numbers, which read them, come with the debug outputs.
+    fn reads_renewal(&self) -> bool {
+        self.debug
+    }
+
     fn frame(&mut self, frame: DrivenFrame<'_>) -> Result<(), PipelineError> {
         let DrivenFrame {
             method,
@@ -613,7 +618,7 @@ impl FrameSink for FileSink<'_, '_, '_> {
             previous: previous.filter(|_| keep_previous).cloned(),
             channels,
             source: result.source,
-            renewal: result.renewal.filter(|_| self.debug),
+            renewal: result.renewal,
             method_stats: result.stats,
             clock: std::mem::take(clock),
             state,

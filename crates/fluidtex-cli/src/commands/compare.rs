@@ -325,8 +325,10 @@ impl Session<'_> {
             runs.push(run);
         }
         // The source switch share passes relative to advect on the same
-        // frames: judged once every method of the scene has run.
-        eval::judge_against_floor(&mut runs, self.thresholds);
+        // frames (and, on a strongly sheared scene, so does popping, against
+        // advect's renewal floor): judged once every method of the scene
+        // has run.
+        eval::judge_against_floor_on(&mut runs, self.thresholds, name);
         let reports = runs
             .iter()
             .zip(parameters)

@@ -934,8 +934,45 @@ fn shown_scale(lod: Option<&[f32]>) -> f64 {
 /// in. The cell shows the judged shares; each run's own-point share is
 /// kept in a note, for information.
 pub fn judge_against_floor(runs: &mut [MethodRun], thresholds: &Thresholds) {
+    judge_against_floor_on(runs, thresholds, "");
+}
+
+/// [`judge_against_floor`] for the runs of scene `scene`. On a scene of
+/// `popping.strong_shear_scenes` (ruling 4: the flow shears the surface
+/// faster than a patch can live, so the distortion bound forces renewal)
+/// every frame is judged against the *renewal floor* too: the share of
+/// points whose previous patch, carried by the floor method (advect, which
+/// never erodes), is past δ_max at the carried point
+/// ([`FrameRecord::switch_causes`]). A run's switch share passes a frame
+/// at most `source_switch.max_excess_over_floor` above advect's plus that
+/// floor, and its popped share at most the same excess above the floor
+/// (instead of the absolute popping rule).
+pub fn judge_against_floor_on(runs: &mut [MethodRun], thresholds: &Thresholds, scene: &str) {
     let floor_name = thresholds.source_switch.floor_method.clone();
     compare_on_same_points(runs, &floor_name);
+    let strong_shear = thresholds
+        .popping
+        .strong_shear_scenes
+        .iter()
+        .any(|s| s == scene);
+    // The floor run's renewal floor per frame (0 where it recorded none:
+    // the stricter reading).
+    let renewal: Vec<(i32, f64)> = runs
+        .iter()
+        .find(|r| r.method == floor_name && strong_shear)
+        .map(|r| {
+            (r.frames.iter())
+                .map(|f| (f.frame, f.switch_causes[2]))
+                .map(|(n, v)| (n, if v.is_finite() { v } else { 0.0 }))
+                .collect()
+        })
+        .unwrap_or_default();
+    let renewal_at = |frame: i32| {
+        renewal
+            .iter()
+            .find(|(n, _)| *n == frame)
+            .map_or(0.0, |&(_, v)| v)
+    };
     let floor: Option<Vec<(i32, f64)>> = runs.iter().find(|r| r.method == floor_name).map(|r| {
         r.frames
             .iter()
@@ -953,15 +990,18 @@ pub fn judge_against_floor(runs: &mut [MethodRun], thresholds: &Thresholds) {
         let (values, floor_values): (Vec<f64>, Vec<f64>) = run
             .frames
             .iter()
-            .map(|f| match f.switch_same_points {
-                [mine, theirs] if mine.is_finite() && theirs.is_finite() => (mine, theirs),
-                _ => (
-                    f.value(Metric::SourceSwitch),
-                    floor
-                        .iter()
-                        .find(|(n, _)| *n == f.frame)
-                        .map_or(f64::NAN, |&(_, v)| v),
-                ),
+            .map(|f| {
+                let (mine, theirs) = match f.switch_same_points {
+                    [mine, theirs] if mine.is_finite() && theirs.is_finite() => (mine, theirs),
+                    _ => (
+                        f.value(Metric::SourceSwitch),
+                        floor
+                            .iter()
+                            .find(|(n, _)| *n == f.frame)
+                            .map_or(f64::NAN, |&(_, v)| v),
+                    ),
+                };
+                (mine, theirs + renewal_at(f.frame))
             })
             .unzip();
         let summary = thresholds.summarize_against_floor(&values, &floor_values);
@@ -973,8 +1013,58 @@ pub fn judge_against_floor(runs: &mut [MethodRun], thresholds: &Thresholds) {
             *s = summary;
         }
     }
+    if !renewal.is_empty() {
+        judge_popping_against_renewal(runs, thresholds, &renewal);
+    }
     judge_aligned_against_floor(runs, thresholds);
     note_switch_peaks(runs);
+}
+
+/// Ruling 4's popping rule on a strongly sheared scene: every frame's
+/// popped share at most `source_switch.max_excess_over_floor` above that
+/// frame's renewal floor (`renewal`, per frame number), with a note giving
+/// the floor.
+fn judge_popping_against_renewal(
+    runs: &mut [MethodRun],
+    thresholds: &Thresholds,
+    renewal: &[(i32, f64)],
+) {
+    let excess = thresholds.source_switch.max_excess_over_floor;
+    let lead = "popping: judged against the renewal floor";
+    let floors: Vec<f64> = renewal.iter().map(|r| r.1).collect();
+    let Some((median, (_, worst))) = median_and_worst(renewal) else {
+        return;
+    };
+    for run in runs.iter_mut() {
+        run.notes.retain(|n| !n.starts_with(lead));
+        let verdicts: Vec<bool> = run
+            .frames
+            .iter()
+            .filter_map(|f| {
+                let p = f.value(Metric::Popping);
+                let floor = renewal.iter().find(|(n, _)| *n == f.frame)?.1;
+                p.is_finite().then_some(p <= floor + excess + 1e-12)
+            })
+            .collect();
+        let Some(s) = run
+            .summaries
+            .iter_mut()
+            .find(|s| s.metric == Metric::Popping)
+        else {
+            continue;
+        };
+        if verdicts.is_empty() {
+            continue;
+        }
+        s.verdict = metrics::Verdict::of(verdicts.iter().all(|&v| v));
+        run.notes.push(format!(
+            "{lead} (strong shear): every frame at most {excess} above the share of points whose \
+             never-eroded patch is past δ_max there (median {:.3}, worst {:.3} over {} frames)",
+            median,
+            worst,
+            floors.len()
+        ));
+    }
 }
 
 /// The flow-aligned share where the floor method itself stays below the

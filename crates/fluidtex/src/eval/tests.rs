@@ -694,3 +694,75 @@ fn the_fidelity_scale_of_an_output_without_uv_is_its_median_reported_level() {
     assert!(shown_scale(None).is_nan());
     assert!(shown_scale(Some(&[f32::NAN, f32::NAN])).is_nan());
 }
+
+#[test]
+fn on_a_strongly_sheared_scene_the_renewal_floor_raises_both_bars() {
+    let (scene, settings) = prepared("rigid-rotation", 16, 0..=2, 64, 64);
+    let exemplar = pattern(64);
+    let base = run(
+        &scene,
+        &mut painted(&scene, &exemplar, true, false),
+        &settings,
+    );
+    let at = |m: Metric| PER_FRAME.iter().position(|&p| p == m).unwrap();
+    let (ks, kp) = (at(Metric::SourceSwitch), at(Metric::Popping));
+    // (switch share, popped share, holder past δ_max) per frame 1 and 2.
+    let with = |name: &str, frames: [[f64; 3]; 2]| {
+        let mut r = base.clone();
+        r.method = name.into();
+        for (f, v) in r.frames.iter_mut().skip(1).zip(frames) {
+            f.values[ks] = v[0];
+            f.values[kp] = v[1];
+            f.switch_causes[2] = v[2];
+            f.point_sources.clear();
+        }
+        let popped: Vec<f64> = r.frames.iter().map(|f| f.values[kp]).collect();
+        let cell = Thresholds::committed()
+            .unwrap()
+            .summarize(Metric::Popping, &popped);
+        if let Some(s) = r.summaries.iter_mut().find(|s| s.metric == Metric::Popping) {
+            *s = cell;
+        }
+        r
+    };
+    let thresholds = Thresholds::committed().unwrap();
+    let strong = thresholds.popping.strong_shear_scenes[0].clone();
+    let runs = || {
+        vec![
+            // 11 and 20 points above advect's switch share, popping 12 %.
+            with("erosion", [[0.14, 0.12, 0.0], [0.23, 0.12, 0.0]]),
+            // advect: the renewal floor is 10 % then 20 %.
+            with("advect", [[0.03, 0.01, 0.10], [0.03, 0.01, 0.20]]),
+            // Switches 15 points above advect's plus the floor on frame 2.
+            with("churn", [[0.10, 0.05, 0.0], [0.38, 0.05, 0.0]]),
+        ]
+    };
+    let v = |r: &MethodRun, m: Metric| r.summary(m).unwrap().verdict;
+    // Elsewhere the plain rules: erosion fails both.
+    let mut plain = runs();
+    judge_against_floor_on(&mut plain, &thresholds, "vortex-16");
+    assert_eq!(v(&plain[0], Metric::SourceSwitch), Verdict::Fail);
+    assert_eq!(v(&plain[0], Metric::Popping), Verdict::Fail);
+    // On the strongly sheared scene: switch ≤ advect + floor + 0.02 and
+    // popping ≤ floor + 0.02 on every frame.
+    let mut sheared = runs();
+    judge_against_floor_on(&mut sheared, &thresholds, &strong);
+    // Frame 1: popping 12 % against a 10 % floor + 2 points passes exactly.
+    assert_eq!(v(&sheared[0], Metric::SourceSwitch), Verdict::Pass);
+    assert_eq!(v(&sheared[0], Metric::Popping), Verdict::Pass);
+    assert_eq!(v(&sheared[2], Metric::SourceSwitch), Verdict::Fail);
+    assert_eq!(v(&sheared[2], Metric::Popping), Verdict::Pass);
+    assert!(
+        sheared[0]
+            .notes
+            .iter()
+            .any(|n| n.contains("renewal floor") && n.contains("worst 0.200")),
+        "{:?}",
+        sheared[0].notes
+    );
+    // A frame's popping above its own floor fails: frame 1 at 13 %.
+    let mut over = runs();
+    over[0].frames[1].values[kp] = 0.13;
+    judge_against_floor_on(&mut over, &thresholds, &strong);
+    assert_eq!(v(&over[0], Metric::Popping), Verdict::Fail);
+}

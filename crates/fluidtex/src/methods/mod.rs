@@ -276,6 +276,14 @@ pub trait Method: Send {
     fn set_evaluation_buffers_read(&mut self, read: bool) {
         let _ = read;
     }
+
+    /// Whether the caller reads the per-texel renewal of the next results
+    /// ([`FrameResult::renewal`]): a run measures the switches only with
+    /// its debug outputs. Recording it costs the erosion fill about a
+    /// sixth of its time, so a method may skip it when it is not read.
+    fn set_renewal_read(&mut self, read: bool) {
+        let _ = read;
+    }
 }
 
 /// Per-texel buffers of a [`FrameResult`] that nothing reads any more,

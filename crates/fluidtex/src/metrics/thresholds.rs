@@ -133,6 +133,9 @@ pub struct PoppingThresholds {
     pub max_mean_share: f64,
     /// Largest passing popped share of any frame, in [0, 1]. 0.05.
     pub max_worst_share: f64,
+    /// Scenes judged against the renewal floor instead (the vortex at
+    /// T = 8 s): see [`crate::eval::judge_against_floor_on`].
+    pub strong_shear_scenes: Vec<String>,
 }
 
 /// Source switch share (points carried by the flow whose patch changes).
@@ -688,6 +691,7 @@ mod tests {
         assert_eq!(t.popping.sigma_factor, 0.5);
         assert_eq!(t.popping.max_mean_share, 0.02);
         assert_eq!(t.popping.max_worst_share, 0.05);
+        assert_eq!(t.popping.strong_shear_scenes, ["vortex"]);
         assert_eq!(t.static_stop.max_changed_frames, 0);
         assert_eq!(t.size_cost.max_ratio, 1.15);
         assert_eq!(t.source_switch.samples, 20_000);

@@ -326,8 +326,8 @@ pub struct Erosion {
     /// always, but for the tests' control run that shows what it bounds.
     prune_eroded: bool,
     /// Whether the lapped fill records each texel's renewal
-    /// ([`crate::methods::FrameResult::renewal`]); always, but for the
-    /// tests' control run that shows the record changes no output.
+    /// ([`crate::methods::FrameResult::renewal`]); true until told
+    /// otherwise ([`Method::set_renewal_read`]).
     track_renewal: bool,
 }
 
@@ -642,6 +642,10 @@ impl Method for Erosion {
 
     fn set_evaluation_buffers_read(&mut self, read: bool) {
         self.levels_read = read;
+    }
+
+    fn set_renewal_read(&mut self, read: bool) {
+        self.track_renewal = read;
     }
 
     fn save_state(&self) -> Result<Vec<u8>, MethodError> {

@@ -1702,7 +1702,7 @@ fn recording_the_renewal_changes_no_output() {
     let c = scene("vortex", 10, 12, 96);
     let mut tracked = Erosion::new(ErosionParams::default(), exemplar(), 4).expect("params");
     let mut plain = Erosion::new(ErosionParams::default(), exemplar(), 4).expect("params");
-    plain.track_renewal = false;
+    plain.set_renewal_read(false);
     let (a, b) = (step_all(&mut tracked, &c), step_all(&mut plain, &c));
     let mut unforced = 0;
     for (k, (a, b)) in a.iter().zip(&b).enumerate() {
