@@ -487,6 +487,12 @@ fn scene_then_run_with_erosion_covers_every_texel() {
             "frame {f}: {forced} + {unforced} against {share}"
         );
         assert!(stats["holder_distorted_share"].as_f64().unwrap() <= 1.0);
+        // The same points by region: all of this sphere's are bulk.
+        let regions = &stats["switch_by_region"];
+        for r in ["bulk", "sheet", "droplet"] {
+            assert!(regions[r]["points"].is_u64(), "frame {f}: {r}");
+        }
+        assert!(regions["bulk"]["points"].as_u64().unwrap() > 0, "frame {f}");
         let map = image(&switch);
         assert_eq!((map.width, map.height), (128, 128));
         for (px, &id) in map.data.chunks_exact(3).zip(&ids.data) {

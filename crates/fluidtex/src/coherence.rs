@@ -445,7 +445,8 @@ pub fn measure_with_points(
     before.validate()?;
     after.validate()?;
     let values = point_values(&carried.from, before)?;
-    measure_points(carried, &values, after, settings)
+    let (c, ends) = measure_points(carried, &values, after, settings)?;
+    Ok((c, ends.into_iter().map(|e| e.sources).collect()))
 }
 
 /// [`measure`] with frame t's output already looked up at the carried
@@ -460,13 +461,32 @@ pub fn measure_from(
     measure_points(carried, before, after, settings).map(|(c, _)| c)
 }
 
+/// [`measure_from`], and what each point found at both ends.
+pub fn measure_from_ends(
+    carried: &Carried,
+    before: &[PointValue],
+    after: &impl Texels,
+    settings: &CoherenceSettings,
+) -> Result<(Coherence, Vec<PointEnds>), MetricsError> {
+    after.validate()?;
+    measure_points(carried, before, after, settings)
+}
+
+/// One carried point's sources at both ends (`[t, t+1]`) and the renewal
+/// byte at its end ([`Texels::renewal`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PointEnds {
+    pub sources: [u32; 2],
+    pub renewal: u8,
+}
+
 /// [`measure_from`] with each point's sources at both ends.
 fn measure_points(
     carried: &Carried,
     before: &[PointValue],
     after: &impl Texels,
     settings: &CoherenceSettings,
-) -> Result<(Coherence, Vec<[u32; 2]>), MetricsError> {
+) -> Result<(Coherence, Vec<PointEnds>), MetricsError> {
     let n = carried.from.len();
     for len in [
         carried.to.len(),
@@ -524,7 +544,13 @@ fn measure_points(
             settings.min_moving_samples,
         )?,
     };
-    Ok((found, s0.into_iter().zip(s1).map(|(a, b)| [a, b]).collect()))
+    let ends = (s0.into_iter().zip(s1).zip(r1))
+        .map(|((a, b), renewal)| PointEnds {
+            sources: [a, b],
+            renewal,
+        })
+        .collect();
+    Ok((found, ends))
 }
 
 /// What [`switch_map`] found at one texel of frame t+1.
@@ -660,6 +686,8 @@ fn interpolate(mesh: &TriMesh, values: &[Vec3], sp: &SurfacePoint) -> Option<Vec
     }
     Some(out)
 }
+
+pub mod regions;
 
 #[cfg(test)]
 mod tests;

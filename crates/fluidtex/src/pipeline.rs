@@ -224,6 +224,13 @@ pub struct FrameStats {
     /// surface the distortion bound would renew (the renewal floor).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub holder_distorted_share: Option<f64>,
+    /// The same points by the region they land in: `bulk`, `sheet` (liquid
+    /// thinner than r/2 under the point) and `droplet` (a piece of surface
+    /// smaller than a disc of radius r), each with its number of points
+    /// covered at both ends and its switch, forced and unforced shares
+    /// ([`crate::coherence::regions`]); methods with a patch radius only.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub switch_by_region: Option<BTreeMap<&'static str, crate::coherence::regions::RegionSwitch>>,
     /// Colour follow ratio over the same points (see
     /// [`crate::metrics::colour_follow`]); `null` when too few points moved.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -841,8 +848,20 @@ impl FrameWriter<'_> {
                 .with_renewal(renewal.as_deref().unwrap_or_default());
             if let Some(before) = &self.coherence_prev
                 && Some(before.number) == previous_number
-                && let Some(c) = self.measure_coherence(&mut files, prev, before, &g, &current)?
+                && let Some((c, ends)) =
+                    self.measure_coherence(&mut files, prev, before, &g, &current)?
             {
+                // By region needs the patch radius, which the lapped methods report.
+                let radius = stats
+                    .method_stats
+                    .get("radius")
+                    .and_then(serde_json::Value::as_f64)
+                    .filter(|r| *r > 0.0 && r.is_finite());
+                if let Some(radius) = radius
+                    && c.causes.covered > 0
+                {
+                    stats.switch_by_region = Some(switch_regions(&g, &ends, radius as f32));
+                }
                 stats.source_switch_share = Some(c.switch_share());
                 stats.source_changed_share = Some(c.switch.changed_share());
                 if c.causes.covered > 0 {
@@ -1286,7 +1305,13 @@ impl FrameWriter<'_> {
         before: &CoherencePrevious,
         frame: &FrameGeometry,
         current: &WrittenTexels<'_>,
-    ) -> Result<Option<crate::coherence::Coherence>, PipelineError> {
+    ) -> Result<
+        Option<(
+            crate::coherence::Coherence,
+            Vec<(Option<SurfacePoint>, crate::coherence::PointEnds)>,
+        )>,
+        PipelineError,
+    > {
         use crate::coherence::{self, TexelFrame, switch_map};
         use crate::surface::velocity::FlowFrame;
         let Some(v1) = frame.mesh.velocity() else {
@@ -1303,7 +1328,8 @@ impl FrameWriter<'_> {
             velocity: v1,
         };
         let carried = departure.carry(next, dt);
-        let Ok(found) = coherence::measure_from(&carried, values, current, settings) else {
+        let Ok((found, ends)) = coherence::measure_from_ends(&carried, values, current, settings)
+        else {
             return Ok(None);
         };
         if self.job.outputs.switch_map
@@ -1335,8 +1361,25 @@ impl FrameWriter<'_> {
                 )?;
             }
         }
-        Ok(Some(found))
+        Ok(Some((found, carried.to.into_iter().zip(ends).collect())))
     }
+}
+
+/// `stats.F.json`'s `switch_by_region`: the carried points' switches by
+/// the region of frame `g` they land in ([`crate::coherence::regions`]).
+fn switch_regions(
+    g: &FrameGeometry,
+    ends: &[(Option<SurfacePoint>, crate::coherence::PointEnds)],
+    radius: f32,
+) -> BTreeMap<&'static str, crate::coherence::regions::RegionSwitch> {
+    use crate::coherence::regions::{RegionMap, switch_by_region};
+    let map = RegionMap::new(&g.mesh, &g.index, &g.topology, radius);
+    let regions: Vec<_> = ends
+        .par_iter()
+        .map(|(to, _)| to.as_ref().and_then(|sp| map.region(sp)))
+        .collect();
+    let ends: Vec<_> = ends.iter().map(|e| e.1).collect();
+    switch_by_region(&ends, &regions)
 }
 
 fn write_file(files: &mut Staging<'_>, path: &Path, bytes: &[u8]) -> Result<(), PipelineError> {
