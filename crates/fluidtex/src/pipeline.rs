@@ -1305,13 +1305,7 @@ impl FrameWriter<'_> {
         before: &CoherencePrevious,
         frame: &FrameGeometry,
         current: &WrittenTexels<'_>,
-    ) -> Result<
-        Option<(
-            crate::coherence::Coherence,
-            Vec<(Option<SurfacePoint>, crate::coherence::PointEnds)>,
-        )>,
-        PipelineError,
-    > {
+    ) -> Result<Option<(crate::coherence::Coherence, Vec<CarriedEnds>)>, PipelineError> {
         use crate::coherence::{self, TexelFrame, switch_map};
         use crate::surface::velocity::FlowFrame;
         let Some(v1) = frame.mesh.velocity() else {
@@ -1365,11 +1359,14 @@ impl FrameWriter<'_> {
     }
 }
 
+/// A carried point's location on this frame and what it found at both ends.
+type CarriedEnds = (Option<SurfacePoint>, crate::coherence::PointEnds);
+
 /// `stats.F.json`'s `switch_by_region`: the carried points' switches by
 /// the region of frame `g` they land in ([`crate::coherence::regions`]).
 fn switch_regions(
     g: &FrameGeometry,
-    ends: &[(Option<SurfacePoint>, crate::coherence::PointEnds)],
+    ends: &[CarriedEnds],
     radius: f32,
 ) -> BTreeMap<&'static str, crate::coherence::regions::RegionSwitch> {
     use crate::coherence::regions::{RegionMap, switch_by_region};
