@@ -237,4 +237,51 @@ fn blender_addon_textures_a_baked_liquid_and_renders_it() {
     assert!(sat[1] > 2.0 * sat[0].max(sat[2]), "{sat:?}");
     // The liquid moved between frames 1 and 4.
     assert!(moved > 0.1, "{moved}");
+
+    // `compare --mesh` on the very bake the add-on exported: the methods
+    // side by side on a user's own simulation, carried by its velocity.
+    let report = tmp.path().join("compare");
+    let cmp = Command::new(env!("CARGO_BIN_EXE_fluidtex"))
+        .args(["compare", "--methods", "erosion,advect", "--atlas", "128"])
+        .args(["--render", "64", "--quiet", "--mesh"])
+        .arg(tmp.path().join("work/input/fluid.####.ply"))
+        .arg("--out")
+        .arg(&report)
+        .output()
+        .unwrap();
+    assert!(
+        cmp.status.success(),
+        "{}",
+        String::from_utf8_lossy(&cmp.stderr)
+    );
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(report.join("report.json")).unwrap()).unwrap();
+    let scene = &json["scenes"][0];
+    assert_eq!(scene["name"], "mesh");
+    assert_eq!(scene["frames"], serde_json::json!([1, 2, 3, 4]));
+    let methods = scene["methods"].as_array().unwrap();
+    assert_eq!(methods.len(), 2);
+    for m in methods {
+        let cell = |key: &str| {
+            m["metrics"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|c| c["key"] == key)
+                .unwrap_or_else(|| panic!("{key}"))
+                .clone()
+        };
+        // Measured on the three frame pairs: coverage, contrast, the
+        // switch share and the split of its switches.
+        assert_eq!(cell("source_switch")["frames"], 3, "{}", m["name"]);
+        assert_eq!(cell("contrast")["frames"], 4, "{}", m["name"]);
+        assert!(m["switch_forced"]["median"].is_f64(), "{}", m["name"]);
+        assert!(m["holder_distorted"]["max"].as_f64().unwrap() <= 1.0);
+    }
+    assert_eq!(methods[0]["metrics"][0]["key"], "coverage");
+    assert!(
+        std::fs::read_to_string(report.join("report.md"))
+            .unwrap()
+            .contains("your simulation")
+    );
 }

@@ -12,6 +12,7 @@ use fluidtex::eval::{self, EvalSettings, MethodRun};
 use fluidtex::io::FrameRange;
 use fluidtex::io::image::{PngOptions, encode_png};
 use fluidtex::metrics::Thresholds;
+use fluidtex::pipeline::SequenceScene;
 use fluidtex::scenes;
 use fluidtex::texture::Texture;
 
@@ -64,6 +65,15 @@ pub struct CompareArgs {
     /// own --atlas, --seed and --exemplar win over the file's
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// Compare on your own simulation instead of the scenes: a mesh
+    /// sequence with per-vertex velocity, as `fluidtex run --mesh` reads it
+    /// (e.g. 'sim/fluid.####.ply'); with --frames A-B, or every frame found.
+    /// Metrics that need an exact flow carry by the input velocity.
+    #[arg(long)]
+    pub mesh: Option<String>,
+    /// Frames per second of --mesh (its velocities are per second)
+    #[arg(long, default_value_t = 24.0)]
+    pub fps: f64,
     /// No progress lines
     #[arg(long)]
     pub quiet: bool,
@@ -110,9 +120,17 @@ fn method_parameters(config: &Config, method: &str) -> serde_json::Value {
 
 pub fn compare(a: &CompareArgs) -> Result<()> {
     let start = Instant::now();
-    let scene_names = split_list("scenes", &a.scenes)?;
-    for s in &scene_names {
-        scenes::default_params(s)?;
+    let scene_names = match &a.mesh {
+        Some(_) => vec![MESH_SCENE.to_string()],
+        None => split_list("scenes", &a.scenes)?,
+    };
+    if a.mesh.is_none() {
+        for s in &scene_names {
+            scenes::default_params(s)?;
+        }
+    }
+    if !(a.fps.is_finite() && a.fps > 0.0 && a.fps <= 1000.0) {
+        bail!("--fps {}: allowed above 0 up to 1000", a.fps);
     }
     let (method_names, kinds) = methods_of(a)?;
     let range = a
@@ -154,10 +172,13 @@ pub fn compare(a: &CompareArgs) -> Result<()> {
     std::fs::create_dir_all(&a.out)
         .with_context(|| format!("{}: cannot create the output folder", a.out.display()))?;
     // Every scene's parameters and window, checked before any work.
-    let plans = scene_names
-        .iter()
-        .map(|name| plan_scene(a, name, range))
-        .collect::<Result<Vec<_>>>()?;
+    let plans = match &a.mesh {
+        Some(pattern) => vec![plan_mesh(a, pattern)?],
+        None => scene_names
+            .iter()
+            .map(|name| plan_scene(a, name, range))
+            .collect::<Result<Vec<_>>>()?,
+    };
     let session = Session {
         args: a,
         base: &base,
@@ -220,6 +241,30 @@ struct ScenePlan<'a> {
     params: scenes::SceneParams,
     first: i32,
     last: i32,
+    /// The user's own sequence instead of a built-in scene (`--mesh`).
+    files: Option<SequenceScene>,
+}
+
+/// The scene name of `--mesh` in the report and the picture files.
+const MESH_SCENE: &str = "mesh";
+
+/// The plan of `--mesh`: every frame of the sequence checked present.
+fn plan_mesh(a: &CompareArgs, pattern: &str) -> Result<ScenePlan<'static>> {
+    let files = SequenceScene::open(pattern, a.frames.as_deref(), a.fps, MESH_SCENE)
+        .with_context(|| format!("--mesh {pattern}"))?;
+    let info = scenes::Scene::info(&files);
+    Ok(ScenePlan {
+        name: MESH_SCENE,
+        params: scenes::SceneParams {
+            first: info.first,
+            last: info.last,
+            fps: info.fps,
+            ..scenes::default_params("vortex")?
+        },
+        first: info.first,
+        last: info.last,
+        files: Some(files),
+    })
 }
 
 /// A scene's parameters as `compare` runs it, its window checked.
@@ -248,6 +293,7 @@ fn plan_scene<'a>(
         params,
         first,
         last,
+        files: None,
     })
 }
 
@@ -276,8 +322,12 @@ impl Session<'_> {
             params,
             first,
             last,
+            files,
         } = plan;
-        let mut scene = scenes::by_name(name, Some(params))?;
+        let mut scene: Box<dyn scenes::Scene> = match files {
+            Some(files) => Box::new(files),
+            None => scenes::by_name(name, Some(params))?,
+        };
         let frames: Vec<i32> = (first..=last).collect();
         let keep = picture_frames(&frames);
         let settings = EvalSettings {
@@ -351,9 +401,12 @@ fn write_reports(out: &Path, report: &Report, thresholds: &Thresholds) -> Result
 }
 
 fn command_line(a: &CompareArgs, methods: &[String]) -> String {
+    let input = match &a.mesh {
+        Some(m) => format!("--mesh '{m}' --fps {}", a.fps),
+        None => format!("--scenes {}", a.scenes),
+    };
     let mut s = format!(
-        "fluidtex compare --scenes {} --methods {} --atlas {} --render {} --seed {}",
-        a.scenes,
+        "fluidtex compare {input} --methods {} --atlas {} --render {} --seed {}",
         methods.join(","),
         a.atlas,
         a.render,

@@ -76,6 +76,9 @@ pub enum SceneError {
     FrameOrder { frame: i32, previous: i32 },
     #[error("frame {frame}: simulation failed: {message}")]
     Simulation { frame: i32, message: String },
+    /// A frame read from the user's files could not be used.
+    #[error("frame {frame}: {message}")]
+    Input { frame: i32, message: String },
 }
 
 /// Frame range, rate, resolution and seed of a scene. Each scene has its own
