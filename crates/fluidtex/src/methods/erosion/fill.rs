@@ -670,22 +670,14 @@ impl FillContext<'_> {
     /// none was computed).
     #[inline]
     fn verdict(&self, i: u32, j: u32) -> Verdict {
-        self.verdicts
-            .get(i as usize)
-            .and_then(|v| v.get(j as usize))
-            .copied()
-            .unwrap_or(Verdict::Test)
+        verdict_in(self.verdicts, i, j)
     }
 
     /// The verdict of triangle `j` of patch `i` at the weights of the frame
     /// before ([`Verdict::Test`] when none was computed).
     #[inline]
     fn verdict_before(&self, i: u32, j: u32) -> Verdict {
-        self.verdicts_before
-            .get(i as usize)
-            .and_then(|v| v.get(j as usize))
-            .copied()
-            .unwrap_or(Verdict::Test)
+        verdict_in(self.verdicts_before, i, j)
     }
 
     /// The exemplar patch `i` (index in the patch list) shows.
@@ -1037,6 +1029,17 @@ impl FillContext<'_> {
         };
         (hit, renewal)
     }
+}
+
+/// Triangle `j` of patch `i` in a per-patch verdict table
+/// ([`Verdict::Test`] where it has none).
+#[inline]
+fn verdict_in(table: &[Vec<Verdict>], i: u32, j: u32) -> Verdict {
+    table
+        .get(i as usize)
+        .and_then(|v| v.get(j as usize))
+        .copied()
+        .unwrap_or(Verdict::Test)
 }
 
 /// Per patch triangle, [`Verdict::Eroded`] only where it is eroded both at

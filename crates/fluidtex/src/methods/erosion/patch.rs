@@ -538,22 +538,8 @@ impl Patch {
             .filter(|&k| keep(k))
             .map(|k| self.triangles[k])
             .collect();
-        if self.lod.len() == dead.len() {
-            self.lod = (0..dead.len())
-                .filter(|&k| keep(k))
-                .map(|k| self.lod[k])
-                .collect();
-        } else {
-            self.lod.clear();
-        }
-        if self.distorted.len() == dead.len() {
-            self.distorted = (0..dead.len())
-                .filter(|&k| keep(k))
-                .map(|k| self.distorted[k])
-                .collect();
-        } else {
-            self.distorted.clear();
-        }
+        keep_alive(&mut self.lod, dead);
+        keep_alive(&mut self.distorted, dead);
         let border_after = Topology::new(n, &self.triangles);
         for (v, pinned) in self.pinned.iter_mut().enumerate() {
             let v = v as u32;
@@ -678,6 +664,19 @@ impl Patch {
             }
         }
         self.weight = target;
+    }
+}
+
+/// Keeps the per-triangle `values` of the triangles `dead` does not mark;
+/// values that do not match the triangles (not computed yet) are cleared.
+fn keep_alive<T: Copy>(values: &mut Vec<T>, dead: &[bool]) {
+    if values.len() == dead.len() {
+        *values = (values.iter().zip(dead))
+            .filter(|(_, d)| !**d)
+            .map(|(v, _)| *v)
+            .collect();
+    } else {
+        values.clear();
     }
 }
 
