@@ -59,8 +59,13 @@ pub struct GhostingThresholds {
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct ContrastThresholds {
-    /// Smallest passing ρ (the minimum over frames must reach it). 0.90.
+    /// Smallest passing ρ (the minimum over frames must reach it). 0.95:
+    /// within 5 % of the exemplar (ruling 2).
     pub min_ratio: f64,
+    /// Largest passing ρ (the maximum over frames must stay below it).
+    /// 1.05: a stretched texture shows more contrast than the exemplar at
+    /// its level, and is no better for it.
+    pub max_ratio: f64,
 }
 
 /// Distortion: area-weighted quantile of Sorkine's δ = max(σ₁/s₀, s₀/σ₂).
@@ -373,6 +378,12 @@ impl Thresholds {
                 "[0, 1]",
             ),
             ("contrast.min_ratio", r, r > 0.0, "(0, inf)"),
+            (
+                "contrast.max_ratio",
+                self.contrast.max_ratio,
+                self.contrast.max_ratio >= r,
+                "[contrast.min_ratio, inf)",
+            ),
             ("distortion.quantile", q, q > 0.0 && q <= 1.0, "(0, 1]"),
             (
                 "distortion.max_delta",
@@ -550,7 +561,9 @@ impl Thresholds {
         Verdict::of(match metric {
             Metric::Coverage => value <= self.coverage.max_uncovered_share,
             Metric::Ghosting => value <= self.ghosting.max_share,
-            Metric::Contrast => value >= self.contrast.min_ratio,
+            Metric::Contrast => {
+                value >= self.contrast.min_ratio && value <= self.contrast.max_ratio
+            }
             Metric::Distortion => value <= self.distortion.max_delta,
             Metric::Fidelity => value <= self.fidelity.max_ratio,
             Metric::FlowEpe => value <= self.flow.max_median_epe_px,
@@ -566,7 +579,8 @@ impl Thresholds {
     /// Summarises per-frame values and judges the sequence:
     /// - coverage, ghosting, distortion, fidelity, static stop, size cost:
     ///   the worst (largest) value must pass;
-    /// - contrast: the smallest ρ must pass (docs/evaluation.md: "min over frames");
+    /// - contrast: the smallest and the largest ρ must pass (every frame
+    ///   within 5 % of the exemplar);
     /// - flow EPE and aligned share: the median over frames must pass. The
     ///   median, because a frame's flow is measured on the pixels that move
     ///   faster than `flow.min_speed_px`, and near a stop or a reversal of
@@ -598,7 +612,9 @@ impl Thresholds {
         let median = v[(v.len() - 1) / 2];
         let mean = v.iter().sum::<f64>() / v.len() as f64;
         let verdict = match metric {
-            Metric::Contrast => self.verdict(metric, min),
+            Metric::Contrast => Verdict::of(
+                self.verdict(metric, min).is_pass() && self.verdict(metric, max).is_pass(),
+            ),
             Metric::FlowEpe | Metric::FlowAligned => self.verdict(metric, median),
             Metric::Popping => Verdict::of(
                 mean <= self.popping.max_mean_share && max <= self.popping.max_worst_share,
@@ -676,7 +692,8 @@ mod tests {
         assert_eq!(t.coverage.max_uncovered_share, 0.0);
         assert_eq!(t.ghosting.min_layer_weight, 0.05);
         assert_eq!(t.ghosting.max_share, 0.0);
-        assert_eq!(t.contrast.min_ratio, 0.90);
+        assert_eq!(t.contrast.min_ratio, 0.95);
+        assert_eq!(t.contrast.max_ratio, 1.05);
         assert_eq!(t.distortion.quantile, 0.95);
         assert_eq!(t.distortion.max_delta, 3.0);
         assert_eq!(t.fidelity.max_ratio, 2.5);
@@ -737,8 +754,10 @@ mod tests {
             (Metric::Coverage, 1e-9, Fail),
             (Metric::Ghosting, 0.0, Pass),
             (Metric::Ghosting, 1e-9, Fail),
-            (Metric::Contrast, 0.90, Pass),
-            (Metric::Contrast, 0.899, Fail),
+            (Metric::Contrast, 0.95, Pass),
+            (Metric::Contrast, 0.949, Fail),
+            (Metric::Contrast, 1.05, Pass),
+            (Metric::Contrast, 1.051, Fail),
             (Metric::Distortion, 3.0, Pass),
             (Metric::Distortion, 3.001, Fail),
             (Metric::Distortion, f64::INFINITY, Fail),
@@ -767,11 +786,19 @@ mod tests {
     #[test]
     fn summaries_aggregate_as_documented() {
         let t = committed();
-        // Contrast: judged by the minimum.
+        // Contrast: every frame within 5 % of the exemplar.
         let s = t.summarize(Metric::Contrast, &[1.0, 0.95, 0.89, f64::NAN]);
         assert_eq!((s.frames, s.skipped), (3, 1));
         assert_eq!((s.median, s.min, s.max), (0.95, 0.89, 1.0));
         assert_eq!(s.verdict, Verdict::Fail);
+        let s = t.summarize(Metric::Contrast, &[1.0, 0.96, 1.04]);
+        assert_eq!(s.verdict, Verdict::Pass);
+        let s = t.summarize(Metric::Contrast, &[1.0, 0.96, 1.06]);
+        assert_eq!(
+            s.verdict,
+            Verdict::Fail,
+            "a stretched frame is too contrasted"
+        );
         // Flow EPE: judged by the median, one bad frame of three passes.
         let s = t.summarize(Metric::FlowEpe, &[0.1, 3.0, 0.2]);
         assert_eq!((s.median, s.verdict), (0.2, Verdict::Pass));
