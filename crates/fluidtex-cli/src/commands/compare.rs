@@ -235,14 +235,19 @@ fn methods_of(a: &CompareArgs) -> Result<(Vec<String>, Vec<MethodKind>)> {
     Ok((names, kinds))
 }
 
-/// One scene to measure: its parameters and frame window.
+/// One scene to measure: where its frames come from and its window.
 struct ScenePlan<'a> {
     name: &'a str,
-    params: scenes::SceneParams,
+    input: PlanInput,
     first: i32,
     last: i32,
-    /// The user's own sequence instead of a built-in scene (`--mesh`).
-    files: Option<SequenceScene>,
+}
+
+/// A built-in scene with its parameters, or the user's own sequence
+/// (`--mesh`).
+enum PlanInput {
+    Scene(scenes::SceneParams),
+    Files(Box<SequenceScene>),
 }
 
 /// The scene name of `--mesh` in the report and the picture files.
@@ -255,15 +260,9 @@ fn plan_mesh(a: &CompareArgs, pattern: &str) -> Result<ScenePlan<'static>> {
     let info = scenes::Scene::info(&files);
     Ok(ScenePlan {
         name: MESH_SCENE,
-        params: scenes::SceneParams {
-            first: info.first,
-            last: info.last,
-            fps: info.fps,
-            ..scenes::default_params("vortex")?
-        },
+        input: PlanInput::Files(Box::new(files)),
         first: info.first,
         last: info.last,
-        files: Some(files),
     })
 }
 
@@ -290,10 +289,9 @@ fn plan_scene<'a>(
     }
     Ok(ScenePlan {
         name,
-        params,
+        input: PlanInput::Scene(params),
         first,
         last,
-        files: None,
     })
 }
 
@@ -319,14 +317,16 @@ impl Session<'_> {
     fn scene(&self, plan: ScenePlan<'_>) -> Result<SceneReport> {
         let ScenePlan {
             name,
-            params,
+            input,
             first,
             last,
-            files,
         } = plan;
-        let mut scene: Box<dyn scenes::Scene> = match files {
-            Some(files) => Box::new(files),
-            None => scenes::by_name(name, Some(params))?,
+        let (mut scene, source): (Box<dyn scenes::Scene>, String) = match input {
+            PlanInput::Files(files) => (files, "your files".into()),
+            PlanInput::Scene(params) => (
+                scenes::by_name(name, Some(params))?,
+                format!("resolution {}", params.resolution),
+            ),
         };
         let frames: Vec<i32> = (first..=last).collect();
         let keep = picture_frames(&frames);
@@ -338,8 +338,7 @@ impl Session<'_> {
             ..Default::default()
         };
         self.say(format!(
-            "{name}: preparing frames {first}-{last} (resolution {})",
-            params.resolution
+            "{name}: preparing frames {first}-{last} ({source})"
         ));
         let prepared = eval::prepare(
             scene.as_mut(),

@@ -324,6 +324,11 @@ impl MethodRun {
     pub fn summary(&self, m: Metric) -> Option<&Summary> {
         self.summaries.iter().find(|s| s.metric == m)
     }
+
+    /// [`MethodRun::summary`], to rewrite its verdict.
+    fn summary_mut(&mut self, m: Metric) -> Option<&mut Summary> {
+        self.summaries.iter_mut().find(|s| s.metric == m)
+    }
 }
 
 /// The antialiased unlit render and per-pixel provenance of one frame.
@@ -1005,11 +1010,7 @@ pub fn judge_against_floor_on(runs: &mut [MethodRun], thresholds: &Thresholds, s
             })
             .unzip();
         let summary = thresholds.summarize_against_floor(&values, &floor_values);
-        if let Some(s) = run
-            .summaries
-            .iter_mut()
-            .find(|s| s.metric == Metric::SourceSwitch)
-        {
+        if let Some(s) = run.summary_mut(Metric::SourceSwitch) {
             *s = summary;
         }
     }
@@ -1031,7 +1032,6 @@ fn judge_popping_against_renewal(
 ) {
     let excess = thresholds.source_switch.max_excess_over_floor;
     let lead = "popping: judged against the renewal floor";
-    let floors: Vec<f64> = renewal.iter().map(|r| r.1).collect();
     let Some((median, (_, worst))) = median_and_worst(renewal) else {
         return;
     };
@@ -1046,11 +1046,7 @@ fn judge_popping_against_renewal(
                 p.is_finite().then_some(p <= floor + excess + 1e-12)
             })
             .collect();
-        let Some(s) = run
-            .summaries
-            .iter_mut()
-            .find(|s| s.metric == Metric::Popping)
-        else {
+        let Some(s) = run.summary_mut(Metric::Popping) else {
             continue;
         };
         if verdicts.is_empty() {
@@ -1062,7 +1058,7 @@ fn judge_popping_against_renewal(
              never-eroded patch is past δ_max there (median {:.3}, worst {:.3} over {} frames)",
             median,
             worst,
-            floors.len()
+            renewal.len()
         ));
     }
 }
@@ -1089,11 +1085,7 @@ fn judge_aligned_against_floor(runs: &mut [MethodRun], thresholds: &Thresholds) 
     let lead = "flow aligned share: judged against";
     for run in runs.iter_mut() {
         run.notes.retain(|n| !n.starts_with(lead));
-        let Some(s) = run
-            .summaries
-            .iter_mut()
-            .find(|s| s.metric == Metric::FlowAligned)
-        else {
+        let Some(s) = run.summary_mut(Metric::FlowAligned) else {
             continue;
         };
         if !s.median.is_finite() {

@@ -962,13 +962,26 @@ impl FillContext<'_> {
     #[inline]
     fn resolve_in_span(&self, cands: &[SpanCandidate], k: u32, x: Vec3) -> Option<Hit> {
         cands.chunk_by(|a, b| a.patch == b.patch).find_map(|group| {
-            let listed = group
-                .iter()
-                .filter(|c| c.lo <= k && k <= c.hi)
-                .map(|c| (c, &c.frame));
-            let (c, bary) = self.best_holder(listed, x)?;
+            let (c, bary) = self.span_holder(group, k, x)?;
             self.decide(c.patch, c.corners.located(c.tri, bary), c.verdict)
         })
+    }
+
+    /// Of one patch's span candidates (`group`), the triangle that holds
+    /// texel `k` at `x`, with its barycentrics ([`FillContext::best_holder`]
+    /// over the candidates whose interval holds the texel).
+    #[inline]
+    fn span_holder<'c>(
+        &self,
+        group: &'c [SpanCandidate],
+        k: u32,
+        x: Vec3,
+    ) -> Option<(&'c SpanCandidate, [f32; 3])> {
+        let listed = group
+            .iter()
+            .filter(|c| c.lo <= k && k <= c.hi)
+            .map(|c| (c, &c.frame));
+        self.best_holder(listed, x)
     }
 }
 
@@ -987,11 +1000,7 @@ impl FillContext<'_> {
         let mut hit = None;
         let mut holder: Option<(u32, bool)> = None;
         for group in cands.chunk_by(|a, b| a.patch == b.patch) {
-            let listed = group
-                .iter()
-                .filter(|c| c.lo <= k && k <= c.hi)
-                .map(|c| (c, &c.frame));
-            let Some((c, bary)) = self.best_holder(listed, x) else {
+            let Some((c, bary)) = self.span_holder(group, k, x) else {
                 continue;
             };
             if hit.is_none() {
