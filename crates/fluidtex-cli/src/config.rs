@@ -346,6 +346,9 @@ pub struct RunFlags {
     /// Erosion: per frame, move each channel's mean to the exemplar's (mean), also match its contrast (match), or keep the paper's composite (off) [mean]
     #[arg(long, value_parser = named::<Tone>())]
     pub tone: Option<Tone>,
+    /// Erosion: frames over which a texel whose source changes shows the old and the new source, blended preserving contrast (0: one source per texel, the paper) [0]
+    #[arg(long)]
+    pub transition: Option<u32>,
     /// dual-rest: frames between two resets of a layer [24]
     #[arg(long)]
     pub period: Option<u32>,
@@ -483,6 +486,7 @@ flag_keys! {
     radius_edges => erosion.radius_edges: value,
     split_edges => erosion.split_edges: value,
     tone => erosion.tone: value,
+    transition => erosion.transition: value,
     period => dual_rest.period: value,
     no_obj => outputs.obj: off,
     no_glb => outputs.glb: off,

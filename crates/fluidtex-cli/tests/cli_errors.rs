@@ -243,6 +243,10 @@ fn bad_flags_are_refused_before_any_work() {
             "error: parameter delta_onset = 3 is out of range (allowed: [1, delta_max))",
         ),
         (
+            &["--transition", "9"],
+            "error: parameter transition = 9 is out of range (allowed: 0..=8 frames)",
+        ),
+        (
             &["--channel", "displacement"],
             "error: --channel displacement: expected NAME=IMAGE, e.g. displacement=disp.exr",
         ),

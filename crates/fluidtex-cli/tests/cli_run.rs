@@ -822,3 +822,54 @@ fn outputs_get_the_same_permissions_as_any_new_file() {
         );
     }
 }
+
+/// `--transition 2`: texels whose source changes show both sources for two
+/// frames, and a run killed after frame 3 resumes into the same bytes (the
+/// weights of the frames before travel in `state.bin`).
+#[test]
+fn a_transition_resumes_exactly_and_reports_its_share() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene");
+    ok(&[
+        "scene".as_ref(),
+        "vortex".as_ref(),
+        "--resolution".as_ref(),
+        "16".as_ref(),
+        "--frames".as_ref(),
+        "0-7".as_ref(),
+        "--out".as_ref(),
+        scene.as_os_str(),
+        "--quiet".as_ref(),
+    ]);
+    let pattern = scene.join("fluid.####.ply");
+    let with_transition = |out: &Path| {
+        let mut args = erosion_args(&pattern, out);
+        args.extend(["--transition", "2"].map(std::ffi::OsString::from));
+        args
+    };
+    let reference = dir.path().join("reference");
+    ok(&with_transition(&reference));
+    let shares: Vec<f64> = (0..=7)
+        .map(|f| {
+            let bytes = std::fs::read(reference.join(format!("stats.{f:04}.json"))).unwrap();
+            let stats: serde_json::Value = serde_json::from_slice(&bytes).unwrap();
+            stats["transition_share"].as_f64().unwrap()
+        })
+        .collect();
+    assert_eq!(shares[0], 0.0, "nothing came before frame 0");
+    assert!(
+        shares.iter().all(|s| (0.0..1.0).contains(s)) && shares.iter().any(|&s| s > 0.0),
+        "{shares:?}"
+    );
+
+    let killed = dir.path().join("killed");
+    let args = with_transition(&killed);
+    let paused = spawn_paused(&args, &[("FLUIDTEX_TEST_PAUSE_AFTER_FRAME", "3")]);
+    assert_eq!(paused.line, "fluidtex-test: paused after frame 3");
+    paused.kill();
+    let mut resume = args.clone();
+    resume.push("--resume".into());
+    let out = fluidtex().args(&resume).output().unwrap();
+    check_ok(&out, &resume);
+    assert_same_outputs(&reference, &killed);
+}

@@ -26,6 +26,7 @@ use rayon::prelude::*;
 use super::erode::{ErosionTest, Verdict};
 use super::exemplars::MultiFill;
 use super::feature_levels::FeatureLevelSampler;
+pub use super::holders::Transition;
 use super::patch::Patch;
 use crate::atlas::{Atlas, Band};
 use crate::exemplar::Exemplar;
@@ -497,19 +498,26 @@ pub struct FillContext<'a> {
     /// ([`FillContext::verdicts_before`]), for the renewal record; empty
     /// when the fill records none.
     pub verdicts_before: &'a [Vec<Verdict>],
+    /// With a transition of N frames, the verdicts at the weights of the
+    /// N − 1 frames before that ([`Patch::weight_older`]), most recent
+    /// first; empty without.
+    pub verdicts_older: &'a [Vec<Vec<Verdict>>],
+    /// Frames of the transition ([`super::transition`]); 0: one source per
+    /// texel, the paper's fill.
+    pub transition: u32,
 }
 
 /// Where a surface point lies in a patch.
 #[derive(Clone, Copy, Debug)]
-struct Located {
+pub(super) struct Located {
     /// The patch triangle that holds it.
-    triangle: u32,
+    pub(super) triangle: u32,
     /// Patch (exemplar) uv.
-    uv: Vec2,
+    pub(super) uv: Vec2,
     /// Interpolated weight w.
-    w: f32,
+    pub(super) w: f32,
     /// Feature-map level of the triangle.
-    lod: f32,
+    pub(super) lod: f32,
 }
 
 /// What the lapped decision reads of one patch triangle at its corners:
@@ -519,14 +527,14 @@ struct Located {
 /// arrays: those reads, scattered over every patch, were about a quarter
 /// of the fill's time in a profile (85k triangles, 6144² atlas).
 #[derive(Clone, Copy, Debug)]
-struct CornerData {
-    uv: [Vec2; 3],
-    w: [f32; 3],
-    lod: f32,
+pub(super) struct CornerData {
+    pub(super) uv: [Vec2; 3],
+    pub(super) w: [f32; 3],
+    pub(super) lod: f32,
     /// The weights of the frame before (0 for a patch created this frame).
-    w_before: [f32; 3],
+    pub(super) w_before: [f32; 3],
     /// The triangle is past δ_max ([`Patch::distorted`]).
-    distorted: bool,
+    pub(super) distorted: bool,
 }
 
 impl CornerData {
@@ -546,7 +554,7 @@ impl CornerData {
     /// The point at barycentrics `bary` (clamped to the triangle) of
     /// triangle `j`, whose corners these are.
     #[inline]
-    fn located(&self, j: u32, bary: [f32; 3]) -> Located {
+    pub(super) fn located(&self, j: u32, bary: [f32; 3]) -> Located {
         let b = bary.map(|v| v.max(0.0));
         let s = b[0] + b[1] + b[2];
         let b = b.map(|v| v / s);
@@ -562,7 +570,7 @@ impl CornerData {
 
     /// [`CornerData::located`] with the weights of the frame before.
     #[inline]
-    fn located_before(&self, j: u32, bary: [f32; 3]) -> Located {
+    pub(super) fn located_before(&self, j: u32, bary: [f32; 3]) -> Located {
         CornerData {
             w: self.w_before,
             ..*self
@@ -657,7 +665,7 @@ impl FillContext<'_> {
     /// The lapped decision at a located point: its hit when the patch's
     /// texel there survives erosion.
     #[inline]
-    fn decide(&self, i: u32, l: Located, verdict: Verdict) -> Option<Hit> {
+    pub(super) fn decide(&self, i: u32, l: Located, verdict: Verdict) -> Option<Hit> {
         let kept = match verdict {
             Verdict::Kept => true,
             Verdict::Eroded => false,
@@ -737,6 +745,21 @@ impl FillContext<'_> {
         })
     }
 
+    /// [`FillContext::erosion_verdicts`] at each of the older weights a
+    /// transition keeps ([`Patch::weight_older`]), most recent first:
+    /// `levels` tables (a patch that did not exist then: all eroded).
+    pub fn verdicts_older(&self, levels: usize) -> Vec<Vec<Vec<Verdict>>> {
+        (0..levels)
+            .map(|k| {
+                self.verdicts_at(|p| {
+                    p.weight_older
+                        .get(k)
+                        .filter(|w| w.len() == p.positions.len())
+                })
+            })
+            .collect()
+    }
+
     /// The triangle verdicts at per-vertex weights `weights` of a patch
     /// (`None`: every triangle eroded).
     fn verdicts_at(
@@ -806,9 +829,9 @@ pub(crate) struct SpanCandidate {
     pub(crate) lo: u32,
     pub(crate) hi: u32,
     frame: TriFrame,
-    verdict: Verdict,
-    verdict_before: Verdict,
-    corners: CornerData,
+    pub(super) verdict: Verdict,
+    pub(super) verdict_before: Verdict,
+    pub(super) corners: CornerData,
 }
 
 /// The span pruning of one fluid triangle. Along a span the surface point
@@ -971,7 +994,7 @@ impl FillContext<'_> {
     /// texel `k` at `x`, with its barycentrics ([`FillContext::best_holder`]
     /// over the candidates whose interval holds the texel).
     #[inline]
-    fn span_holder<'c>(
+    pub(super) fn span_holder<'c>(
         &self,
         group: &'c [SpanCandidate],
         k: u32,
@@ -985,65 +1008,10 @@ impl FillContext<'_> {
     }
 }
 
-impl FillContext<'_> {
-    /// [`FillContext::resolve_in_span`] (the same hit, by the same tests in
-    /// the same order) and the texel's renewal byte: the *previous holder*
-    /// is the first patch in candidate order (oldest first) that holds the
-    /// point and whose texel there survived erosion at the weights of the
-    /// frame before, which is the lapped decision of the frame before on
-    /// the carried patches. The search goes past the hit only while no
-    /// holder is found (weights that rise again, a texel new to the
-    /// surface), so it costs little beyond the hit's own search.
-    #[inline]
-    fn resolve_with_renewal(&self, cands: &[SpanCandidate], k: u32, x: Vec3) -> (Option<Hit>, u8) {
-        use crate::provenance::{RENEWAL_DISTORTED, RENEWAL_HELD, RENEWAL_SHOWN};
-        let mut hit = None;
-        let mut holder: Option<(u32, bool)> = None;
-        for group in cands.chunk_by(|a, b| a.patch == b.patch) {
-            let Some((c, bary)) = self.span_holder(group, k, x) else {
-                continue;
-            };
-            if hit.is_none() {
-                hit = self.decide(c.patch, c.corners.located(c.tri, bary), c.verdict);
-            }
-            if holder.is_none() {
-                let held = match c.verdict_before {
-                    Verdict::Kept => true,
-                    Verdict::Eroded => false,
-                    Verdict::Test => {
-                        let l = c.corners.located_before(c.tri, bary);
-                        self.kept(c.patch, l.uv, l.w, l.lod)
-                    }
-                };
-                if held {
-                    holder = Some((c.patch, c.corners.distorted));
-                }
-            }
-            if hit.is_some() && holder.is_some() {
-                break;
-            }
-        }
-        let renewal = match holder {
-            None => 0,
-            Some((patch, distorted)) => {
-                let mut r = RENEWAL_HELD;
-                if hit.is_some_and(|h: Hit| h.patch == patch) {
-                    r |= RENEWAL_SHOWN;
-                }
-                if distorted {
-                    r |= RENEWAL_DISTORTED;
-                }
-                r
-            }
-        };
-        (hit, renewal)
-    }
-}
-
 /// Triangle `j` of patch `i` in a per-patch verdict table
 /// ([`Verdict::Test`] where it has none).
 #[inline]
-fn verdict_in(table: &[Vec<Verdict>], i: u32, j: u32) -> Verdict {
+pub(super) fn verdict_in(table: &[Vec<Verdict>], i: u32, j: u32) -> Verdict {
     table
         .get(i as usize)
         .and_then(|v| v.get(j as usize))
@@ -1052,22 +1020,26 @@ fn verdict_in(table: &[Vec<Verdict>], i: u32, j: u32) -> Verdict {
 }
 
 /// Per patch triangle, [`Verdict::Eroded`] only where it is eroded both at
-/// this frame's weights (`now`) and at the frame before's (`before`), and
-/// [`Verdict::Test`] elsewhere: the triangles [`Candidates::without_eroded`]
-/// may drop when the fill also looks for each texel's previous holder.
-pub fn eroded_now_and_before(now: &[Vec<Verdict>], before: &[Vec<Verdict>]) -> Vec<Vec<Verdict>> {
+/// this frame's weights (`now`) and at every earlier frame's the fill
+/// reads (`earlier`: the frame before's, then a transition's older ones),
+/// and [`Verdict::Test`] elsewhere: the triangles
+/// [`Candidates::without_eroded`] may drop when the fill also looks for
+/// each texel's earlier holders.
+pub fn eroded_at_every_frame(
+    now: &[Vec<Verdict>],
+    earlier: &[&[Vec<Verdict>]],
+) -> Vec<Vec<Verdict>> {
     now.iter()
         .enumerate()
         .map(|(i, v)| {
             v.iter()
                 .enumerate()
                 .map(|(j, &n)| {
-                    let b = before.get(i).and_then(|b| b.get(j)).copied();
-                    if n == Verdict::Eroded && b == Some(Verdict::Eroded) {
-                        Verdict::Eroded
-                    } else {
-                        Verdict::Test
-                    }
+                    let all = n == Verdict::Eroded
+                        && earlier.iter().all(|table| {
+                            table.get(i).and_then(|b| b.get(j)).copied() == Some(Verdict::Eroded)
+                        });
+                    if all { Verdict::Eroded } else { Verdict::Test }
                 })
                 .collect()
         })
@@ -1123,15 +1095,34 @@ pub fn fill(
     candidates: &Candidates,
     out: &mut FillBuffers,
 ) -> Vec<Uncovered> {
+    fill_with_transitions(ctx, atlas, candidates, out).0
+}
+
+/// [`fill`], and with a transition ([`FillContext::transition`] > 0) the
+/// texels that show an earlier source beside their own, in texel order.
+pub fn fill_with_transitions(
+    ctx: &FillContext<'_>,
+    atlas: &Atlas,
+    candidates: &Candidates,
+    out: &mut FillBuffers,
+) -> (Vec<Uncovered>, Vec<Transition>) {
     let defer = out.defer_values;
+    let transitions = std::sync::Mutex::new(Vec::new());
     let merged = fill_bands(atlas, out.rows(), |band, mut rows| {
         let mut uncovered = Vec::new();
+        let mut fading = Vec::new();
         let track = !rows.renewal.is_empty();
         walk_band(ctx, atlas, candidates, band, |texel, cands| {
             let t = texel.t;
-            let resolved = if track {
-                let (hit, renewal) = ctx.resolve_with_renewal(cands, texel.k, texel.p);
-                rows.renewal[t] = renewal;
+            let resolved = if track || ctx.transition > 0 {
+                let (hit, renewal, earlier) = ctx.resolve_with_holders(cands, texel.k, texel.p);
+                if track {
+                    rows.renewal[t] = renewal;
+                }
+                if let Some(mut e) = earlier {
+                    e.texel = (rows.base + t) as u32;
+                    fading.push(e);
+                }
                 hit
             } else {
                 ctx.resolve_in_span(cands, texel.k, texel.p)
@@ -1156,10 +1147,19 @@ pub fn fill(
                 }
             }
         });
+        if !fading.is_empty() {
+            // A poisoned lock only means another band panicked, which
+            // the pool re-raises anyway.
+            if let Ok(mut all) = transitions.lock() {
+                all.extend(fading);
+            }
+        }
         BandResult {
             uncovered,
             used: Vec::new(),
         }
     });
-    merged.uncovered
+    let mut transitions = transitions.into_inner().unwrap_or_default();
+    transitions.sort_unstable_by_key(|e| e.texel);
+    (merged.uncovered, transitions)
 }

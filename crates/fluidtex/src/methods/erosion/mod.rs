@@ -20,7 +20,9 @@ pub mod erode;
 pub mod exemplars;
 pub mod feature_levels;
 pub mod fill;
+pub mod holders;
 pub mod patch;
+pub mod transition;
 pub mod update;
 
 #[cfg(test)]
@@ -115,6 +117,16 @@ pub struct ErosionParams {
     /// the paper makes it. Only the erosion method itself; the baselines
     /// are never matched.
     pub tone: Tone,
+    /// Frames over which a texel whose source changes shows its old and its
+    /// new source together \[0: the paper, one source per texel always]
+    /// (see [`transition`]). Up to [`transition::MAX_FRAMES`]. Left out of
+    /// the settings (and so of a run's fingerprint) at 0.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub transition: u32,
+}
+
+fn is_zero(n: &u32) -> bool {
+    *n == 0
 }
 
 /// How the vertex weights w_V of Eq. 3 evolve from frame to frame.
@@ -184,6 +196,7 @@ impl Default for ErosionParams {
             radius_edges: 4.0,
             split_edges: 2.0,
             tone: Tone::Mean,
+            transition: 0,
         }
     }
 }
@@ -232,6 +245,13 @@ impl ErosionParams {
             "[0.001, 1e6] per second",
         )?;
         check_range("radius_edges", self.radius_edges, 0.0, 1000.0, "[0, 1000]")?;
+        check_range(
+            "transition",
+            self.transition as f32,
+            0.0,
+            transition::MAX_FRAMES as f32,
+            "0..=8 frames",
+        )?;
         if self.split_edges != 0.0 {
             check_range(
                 "split_edges",
@@ -430,6 +450,16 @@ impl Erosion {
         ErosionTest::with_reach(feature, self.params.epsilon, reach)
     }
 
+    /// Each exemplar's statistics, measured once.
+    pub(super) fn exemplar_tones(&mut self) -> &[ExemplarTone] {
+        let exemplars = match &self.multi {
+            Some(m) => m.set.exemplars(),
+            None => std::slice::from_ref(&self.exemplar),
+        };
+        self.tones
+            .get_or_insert_with(|| exemplars.iter().map(|e| ExemplarTone::of(e)).collect())
+    }
+
     /// Matches the tone of the composite in `out` as the parameters say
     /// (the erosion method only; see [`crate::methods::tone`]), with `lods`
     /// the footprint pass's levels and `by_id` the exemplar of each patch
@@ -444,13 +474,8 @@ impl Erosion {
         if self.variant != Variant::Erode || self.params.tone == Tone::Off {
             return Vec::new();
         }
-        let exemplars = match &self.multi {
-            Some(m) => m.set.exemplars(),
-            None => std::slice::from_ref(&self.exemplar),
-        };
-        let tones = self
-            .tones
-            .get_or_insert_with(|| exemplars.iter().map(|e| ExemplarTone::of(e)).collect());
+        let mode = self.params.tone;
+        let tones = self.exemplar_tones();
         let exemplar_of = |s: u32| {
             by_id
                 .zip((s as usize).checked_sub(1))
@@ -458,7 +483,7 @@ impl Erosion {
                 .map_or(0, |&e| e as usize)
         };
         tone::match_tone(
-            self.params.tone,
+            mode,
             &mut out.values,
             out.channels,
             &out.source,
@@ -564,15 +589,22 @@ impl Method for Erosion {
         } else {
             blended = self.step_surface(ctx, &mut out, &mut counts, &mut clock)?;
         }
-        counts.unused = self.delete_unused(&out, blended.used.as_deref());
+        let mut kept = blended.used.take();
+        if !blended.transitions.is_empty() {
+            let ids = kept.get_or_insert_with(Vec::new);
+            ids.extend(blended.transitions.iter().map(|e| e.patch_id));
+        }
+        counts.unused = self.delete_unused(&out, kept.as_deref());
         clock.lap("delete");
         let by_id = self
             .multi
             .as_ref()
             .map(|_| exemplars::by_id(&self.state.patches, self.state.next_id));
         // Contrast tone matching reads each texel's level.
+        // So does a transition, which reads the earlier source at it.
         let levels = if self.levels_read
             || (self.variant == Variant::Erode && self.params.tone == Tone::Match)
+            || !blended.transitions.is_empty()
         {
             super::footprint::Levels::Keep
         } else {
@@ -601,6 +633,16 @@ impl Method for Erosion {
             })
             .flatten();
         clock.lap("exemplar filter");
+        let in_transition = self.blend_transitions(
+            &mut out,
+            &blended.transitions,
+            exemplar_lod.as_deref(),
+            by_id.as_deref(),
+        );
+        if let Some((layers, _)) = &in_transition {
+            blended.layers = Some(layers.clone());
+        }
+        clock.lap("transition");
         let tone = self.match_tone(&mut out, exemplar_lod.as_deref(), by_id.as_deref());
         clock.lap("tone");
         let mut result = FrameResult {
@@ -623,6 +665,17 @@ impl Method for Erosion {
             result
                 .stats
                 .insert("tone_mean_before".into(), serde_json::json!(means));
+        }
+        if let Some((_, blended_texels)) = in_transition {
+            let covered = out
+                .source
+                .iter()
+                .filter(|&&s| s != fill::OUTSIDE && s != fill::UNCOVERED)
+                .count();
+            let share = blended_texels as f64 / covered.max(1) as f64;
+            result
+                .stats
+                .insert("transition_share".into(), serde_json::json!(share));
         }
         if let (Some(m), Some(by_id)) = (&self.multi, &by_id) {
             let texels = exemplars::texels_per_exemplar(&out.source, by_id, m.set.len());
@@ -651,7 +704,11 @@ impl Method for Erosion {
     fn save_state(&self) -> Result<Vec<u8>, MethodError> {
         let mut bytes =
             postcard::to_allocvec(&self.state).map_err(|e| MethodError::State(e.to_string()))?;
-        // Several exemplars: their ids follow the patch state.
+        // A transition's weights of the frames before, then several
+        // exemplars' ids, follow the patch state.
+        if self.transition_frames() > 0 {
+            bytes.extend(transition::save_history(&self.state.patches)?);
+        }
         if let Some(m) = &self.multi {
             bytes.extend(m.save(&self.state.patches)?);
         }
@@ -662,6 +719,11 @@ impl Method for Erosion {
         let (state, rest) = postcard::take_from_bytes::<ErosionState>(bytes)
             .map_err(|e| MethodError::State(e.to_string()))?;
         self.state = state;
+        let rest = if self.transition_frames() > 0 {
+            transition::load_history(rest, &mut self.state.patches)?
+        } else {
+            rest
+        };
         if let Some(m) = &mut self.multi {
             m.load(rest, &mut self.state.patches)?;
         }
@@ -692,6 +754,9 @@ struct Blended {
     layers: Option<Vec<u8>>,
     /// Patches that contributed a visible layer.
     used: Option<Vec<u32>>,
+    /// The lapped fill with a transition: the texels that still show an
+    /// earlier source ([`transition`]).
+    transitions: Vec<fill::Transition>,
 }
 
 impl Blended {
@@ -771,6 +836,7 @@ impl Erosion {
         for p in &mut self.state.patches {
             if p.id >= first_new_id {
                 p.weight_before.clear();
+                p.weight_older.clear();
             }
         }
         counts.pruned = self.prune(&shape, test);
@@ -797,16 +863,25 @@ impl Erosion {
                 multi: multi_fill.as_ref(),
                 verdicts: &[],
                 verdicts_before: &[],
+                verdicts_older: &[],
+                transition: self.transition_frames(),
             };
             let verdicts = unjudged.erosion_verdicts();
-            let before = if out.renewal.is_empty() {
+            let history = unjudged.transition > 0;
+            let before = if out.renewal.is_empty() && !history {
                 Vec::new()
             } else {
                 unjudged.verdicts_before()
             };
+            let older = if history {
+                unjudged.verdicts_older(unjudged.transition as usize - 1)
+            } else {
+                Vec::new()
+            };
             let fill_ctx = FillContext {
                 verdicts: &verdicts,
                 verdicts_before: &before,
+                verdicts_older: &older,
                 ..unjudged
             };
             self.fill(ctx, &fill_ctx, out, counts, &mut blended)
@@ -826,6 +901,8 @@ impl Erosion {
             multi: multi_fill.as_ref(),
             verdicts: &[],
             verdicts_before: &[],
+            verdicts_older: &[],
+            transition: 0,
         };
         let (seed, random) = (self.seed, self.params.random_rotation);
         let rotation = move |at| rotation_for(seed, random, location_key(at));
@@ -886,10 +963,11 @@ impl Erosion {
             (Variant::Erode, WeightMode::Progressive) => Some(self.params.erosion_rate * dt),
             _ => None,
         };
-        self.state
-            .patches
-            .par_iter_mut()
-            .for_each(|p| p.update_weights(shape, max_drop));
+        let older = self.transition_frames().saturating_sub(1) as usize;
+        self.state.patches.par_iter_mut().for_each(|p| {
+            p.remember_weights(older);
+            p.update_weights(shape, max_drop);
+        });
     }
 
     /// Drops, from every patch, the triangles that can never show a texel
@@ -903,6 +981,7 @@ impl Erosion {
         }
         let tests = self.multi.as_ref().map(|m| m.tests.as_slice());
         let weights_can_rise = self.params.weights == WeightMode::Paper;
+        let keep_earlier = self.transition_frames() > 0;
         self.state
             .patches
             .par_iter_mut()
@@ -911,7 +990,7 @@ impl Erosion {
                     .and_then(|t| t.get(p.exemplar as usize))
                     .copied()
                     .unwrap_or(test);
-                p.prune_eroded(&test, shape, weights_can_rise)
+                p.prune_eroded(&test, shape, weights_can_rise, keep_earlier)
             })
             .sum()
     }
@@ -971,13 +1050,21 @@ impl Erosion {
         } else {
             // Looking for each texel's previous holder keeps the triangles
             // that erode this frame.
-            let candidates = if out.renewal.is_empty() {
+            // (and those that eroded within the transition).
+            let candidates = if out.renewal.is_empty() && fill_ctx.transition == 0 {
                 candidates.without_eroded(fill_ctx.verdicts)
             } else {
-                let dead = fill::eroded_now_and_before(fill_ctx.verdicts, fill_ctx.verdicts_before);
+                let earlier: Vec<&[Vec<erode::Verdict>]> =
+                    std::iter::once(fill_ctx.verdicts_before)
+                        .chain(fill_ctx.verdicts_older.iter().map(Vec::as_slice))
+                        .collect();
+                let dead = fill::eroded_at_every_frame(fill_ctx.verdicts, &earlier);
                 candidates.without_eroded(&dead)
             };
-            fill::fill(fill_ctx, ctx.atlas, &candidates, out)
+            let (uncovered, transitions) =
+                fill::fill_with_transitions(fill_ctx, ctx.atlas, &candidates, out);
+            blended.transitions = transitions;
+            uncovered
         }
     }
 

@@ -210,6 +210,12 @@ pub struct Patch {
     /// for the renewal record ([`crate::provenance::RENEWAL_HELD`]).
     #[serde(skip)]
     pub weight_before: Vec<f32>,
+    /// With a transition of N frames ([`super::transition`]), the weights
+    /// of the N − 1 frames before that, most recent first, per current
+    /// vertex (an entry of another length: the patch did not exist then).
+    /// Saved after the patch state by [`super::transition::save_history`].
+    #[serde(skip)]
+    pub weight_older: Vec<Vec<f32>>,
     /// Per triangle: past the distortion bound (δ_t ≥ δ_max, Q_T = 0 of
     /// Eq. 1) at this frame's positions; refreshed with the weights.
     #[serde(skip)]
@@ -299,6 +305,7 @@ impl Patch {
             pinned,
             weight: Vec::new(),
             weight_before: Vec::new(),
+            weight_older: Vec::new(),
             distorted: Vec::new(),
             lod: Vec::new(),
             still: false,
@@ -447,9 +454,12 @@ impl Patch {
                     .push((self.rest[a as usize] + self.rest[b as usize]) * 0.5);
                 self.pinned
                     .push(self.pinned[a as usize] && self.pinned[b as usize]);
-                if self.weight.len() + 1 == self.positions.len() {
-                    let w = 0.5 * (self.weight[a as usize] + self.weight[b as usize]);
-                    self.weight.push(w);
+                let n = self.positions.len();
+                for weights in self.weights_mut() {
+                    if weights.len() + 1 == n {
+                        let w = 0.5 * (weights[a as usize] + weights[b as usize]);
+                        weights.push(w);
+                    }
                 }
                 for k in holders {
                     touched[k as usize] = true;
@@ -481,7 +491,10 @@ impl Patch {
     /// ([`ErosionTest::triangle_verdict`]) at this frame's weights, and,
     /// when weights may rise again (`weights_can_rise`, the paper's w_V
     /// recomputed every frame), only those whose distortion has also passed
-    /// δ_max (Q_T = 0, Eq. 1). Returns how many went; a still patch is
+    /// δ_max (Q_T = 0, Eq. 1). With `keep_earlier` (a transition) a triangle
+    /// must also be eroded at the weights of every frame the transition
+    /// reads ([`Patch::weight_before`], [`Patch::weight_older`]): until then
+    /// it is still an earlier source. Returns how many went; a still patch is
     /// skipped (its weights, so its verdicts, are last frame's, already
     /// pruned).
     pub fn prune_eroded(
@@ -489,11 +502,26 @@ impl Patch {
         test: &ErosionTest,
         shape: &PatchShape,
         weights_can_rise: bool,
+        keep_earlier: bool,
     ) -> usize {
         if self.still || self.weight.len() != self.positions.len() {
             return 0;
         }
         let s = shape.exemplar_size;
+        let n = self.positions.len();
+        // Eroded at a frame's weights; a table of another length is a
+        // frame the patch did not exist in.
+        let eroded_at = |weights: &[f32], t: &[u32; 3], uv: [Vec2; 3]| {
+            weights.len() != n
+                || test.triangle_verdict(uv, t.map(|v| weights[v as usize])) == Verdict::Eroded
+        };
+        let earlier = if keep_earlier {
+            std::iter::once(&self.weight_before)
+                .chain(self.weight_older.iter())
+                .collect()
+        } else {
+            Vec::new()
+        };
         let dead: Vec<bool> = self
             .triangles
             .iter()
@@ -501,6 +529,7 @@ impl Patch {
                 let uv = t.map(|v| self.rest[v as usize]);
                 let w = t.map(|v| self.weight[v as usize]);
                 test.triangle_verdict(uv, w) == Verdict::Eroded
+                    && earlier.iter().all(|weights| eroded_at(weights, t, uv))
                     && (!weights_can_rise || {
                         let q = t.map(|v| self.positions[v as usize]);
                         distortion(uv.map(|p| p * s), q).delta >= shape.delta_max as f64
@@ -577,7 +606,7 @@ impl Patch {
             .filter(pick)
             .map(|i| self.pinned[i])
             .collect();
-        for weights in [&mut self.weight, &mut self.weight_before] {
+        for weights in self.weights_mut() {
             if weights.len() == used.len() {
                 *weights = (0..used.len()).filter(pick).map(|i| weights[i]).collect();
             } else {
@@ -587,6 +616,27 @@ impl Patch {
         for t in &mut self.triangles {
             *t = t.map(|v| remap[v as usize]);
         }
+    }
+
+    /// Every per-vertex weight table: this frame's, the frame before's and
+    /// the older ones a transition keeps; vertex edits apply to all.
+    fn weights_mut(&mut self) -> impl Iterator<Item = &mut Vec<f32>> {
+        [&mut self.weight, &mut self.weight_before]
+            .into_iter()
+            .chain(self.weight_older.iter_mut())
+    }
+
+    /// Moves the weights of the frame before into the older ones, keeping
+    /// `older` of them (a transition of N frames keeps N − 1); call before
+    /// [`Patch::update_weights`], which sets the frame before's anew.
+    pub fn remember_weights(&mut self, older: usize) {
+        if older == 0 {
+            self.weight_older.clear();
+            return;
+        }
+        let before = std::mem::take(&mut self.weight_before);
+        self.weight_older.insert(0, before);
+        self.weight_older.truncate(older);
     }
 
     /// Recomputes w_V = Q_V · B_V (Eqs. 1–3): Q_T from the triangle's

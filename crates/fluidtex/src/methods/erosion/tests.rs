@@ -166,6 +166,7 @@ fn weights_follow_eqs_1_to_3_on_a_hand_built_patch() {
         pinned: (0..9).map(|v| v == 0).collect(),
         weight: Vec::new(),
         weight_before: Vec::new(),
+        weight_older: Vec::new(),
         distorted: Vec::new(),
         lod: Vec::new(),
         still: false,
@@ -802,6 +803,8 @@ fn blend_fill_is_the_weight_normalised_mix_of_every_covering_patch() {
         multi: None,
         verdicts: &[],
         verdicts_before: &[],
+        verdicts_older: &[],
+        transition: 0,
     };
     let candidates = Candidates::build(&fluid, &index, &patches, &frames, tolerance);
     let mut out = FillBuffers::new(atlas.width, atlas.height, ex.total_channels());
@@ -1585,7 +1588,7 @@ fn pruning_drops_exactly_the_wholly_eroded_triangles_and_keeps_the_border() {
                 )
             })
             .collect();
-        let removed = patch.prune_eroded(&test, &s, false);
+        let removed = patch.prune_eroded(&test, &s, false, false);
         let kept: Vec<[Vec3; 3]> = (before.triangles.iter().zip(&verdicts))
             .filter(|(_, v)| **v != erode::Verdict::Eroded)
             .map(|(t, _)| t.map(|v| before.positions[v as usize]))
@@ -1614,7 +1617,7 @@ fn pruning_drops_exactly_the_wholly_eroded_triangles_and_keeps_the_border() {
             assert_eq!(patch.pinned[v], expect, "case {case}, vertex {v}");
         }
         // Pruning again removes nothing.
-        assert_eq!(patch.prune_eroded(&test, &s, false), 0);
+        assert_eq!(patch.prune_eroded(&test, &s, false, false), 0);
     }
     assert!(pruned_any > 100, "{pruned_any}");
 }
@@ -1628,11 +1631,11 @@ fn paper_weights_prune_only_triangles_past_the_distortion_bound() {
     patch.weight.iter_mut().for_each(|w| *w = 0.0);
     // Every triangle is wholly eroded, none distorted: paper weights may
     // rise again, so nothing goes.
-    assert_eq!(patch.clone().prune_eroded(&test, &s, true), 0);
+    assert_eq!(patch.clone().prune_eroded(&test, &s, true, false), 0);
     // Stretched 4× along x (δ = 4 > δ_max = 3): all go.
     let n = patch.triangles.len();
     patch.positions.iter_mut().for_each(|q| q.x *= 4.0);
-    assert_eq!(patch.prune_eroded(&test, &s, true), n);
+    assert_eq!(patch.prune_eroded(&test, &s, true, false), n);
     assert!(patch.triangles.is_empty() && patch.positions.is_empty());
 }
 
