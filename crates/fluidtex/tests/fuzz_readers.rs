@@ -255,6 +255,158 @@ fn fuzz_method_state() {
     });
 }
 
+/// A state file with a valid checksum can still be crafted: every index
+/// and count of the method states is checked on load, and a bad one is
+/// one line naming the patch (or tracker) and the element, never a panic
+/// in a later frame.
+#[test]
+fn crafted_method_states_are_refused_in_one_line() {
+    use fluidtex::methods::Method;
+    use fluidtex::methods::erosion::ErosionState;
+    let mut m = erosion();
+    fluidtex::pipeline::load_state_bytes(
+        Path::new("state.bin"),
+        &read(&["fuzz/state.bin"])[0],
+        &mut m,
+    )
+    .unwrap();
+    let good: ErosionState = m.state().clone();
+    assert!(good.patches.len() > 3, "the fixture has patches");
+    let load = |state: &ErosionState| -> Result<(), String> {
+        let bytes = postcard::to_allocvec(state).unwrap();
+        erosion().load_state(&bytes).map_err(|e| e.to_string())
+    };
+    // Known good: the state as saved.
+    load(&good).unwrap();
+    type Craft = fn(&mut ErosionState);
+    let cases: &[(Craft, &str)] = &[
+        (|s| s.patches[1].triangles[0][2] = 1_000_000, "patch 1 (id "),
+        (
+            |s| s.patches[2].rest.pop().map(drop).unwrap_or(()),
+            "rest coordinates",
+        ),
+        (
+            |s| s.patches[0].positions[0].x = f32::NAN,
+            "vertex 0 is not finite",
+        ),
+        (
+            |s| s.patches[3].weight[0] = 7.0,
+            "weight 0 is outside [0, 1]",
+        ),
+        (|s| s.patches[3].weight.truncate(2), "weights"),
+        (|s| s.patches.swap(0, 1), "out of order"),
+        (|s| s.next_id = 1, "not below the next id 1"),
+        (
+            |s| s.radius = Some(-1.0),
+            "radius -1 is not a positive number",
+        ),
+        (
+            |s| s.exemplar_size = Some(f32::INFINITY),
+            "exemplar size inf",
+        ),
+    ];
+    for (k, (craft, want)) in cases.iter().enumerate() {
+        let mut state = good.clone();
+        craft(&mut state);
+        let err = load(&state).expect_err("crafted");
+        assert!(err.contains(want), "case {k}: {err}");
+        assert!(!err.contains('\n'), "case {k}: {err}");
+    }
+    // Seeded random vertex indices: refused exactly when out of range.
+    let mut rng = <rand_pcg::Pcg64 as rand::SeedableRng>::seed_from_u64(SEED);
+    for case in 0..300 {
+        let mut state = good.clone();
+        let p = rand::Rng::random_range(&mut rng, 0..state.patches.len());
+        let n = state.patches[p].positions.len() as u32;
+        let t = rand::Rng::random_range(&mut rng, 0..state.patches[p].triangles.len());
+        let v: u32 = if case % 2 == 0 {
+            rand::Rng::random_range(&mut rng, 0..2 * n)
+        } else {
+            rand::Rng::random(&mut rng)
+        };
+        state.patches[p].triangles[t][case % 3] = v;
+        assert_eq!(
+            load(&state).is_ok(),
+            v < n,
+            "case {case}: vertex {v} of {n}"
+        );
+    }
+}
+
+/// The 2016 and 2007 methods' states, crafted the same way.
+#[test]
+fn crafted_lapped_rigid_and_optimization_states_are_refused() {
+    use fluidtex::methods::Method;
+    use fluidtex::methods::lapped_rigid::{LappedRigid, LappedRigidState};
+    use fluidtex::methods::optimization::{Optimization, OptimizationState};
+    let pebbles = std::sync::Arc::new(fluidtex::exemplar::builtin_pebbles(64, 0));
+    let tracker = |id: u32| fluidtex::methods::lapped_rigid::trackers::Tracker {
+        id,
+        position: glam::Vec3::ZERO,
+        tangent_tracker: glam::Vec3::X,
+        normal: glam::Vec3::Z,
+        fade: 1.0,
+        sinking: false,
+        exemplar: 0,
+    };
+    let rigid = |state: &LappedRigidState| {
+        let mut m = LappedRigid::new(Default::default(), pebbles.clone(), 0).unwrap();
+        m.load_state(&postcard::to_allocvec(state).unwrap())
+            .map_err(|e| e.to_string())
+    };
+    let good = LappedRigidState {
+        trackers: vec![tracker(0), tracker(3)],
+        next_id: 4,
+        radius: Some(0.1),
+        exemplar_size: Some(0.26),
+    };
+    rigid(&good).unwrap();
+    let mut bad = good.clone();
+    bad.trackers[1].id = 0;
+    assert!(rigid(&bad).unwrap_err().contains("tracker 1 has id 0"));
+    let mut bad = good.clone();
+    bad.trackers[0].position.y = f32::NAN;
+    assert!(rigid(&bad).unwrap_err().contains("tracker 0 (id 0)"));
+    let mut bad = good.clone();
+    bad.trackers[1].fade = -0.5;
+    assert!(rigid(&bad).is_err());
+
+    let optimization = |state: &OptimizationState| {
+        let mut m = Optimization::new(Default::default(), pebbles.clone(), 0).unwrap();
+        m.load_state(&postcard::to_allocvec(state).unwrap())
+            .map_err(|e| e.to_string())
+    };
+    let good = OptimizationState {
+        spacing: Some(0.01),
+        exemplar_texels: Some(128),
+        m: 4,
+        values: vec![0.5; 6],
+        orientation: vec![[1.0, 0.0, 0.0]; 2],
+    };
+    optimization(&good).unwrap();
+    for (m, ok) in [
+        (0, true),
+        (1, true),
+        (128, true),
+        (3, false),
+        (256, false),
+        (u32::MAX, false),
+    ] {
+        let state = OptimizationState { m, ..good.clone() };
+        assert_eq!(optimization(&state).is_ok(), ok, "m = {m}");
+    }
+    let state = OptimizationState {
+        exemplar_texels: Some(1 << 30),
+        ..good.clone()
+    };
+    assert!(optimization(&state).unwrap_err().contains("exemplar width"));
+    let state = OptimizationState {
+        values: vec![f32::NAN],
+        ..good
+    };
+    assert!(optimization(&state).unwrap_err().contains("point value 0"));
+}
+
 /// How the fixtures under `tests/data/fuzz/` were made; rerun with
 /// `cargo test -p fluidtex --test fuzz_readers -- --ignored` after a change
 /// of a format (e.g. a new `state.bin` version), then commit them.

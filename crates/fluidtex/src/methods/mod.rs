@@ -172,6 +172,8 @@ pub enum Stat {
     /// World size S covered by the exemplar's [0, 1]² (the distortion
     /// metric's rest scale).
     ExemplarSize,
+    /// dual-rest: the weight of layer A in the mix.
+    WeightA,
 }
 
 crate::named!(Stat {
@@ -189,6 +191,7 @@ crate::named!(Stat {
     Radius => "radius",
     RadiusRule => "radius_rule",
     ExemplarSize => "exemplar_size",
+    WeightA => "weight_a",
 });
 
 /// Method statistics as written to `stats.F.json`: typed keys, JSON values.
@@ -325,4 +328,35 @@ pub(crate) fn check_ranges(
 ) -> Result<(), MethodError> {
     rows.iter()
         .try_for_each(|&(name, v, lo, hi, allowed)| check_range(name, v, lo, hi, allowed))
+}
+
+/// A loaded state's patch or tracker radius and exemplar size: positive
+/// and finite where resolved.
+pub(crate) fn check_scale(radius: Option<f32>, exemplar_size: Option<f32>) -> Result<(), String> {
+    for (name, v) in [("radius", radius), ("exemplar size", exemplar_size)] {
+        if let Some(v) = v
+            && !(v.is_finite() && v > 0.0)
+        {
+            return Err(format!("{name} {v} is not a positive number"));
+        }
+    }
+    Ok(())
+}
+
+/// The `k`-th id of a loaded state's patch list (`what`: patch, tracker):
+/// above the one before (`last`, updated), below `next_id`.
+pub(crate) fn check_id(
+    k: usize,
+    id: u32,
+    last: &mut Option<u32>,
+    next_id: u32,
+    what: &str,
+) -> Result<(), String> {
+    if id >= next_id || last.is_some_and(|l| id <= l) {
+        return Err(format!(
+            "{what} {k} has id {id}, out of order or not below the next id {next_id}"
+        ));
+    }
+    *last = Some(id);
+    Ok(())
 }

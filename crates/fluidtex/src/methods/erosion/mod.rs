@@ -297,6 +297,24 @@ pub struct ErosionState {
     pub exemplar_size: Option<f32>,
 }
 
+impl ErosionState {
+    /// Whether a loaded state is one this method could have saved (a
+    /// state file with a valid checksum can still be crafted): patches in
+    /// id order below `next_id`, each with as many rest coordinates, pins
+    /// and weights (or none yet) as vertices, finite, and triangles that
+    /// name its own vertices; a positive radius and exemplar size.
+    pub fn check(&self) -> Result<(), String> {
+        super::check_scale(self.radius, self.exemplar_size)?;
+        let mut last = None;
+        for (k, p) in self.patches.iter().enumerate() {
+            super::check_id(k, p.id, &mut last, self.next_id, "patch")?;
+            p.check()
+                .map_err(|e| format!("patch {k} (id {}): {e}", p.id))?;
+        }
+        Ok(())
+    }
+}
+
 /// What the patch machinery does with its patches: the 2021 method, or one
 /// of the DESIGN §4 baselines built from the same parts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -718,6 +736,7 @@ impl Method for Erosion {
     fn load_state(&mut self, bytes: &[u8]) -> Result<(), MethodError> {
         let (state, rest) = postcard::take_from_bytes::<ErosionState>(bytes)
             .map_err(|e| MethodError::State(e.to_string()))?;
+        state.check().map_err(MethodError::State)?;
         self.state = state;
         let rest = if self.transition_frames() > 0 {
             transition::load_history(rest, &mut self.state.patches)?

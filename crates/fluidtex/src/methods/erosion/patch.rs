@@ -618,6 +618,35 @@ impl Patch {
         }
     }
 
+    /// Whether the patch's tables agree (see [`super::ErosionState::check`]).
+    pub fn check(&self) -> Result<(), String> {
+        let n = self.positions.len();
+        if self.rest.len() != n || self.pinned.len() != n {
+            return Err(format!(
+                "{n} vertices, {} rest coordinates, {} pins",
+                self.rest.len(),
+                self.pinned.len()
+            ));
+        }
+        if self.weight.len() != n && !self.weight.is_empty() {
+            return Err(format!("{n} vertices, {} weights", self.weight.len()));
+        }
+        if let Some(v) =
+            (0..n).find(|&v| !(self.positions[v].is_finite() && self.rest[v].is_finite()))
+        {
+            return Err(format!("vertex {v} is not finite"));
+        }
+        if let Some(v) = self.weight.iter().position(|w| !(0.0..=1.0).contains(w)) {
+            return Err(format!("weight {v} is outside [0, 1]"));
+        }
+        for (t, tri) in self.triangles.iter().enumerate() {
+            if let Some(&v) = tri.iter().find(|&&v| v as usize >= n) {
+                return Err(format!("triangle {t} names vertex {v} of {n}"));
+            }
+        }
+        Ok(())
+    }
+
     /// Every per-vertex weight table: this frame's, the frame before's and
     /// the older ones a transition keeps; vertex edits apply to all.
     fn weights_mut(&mut self) -> impl Iterator<Item = &mut Vec<f32>> {

@@ -225,7 +225,18 @@ pub fn load_history<'b>(bytes: &'b [u8], patches: &mut [Patch]) -> Result<&'b [u
             patches.len()
         )));
     }
-    for (p, mut weights) in patches.iter_mut().zip(history.patches) {
+    for (k, (p, mut weights)) in patches.iter_mut().zip(history.patches).enumerate() {
+        let n = p.positions.len();
+        if let Some(w) = weights
+            .iter()
+            .find(|w| !(w.is_empty() || w.len() == n) || w.iter().any(|x| !x.is_finite()))
+        {
+            return Err(MethodError::State(format!(
+                "transition history of patch {k} (id {}): {} weights for {n} vertices, or not finite",
+                p.id,
+                w.len()
+            )));
+        }
         if weights.is_empty() {
             p.weight_before.clear();
             p.weight_older.clear();

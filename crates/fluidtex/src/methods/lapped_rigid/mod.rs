@@ -313,6 +313,30 @@ pub struct LappedRigidState {
     pub exemplar_size: Option<f32>,
 }
 
+impl LappedRigidState {
+    /// Whether a loaded state is one this method could have saved (a
+    /// state file with a valid checksum can still be crafted): trackers in
+    /// id order below `next_id`, finite positions, fades in [0, 1], a
+    /// positive radius and exemplar size.
+    pub fn check(&self) -> Result<(), String> {
+        super::check_scale(self.radius, self.exemplar_size)?;
+        let mut last = None;
+        for (k, t) in self.trackers.iter().enumerate() {
+            super::check_id(k, t.id, &mut last, self.next_id, "tracker")?;
+            let finite = [t.position, t.tangent_tracker, t.normal]
+                .iter()
+                .all(|v| v.is_finite());
+            if !finite || !(0.0..=1.0).contains(&t.fade) {
+                return Err(format!(
+                    "tracker {k} (id {}): a non-finite frame or fade",
+                    t.id
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
 /// The 2016 method.
 pub struct LappedRigid {
     params: LappedRigidParams,
@@ -851,6 +875,7 @@ impl Method for LappedRigid {
         let state_err = |e: postcard::Error| MethodError::State(e.to_string());
         let (state, rest) =
             postcard::take_from_bytes::<LappedRigidState>(bytes).map_err(state_err)?;
+        state.check().map_err(MethodError::State)?;
         self.state = state;
         if let Some(m) = &mut self.multi {
             let multi: MultiState = if rest.is_empty() {

@@ -261,6 +261,37 @@ pub struct OptimizationState {
     pub orientation: Vec<[f32; 3]>,
 }
 
+impl OptimizationState {
+    /// Whether a loaded state is one this method could have saved: a
+    /// state file with a valid checksum can still be crafted, and a huge
+    /// lattice step or exemplar size would allocate without bound.
+    pub fn check(&self) -> Result<(), String> {
+        if let Some(h) = self.spacing
+            && !(h.is_finite() && h > 0.0)
+        {
+            return Err(format!("point spacing {h} is not a positive number"));
+        }
+        if let Some(t) = self.exemplar_texels
+            && !(8..=4096).contains(&t)
+        {
+            return Err(format!("exemplar width {t} texels is outside 8..=4096"));
+        }
+        if self.m != 0 && !(self.m.is_power_of_two() && self.m <= 128) {
+            return Err(format!(
+                "{} lattice steps per edge (a power of two up to 128, or 0)",
+                self.m
+            ));
+        }
+        if let Some(k) = self.values.iter().position(|v| !v.is_finite()) {
+            return Err(format!("point value {k} is not finite"));
+        }
+        if let Some(k) = (self.orientation.iter()).position(|d| d.iter().any(|x| !x.is_finite())) {
+            return Err(format!("point orientation {k} is not finite"));
+        }
+        Ok(())
+    }
+}
+
 /// Search structures of one level (the exemplar does not change, so they
 /// are built once).
 struct LevelSearch {
@@ -872,7 +903,10 @@ impl Method for Optimization {
     }
 
     fn load_state(&mut self, bytes: &[u8]) -> Result<(), MethodError> {
-        self.state = postcard::from_bytes(bytes).map_err(|e| MethodError::State(e.to_string()))?;
+        let state: OptimizationState =
+            postcard::from_bytes(bytes).map_err(|e| MethodError::State(e.to_string()))?;
+        state.check().map_err(MethodError::State)?;
+        self.state = state;
         self.last_lattice = None;
         Ok(())
     }
