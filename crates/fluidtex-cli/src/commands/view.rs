@@ -18,6 +18,19 @@
 //!
 //! Everything the page needs is compiled into the binary with
 //! `include_bytes!`: an installed `fluidtex` works offline, from any folder.
+//!
+//! **Only this machine's browser.** Listening on 127.0.0.1 keeps other
+//! machines out, but not a web page the user visits elsewhere: it can
+//! rebind its own host name to 127.0.0.1 (DNS rebinding) and read the
+//! served folder through the user's browser, under its own name. So, as
+//! Jupyter and Vite do, a request is answered only when its `Host` is
+//! `127.0.0.1:PORT` or `localhost:PORT` (403 otherwise, or without one),
+//! and only in origin form (`GET /path`; an absolute URL as the target is
+//! refused with 400). Every response says `X-Content-Type-Options:
+//! nosniff` and carries a Content-Security-Policy that lets the page load
+//! scripts, styles, images and data from this server alone (plus the
+//! blob: URLs three.js makes for the textures inside a glb), nothing from
+//! outside; the page uses no CDN.
 
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -138,50 +151,110 @@ pub fn view(a: &ViewArgs) -> Result<()> {
     stdout.flush()?;
     for request in server.incoming_requests() {
         // A client that went away mid-answer is no reason to stop serving.
-        if let Err(e) = answer(dir, request) {
+        if let Err(e) = answer(dir, port, request) {
             eprintln!("fluidtex view: {e}");
         }
     }
     Ok(())
 }
 
-/// Answers one request.
-fn answer(dir: &Path, request: Request) -> std::io::Result<()> {
+/// Answers one request on `port`, with [`guarded`] headers.
+fn answer(dir: &Path, port: u16, request: Request) -> std::io::Result<()> {
+    let host = request
+        .headers()
+        .iter()
+        .find(|h| h.field.equiv("Host"))
+        .map(|h| h.value.as_str().to_string());
+    if !host_allowed(host.as_deref(), port) {
+        let r = Response::from_string("this server answers only http://127.0.0.1 and localhost");
+        return request.respond(guarded(r.with_status_code(403)));
+    }
+    if !request.url().starts_with('/') {
+        let r = Response::from_string("origin-form request targets only");
+        return request.respond(guarded(r.with_status_code(400)));
+    }
     if *request.method() != Method::Get && *request.method() != Method::Head {
-        return request.respond(Response::from_string("only GET").with_status_code(405));
+        return request.respond(guarded(
+            Response::from_string("only GET").with_status_code(405),
+        ));
     }
     // The query string (?frame=3) is for the page's script, not for us.
     let url = request.url().to_string();
     let path = url.split(['?', '#']).next().unwrap_or("/");
     if let Some((_, bytes, mime)) = ASSETS.iter().find(|(p, _, _)| *p == path) {
-        return request.respond(Response::from_data(*bytes).with_header(content_type(mime)));
+        return request.respond(guarded(
+            Response::from_data(*bytes).with_header(content_type(mime)),
+        ));
     }
     if path == "/api/frames" {
         let body = match scan(dir) {
             Ok(frames) => serde_json::json!({ "dir": dir.display().to_string(), "frames": frames }),
             Err(e) => serde_json::json!({ "error": crate::one_line(&e) }),
         };
-        return request.respond(
+        return request.respond(guarded(
             Response::from_string(body.to_string())
                 .with_header(content_type("application/json"))
                 .with_header(no_store()),
-        );
+        ));
     }
     if let Some(name) = path.strip_prefix("/files/") {
         let Some(name) = safe_name(name) else {
-            return request.respond(Response::from_string("bad file name").with_status_code(400));
+            return request.respond(guarded(
+                Response::from_string("bad file name").with_status_code(400),
+            ));
         };
         let file = dir.join(name);
         return match std::fs::File::open(&file) {
-            Ok(f) if file.is_file() => request.respond(
+            Ok(f) if file.is_file() => request.respond(guarded(
                 Response::from_file(f)
                     .with_header(content_type(mime_of(name)))
                     .with_header(no_store()),
-            ),
-            _ => request.respond(Response::from_string("not found").with_status_code(404)),
+            )),
+            _ => request.respond(guarded(
+                Response::from_string("not found").with_status_code(404),
+            )),
         };
     }
-    request.respond(Response::from_string("not found").with_status_code(404))
+    request.respond(guarded(
+        Response::from_string("not found").with_status_code(404),
+    ))
+}
+
+/// Whether a request's `Host` header names this server: `127.0.0.1:PORT`
+/// or `localhost:PORT` (any case), nothing else, and not its absence.
+pub fn host_allowed(host: Option<&str>, port: u16) -> bool {
+    let Some(host) = host else {
+        return false;
+    };
+    let Some((name, p)) = host.trim().rsplit_once(':') else {
+        return false;
+    };
+    p == port.to_string() && (name == "127.0.0.1" || name.eq_ignore_ascii_case("localhost"))
+}
+
+/// The page's one inline script is its import map (three.js's modules
+/// import `three` by name); its SHA-256 lets the policy allow exactly it.
+const IMPORT_MAP_HASH: &str = "sha256-F7vMP3gbsWsT14rqIj7ZO3yz/P/BTaBO+/htkjmg8wE=";
+
+/// What the page may load: from this server only (scripts also the import
+/// map by its hash, images and data also the blob: URLs three.js makes for
+/// a glb's embedded textures), inline styles, no frames, no forms.
+pub fn content_security_policy() -> String {
+    format!(
+        "default-src 'none'; script-src 'self' '{IMPORT_MAP_HASH}'; \
+         style-src 'self' 'unsafe-inline'; img-src 'self' blob: data:; \
+         connect-src 'self' blob: data:; base-uri 'none'; form-action 'none'; \
+         frame-ancestors 'none'"
+    )
+}
+
+/// `response` with the headers every answer carries.
+fn guarded<R: std::io::Read>(response: Response<R>) -> Response<R> {
+    let nosniff =
+        Header::from_bytes("X-Content-Type-Options", "nosniff").expect("constant ASCII header");
+    let csp = Header::from_bytes("Content-Security-Policy", content_security_policy())
+        .expect("constant ASCII header");
+    response.with_header(nosniff).with_header(csp)
 }
 
 /// `name` if it is a bare file name of the output folder: letters, digits,
@@ -262,6 +335,53 @@ pub fn scan(dir: &Path) -> Result<Vec<FrameFiles>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn only_this_servers_own_names_are_answered() {
+        for ok in [
+            "127.0.0.1:8123",
+            "localhost:8123",
+            "LocalHost:8123",
+            " localhost:8123 ",
+        ] {
+            assert!(host_allowed(Some(ok), 8123), "{ok}");
+        }
+        for bad in [
+            None,
+            Some("evil.example"),
+            Some("evil.example:8123"),
+            Some("127.0.0.1"),
+            Some("127.0.0.1:80"),
+            Some("localhost:81230"),
+            Some("127.0.0.2:8123"),
+            Some("localhost.evil.example:8123"),
+            Some("[::1]:8123"),
+            Some(""),
+        ] {
+            assert!(!host_allowed(bad, 8123), "{bad:?}");
+        }
+    }
+
+    #[test]
+    fn the_policy_allows_exactly_the_pages_import_map() {
+        use base64::Engine as _;
+        use sha2::Digest as _;
+        let page = std::str::from_utf8(include_bytes!("../../assets/viewer/index.html"))
+            .expect("utf-8 page");
+        let open = r#"<script type="importmap">"#;
+        let start = page.find(open).expect("an import map") + open.len();
+        let end = start + page[start..].find("</script>").expect("its end");
+        let digest = sha2::Sha256::digest(page[start..end].as_bytes());
+        let hash = base64::engine::general_purpose::STANDARD.encode(digest);
+        assert_eq!(IMPORT_MAP_HASH, format!("sha256-{hash}"));
+        // The only inline script: everything else comes from this server.
+        assert_eq!(page.matches("<script").count(), 2);
+        assert!(page.contains(r#"<script type="module" src="/viewer.js">"#));
+        assert!(!page.contains("http://") && !page.contains("https://"));
+        let csp = content_security_policy();
+        assert!(csp.starts_with("default-src 'none'; script-src 'self' 'sha256-"));
+        assert!(!csp.contains("unsafe-eval") && !csp.contains('*'), "{csp}");
+    }
 
     #[test]
     fn only_bare_names_of_the_folder_are_served() {
