@@ -366,10 +366,12 @@ fn disagreements(section: &str) -> Vec<String> {
     // are skipped when unset).
     let mut all = leaves(&Config::default());
     all.extend(leaves(&example));
-    // outputs.switch_map is left out of the serialized config while off
-    // (so older runs keep their settings fingerprint): ask for it on.
+    // outputs.switch_map and erosion.transition are left out of the
+    // serialized config while off (so older runs keep their settings
+    // fingerprint): ask for them on.
     let mut switch_on = Config::default();
     switch_on.outputs.switch_map = true;
+    switch_on.erosion.transition = 1;
     all.extend(leaves(&switch_on));
     let mut keys: BTreeSet<String> = BTreeSet::new();
     for k in all.keys() {
