@@ -9,13 +9,13 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use fluidtex::atlas::{Atlas, AtlasParams};
+use fluidtex::atlas::AtlasParams;
+use fluidtex::driver::clip_geometry;
 use fluidtex::exemplar::{
     Exemplar, ExemplarFilter, FeatureMap, FeatureOrigin, SampleFormat, builtin_pebbles,
 };
 use fluidtex::methods::erosion::{Erosion, ErosionParams};
-use fluidtex::methods::{FrameContext, Method, PreviousFrame};
-use fluidtex::surface::SurfaceIndex;
+use fluidtex::methods::{FrameContext, Method};
 use fluidtex::texture::Texture;
 
 /// The 256² pebbles tiled `size / 256` times (the same picture at a higher
@@ -52,13 +52,9 @@ fn main() {
     let meshes: Vec<_> = (params.first..=params.last)
         .map(|f| scene.frame(f).expect("frame"))
         .collect();
-    let indices: Vec<_> = meshes.iter().map(SurfaceIndex::new).collect();
-    let atlases: Vec<_> = meshes
-        .iter()
-        .map(|m| Atlas::build(m, &AtlasParams::square(1024)).expect("atlas"))
-        .collect();
+    let frames = clip_geometry(meshes, &AtlasParams::square(1024)).expect("atlas");
     // One exemplar texel per atlas texel at 256².
-    let size_world = 256.0 / atlases[0].scale as f32;
+    let size_world = 256.0 / frames[0].atlas.scale as f32;
     let exemplars = [256u32, 2048].map(|s| {
         let t = Instant::now();
         let e = pebbles(s);
@@ -78,23 +74,9 @@ fn main() {
             };
             let mut m = Erosion::new(p, ex, 0).expect("params");
             let mut best = f64::INFINITY;
-            for k in 0..meshes.len() {
-                let ctx = FrameContext {
-                    number: k as i32,
-                    dt: 1.0 / 24.0,
-                    mesh: &meshes[k],
-                    topology: &fluidtex::mesh::Topology::new(
-                        meshes[k].vertex_count(),
-                        &meshes[k].triangles,
-                    ),
-                    normals: &meshes[k].vertex_normals(),
-                    index: &indices[k],
-                    previous: (k > 0).then(|| PreviousFrame {
-                        mesh: &meshes[k - 1],
-                        index: &indices[k - 1],
-                    }),
-                    atlas: &atlases[k],
-                };
+            for k in 0..frames.len() {
+                let previous = k.checked_sub(1).map(|j| &*frames[j]);
+                let ctx = FrameContext::new(1.0 / 24.0, &frames[k], previous);
                 let t = Instant::now();
                 let r = m.step(&ctx).expect("step");
                 let secs = t.elapsed().as_secs_f64();
@@ -102,7 +84,7 @@ fn main() {
                 if k > 0 {
                     best = best.min(secs);
                 }
-                if k + 1 == meshes.len() {
+                if k + 1 == frames.len() {
                     let filter_secs: f64 = r
                         .timings
                         .iter()

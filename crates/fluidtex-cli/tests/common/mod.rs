@@ -223,11 +223,20 @@ pub fn gltf_validator() -> Option<(PathBuf, PathBuf)> {
     }
     let msg = "Khronos glTF validator not found: run `npm install --prefix .tools \
                gltf-validator@2.0.0-dev.3.10` at the workspace root, or set FLUIDTEX_GLTF_VALIDATOR";
+    missing_tool("skipping the glTF validation", msg);
+    None
+}
+
+/// A program a test needs (Blender, ffmpeg, Chromium, the glTF validator)
+/// is missing, `msg` saying which and how to install it. Under
+/// `FLUIDTEX_REQUIRE_TOOLS=1` (CI) that fails the test; otherwise it prints
+/// `note: {skipping}: {msg}` and the caller skips what needs the program.
+#[track_caller]
+pub fn missing_tool(skipping: &str, msg: &str) {
     if std::env::var("FLUIDTEX_REQUIRE_TOOLS").as_deref() == Ok("1") {
         panic!("{msg} (FLUIDTEX_REQUIRE_TOOLS=1)");
     }
-    eprintln!("note: skipping the glTF validation: {msg}");
-    None
+    eprintln!("note: {skipping}: {msg}");
 }
 
 /// The validator's report on one file: `errors`, `warnings`, `messages`.

@@ -12,7 +12,7 @@ use std::io::Cursor;
 
 use exr::prelude::{AnyChannels, FlatSamples, Image, Layer, ReadChannels, ReadLayers};
 
-use super::image_read::{Decoded, ImageError, SampleFormat};
+use super::decoded::{Decoded, ImageError, SampleFormat, check_size_against_data};
 use crate::texture::Texture;
 
 type FlatImage = Image<Layer<AnyChannels<FlatSamples>>>;
@@ -24,13 +24,13 @@ pub(crate) fn decode_exr(bytes: &[u8], what: &str) -> Result<Decoded, ImageError
         reason: e.to_string(),
     };
     // The headers alone first: no layer may claim more pixels than the
-    // data can hold (see `image_read::check_size_against_data`).
+    // data can hold (see `decoded::check_size_against_data`).
     let meta =
         exr::meta::MetaData::read_from_buffered(Cursor::new(bytes), false).map_err(decode_err)?;
     for header in &meta.headers {
         let size = header.layer_size;
         let channels = header.channels.list.len().max(1) as u64;
-        super::image_read::check_size_against_data(
+        check_size_against_data(
             size.width() as u64,
             size.height() as u64,
             channels,

@@ -32,6 +32,7 @@
 //! Element indices are zero-based, as in the file.
 
 pub mod atomic;
+mod decoded;
 mod exr_read;
 pub mod gltf;
 pub mod image;

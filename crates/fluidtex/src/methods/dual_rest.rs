@@ -298,9 +298,9 @@ fn merged_stats(a: &FrameResult, b: &FrameResult, source: &[u32], wa: f32) -> Me
     }
     let in_charts = source.iter().filter(|&&s| s != SOURCE_OUTSIDE).count();
     let uncovered = source.iter().filter(|&&s| s == SOURCE_UNCOVERED).count();
-    stats.insert("texels_in_charts".into(), in_charts.into());
-    stats.insert("uncovered_texels".into(), uncovered.into());
-    stats.insert("weight_a".into(), serde_json::json!(wa));
+    stats.set(Stat::TexelsInCharts, in_charts);
+    stats.set(Stat::UncoveredTexels, uncovered);
+    stats.set(Stat::WeightA, wa);
     stats
 }
 

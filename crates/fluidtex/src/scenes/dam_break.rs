@@ -34,7 +34,7 @@ use salva3d::object::{Boundary, Fluid, FluidHandle};
 use salva3d::solver::{DFSPHSolver, XSPHViscosity};
 use serde_json::json;
 
-use super::sph::{self, Surfacing};
+use super::sph::{self, Surfacing, v3};
 use super::{Scene, SceneError, SceneInfo, SceneParams};
 use crate::mesh::TriMesh;
 
@@ -80,10 +80,6 @@ pub struct DamBreak {
     deleted: usize,
     boundary_particles: usize,
     fluid_particles: usize,
-}
-
-fn v3(x: f32, y: f32, z: f32) -> SalvaVector<f32> {
-    SalvaVector::new(x, y, z)
 }
 
 impl DamBreak {
@@ -163,12 +159,12 @@ impl DamBreak {
     fn step_frame(&mut self) {
         let frame_dt = (1.0 / self.params.fps) as f32;
         let free_fall = (2.0 * GRAVITY * COLUMN[1]).sqrt();
-        let fastest = self.world.fluids().get(self.fluid).map_or(0.0, |f| {
-            f.velocities.iter().map(|v| v.norm()).fold(0.0f32, f32::max)
-        });
-        let max_dt = CFL * 2.0 * self.radius / fastest.max(free_fall);
-        let n = (frame_dt / max_dt).ceil().max(1.0) as u32;
-        let dt = frame_dt / n as f32;
+        let fastest = self
+            .world
+            .fluids()
+            .get(self.fluid)
+            .map_or(0.0, sph::fastest);
+        let (n, dt) = sph::substeps(frame_dt, self.radius, fastest, free_fall, CFL);
         let gravity = v3(0.0, -GRAVITY, 0.0);
         for _ in 0..n {
             self.world.step(dt, &gravity);
@@ -178,22 +174,13 @@ impl DamBreak {
         // reconstruction with droplets outside it).
         let margin = 2.0 * self.radius;
         if let Some(fluid) = self.world.fluids_mut().get_mut(self.fluid) {
-            let mut escaped = Vec::new();
-            for (i, p) in fluid.positions.iter().enumerate() {
-                let outside = p.x < -margin
-                    || p.x > TANK[0] + margin
-                    || p.y < -margin
-                    || p.z < -margin
-                    || p.z > TANK[2] + margin
-                    || !(p.x.is_finite() && p.y.is_finite() && p.z.is_finite());
-                if outside && !fluid.deleted_particles.get(i).copied().unwrap_or(true) {
-                    escaped.push(i);
-                }
-            }
-            self.deleted += escaped.len();
-            for i in escaped {
-                fluid.delete_particle_at_next_timestep(i);
-            }
+            self.deleted += sph::delete_outside(fluid, |p| {
+                p[0] < -margin
+                    || p[0] > TANK[0] + margin
+                    || p[1] < -margin
+                    || p[2] < -margin
+                    || p[2] > TANK[2] + margin
+            });
         }
     }
 

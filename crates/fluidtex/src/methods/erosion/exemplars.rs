@@ -18,11 +18,11 @@ use serde::{Deserialize, Serialize};
 
 use super::erode::ErosionTest;
 use super::feature_levels::{FeatureLevelSampler, FeatureLevels};
-use super::fill::{OUTSIDE, UNCOVERED};
 use super::patch::Patch;
 use crate::exemplar::set::{Chooser, Coverage, RegionBox};
 use crate::exemplar::{Exemplar, ExemplarSelect, ExemplarSet};
 use crate::methods::MethodError;
+use crate::provenance::{SOURCE_OUTSIDE as OUTSIDE, SOURCE_UNCOVERED as UNCOVERED};
 use crate::surface::SurfacePoint;
 
 /// The exemplars of a multi-exemplar run and what the erosion derives from
