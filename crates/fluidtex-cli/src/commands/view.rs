@@ -371,7 +371,7 @@ mod tests {
         let open = r#"<script type="importmap">"#;
         let start = page.find(open).expect("an import map") + open.len();
         let end = start + page[start..].find("</script>").expect("its end");
-        let digest = sha2::Sha256::digest(page[start..end].as_bytes());
+        let digest = sha2::Sha256::digest(&page.as_bytes()[start..end]);
         let hash = base64::engine::general_purpose::STANDARD.encode(digest);
         assert_eq!(IMPORT_MAP_HASH, format!("sha256-{hash}"));
         // The only inline script: everything else comes from this server.

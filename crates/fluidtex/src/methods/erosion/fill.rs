@@ -23,10 +23,10 @@
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
+pub use self::holders::{MAX_TRANSITION_FRAMES, Transition};
 use super::erode::{ErosionTest, Verdict};
 use super::exemplars::MultiFill;
 use super::feature_levels::FeatureLevelSampler;
-pub use super::holders::Transition;
 use super::patch::Patch;
 use crate::atlas::{Atlas, Band};
 use crate::exemplar::Exemplar;
@@ -36,6 +36,8 @@ use crate::methods::lapped::bands::{SpanTexels, for_each_span};
 use crate::methods::lapped::{BandResult, TexelBuffers, TriangleLists, fill_bands};
 use crate::surface::SurfaceIndex;
 use crate::surface::bvh::boxes_meet;
+
+pub mod holders;
 
 pub use crate::provenance::{SOURCE_OUTSIDE as OUTSIDE, SOURCE_UNCOVERED as UNCOVERED};
 

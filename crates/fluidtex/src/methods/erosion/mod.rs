@@ -20,7 +20,6 @@ pub mod erode;
 pub mod exemplars;
 pub mod feature_levels;
 pub mod fill;
-pub mod holders;
 pub mod patch;
 pub mod transition;
 pub mod update;

@@ -9,7 +9,7 @@
 //!
 //! **Which sources.** The fill finds each texel's holder at the weights of
 //! each of the N frames before, on this frame's carried patches
-//! ([`super::holders`]): which patch
+//! ([`super::fill::holders`]): which patch
 //! would have shown the point then. Each of the N + 1 frames counts once
 //! (a box filter over time), so a texel whose source changed k frames ago
 //! gives the new source k + 1 shares of N + 1, and at the (N + 1)-th frame
@@ -55,7 +55,7 @@ use crate::methods::MethodError;
 
 /// The longest transition, in frames: each frame of it is one more lapped
 /// decision per texel in the fill.
-pub const MAX_FRAMES: u32 = 8;
+pub use super::fill::MAX_TRANSITION_FRAMES as MAX_FRAMES;
 
 /// Blends every texel of `transitions` in `out` (whose values hold the new
 /// source as the fill and the footprint pass left them): the earlier

@@ -7,7 +7,7 @@
 //!   erosion at the weights of the frame before; whether it still shows
 //!   the point, and whether it is past δ_max there, split the switches into
 //!   forced and unforced;
-//! - a transition ([`super::transition`]): the holders at the weights of
+//! - a transition ([`super::super::transition`]): the holders at the weights of
 //!   each of the N frames before, which give the earlier source a texel
 //!   still shows and its share.
 //!
@@ -18,12 +18,16 @@
 
 use glam::{Vec2, Vec3};
 
-use super::erode::Verdict;
-use super::fill::{CornerData, FillContext, Hit, SpanCandidate, verdict_in};
-use super::transition::MAX_FRAMES;
+use super::super::erode::Verdict;
+use super::{CornerData, FillContext, Hit, SpanCandidate, verdict_in};
+
+/// The longest transition, in frames ([`super::super::transition`]): each
+/// frame of it is one more lapped decision per texel in the fill.
+pub const MAX_TRANSITION_FRAMES: u32 = 8;
+const MAX_FRAMES: u32 = MAX_TRANSITION_FRAMES;
 
 /// A texel in transition: the earlier source it still shows beside its
-/// own ([`super::transition`]).
+/// own ([`super::super::transition`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Transition {
     /// Texel index in the atlas.
