@@ -13,7 +13,8 @@
 //!        └──────────► methods (erosion = Gagnon et al. 2021, ...) ◄── exemplar
 //!                          │  fills atlas channels + per-texel provenance
 //!                          ▼
-//!                    io (PNG/EXR atlas, OBJ+MTL, glb, stats JSON; atomic)
+//!      output (file sink, writers, coherence sink, state.bin) + io
+//!            (PNG/EXR atlas, OBJ+MTL, glb, stats JSON; atomic)
 //! ```
 //!
 //! # Entry points
@@ -43,11 +44,13 @@
 //! [`metrics`],
 //! [`coherence`] (does the texture ride the flow: measured on outputs),
 //! [`eval`] (the evaluation harness), [`render`], [`scenes`], [`io`],
-//! [`write_behind`] (a frame's files written while the next is computed),
-//! [`texture`] (the float image type and texel convention), and the shared
-//! vocabulary: [`provenance`] (which patch a texel came from), [`seed`]
-//! (seeded random streams), [`named`](mod@named) (settings with names on the command
-//! line). [`fuzz`] is the seeded mutation fuzzer the reader tests use.
+//! [`pipeline`] (the run loop and frame sources), [`output`] (what a run
+//! writes: the file sink and writers, the coherence sink, `state.bin`, the
+//! memory estimate, write-behind), [`texture`] (the float image type and
+//! texel convention), and the shared vocabulary: [`provenance`] (which
+//! patch a texel came from), [`seed`] (seeded random streams),
+//! [`named`](mod@named) (settings with names on the command line).
+//! [`fuzz`] is the seeded mutation fuzzer the reader tests use.
 
 pub mod atlas;
 pub mod coherence;
@@ -61,6 +64,7 @@ pub mod mesh;
 pub mod methods;
 pub mod metrics;
 pub mod named;
+pub mod output;
 pub mod param;
 pub mod pipeline;
 pub mod provenance;
@@ -69,4 +73,3 @@ pub mod scenes;
 pub mod seed;
 pub mod surface;
 pub mod texture;
-pub mod write_behind;

@@ -1,0 +1,67 @@
+//! The errors of a run: of its frames, its outputs and its resume.
+
+use std::path::PathBuf;
+
+use thiserror::Error;
+
+use crate::atlas::AtlasError;
+use crate::driver::DriverError;
+use crate::frame::GeometryError;
+use crate::io::IoError;
+use crate::methods::MethodError;
+
+/// Errors of the frame job.
+#[derive(Debug, Error)]
+pub enum PipelineError {
+    #[error(transparent)]
+    Io(#[from] IoError),
+    #[error("frame {frame}: {source}")]
+    Atlas { frame: i32, source: AtlasError },
+    /// Atlas parameters refused before any frame is read.
+    #[error("{0}")]
+    AtlasParams(AtlasError),
+    #[error(transparent)]
+    Method(#[from] MethodError),
+    #[error("{0}")]
+    Source(String),
+    #[error("{path}: {message}")]
+    Output { path: PathBuf, message: String },
+    #[error("cannot resume: {0}")]
+    Resume(String),
+    #[error(
+        "a {width}x{height} atlas needs about {} of memory and {} is available: \
+         lower --atlas (at most {fits} fits)",
+        gib(*.needed), gib(*.available)
+    )]
+    Memory {
+        width: u32,
+        height: u32,
+        needed: u64,
+        available: u64,
+        fits: u32,
+    },
+}
+
+impl From<GeometryError> for PipelineError {
+    fn from(e: GeometryError) -> PipelineError {
+        PipelineError::from(DriverError::from(e))
+    }
+}
+
+impl From<DriverError> for PipelineError {
+    fn from(e: DriverError) -> PipelineError {
+        match e {
+            DriverError::Atlas { frame, source } => PipelineError::Atlas { frame, source },
+            DriverError::Method(m) => PipelineError::Method(m),
+        }
+    }
+}
+
+/// Bytes as "1.3 GiB" or "512 MiB".
+pub(super) fn gib(bytes: u64) -> String {
+    if bytes >= 1 << 30 {
+        format!("{:.1} GiB", bytes as f64 / (1u64 << 30) as f64)
+    } else {
+        format!("{} MiB", bytes >> 20)
+    }
+}
