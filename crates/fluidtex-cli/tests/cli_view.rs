@@ -87,12 +87,24 @@ fn small_run(out: &Path) {
 
 /// GET over plain HTTP/1.0: (status code, body).
 fn get(url: &str, path: &str) -> (u16, Vec<u8>) {
-    let addr = url
-        .trim_start_matches("http://")
+    let addr = address(url);
+    let (code, _, body) = request(url, path, Some(&addr));
+    (code, body)
+}
+
+/// `127.0.0.1:PORT` of a server URL.
+fn address(url: &str) -> String {
+    url.trim_start_matches("http://")
         .trim_end_matches('/')
-        .to_string();
-    let mut s = TcpStream::connect(&addr).unwrap();
-    write!(s, "GET {path} HTTP/1.0\r\nHost: {addr}\r\n\r\n").unwrap();
+        .to_string()
+}
+
+/// A raw HTTP/1.0 GET of `target` with `Host: host` (none when `None`):
+/// (status code, header block, body).
+fn request(url: &str, target: &str, host: Option<&str>) -> (u16, String, Vec<u8>) {
+    let mut s = TcpStream::connect(address(url)).unwrap();
+    let host_line = host.map_or(String::new(), |h| format!("Host: {h}\r\n"));
+    write!(s, "GET {target} HTTP/1.0\r\n{host_line}\r\n").unwrap();
     let mut raw = Vec::new();
     s.read_to_end(&mut raw).unwrap();
     let split = raw
@@ -105,7 +117,48 @@ fn get(url: &str, path: &str) -> (u16, Vec<u8>) {
         .nth(1)
         .and_then(|c| c.parse().ok())
         .unwrap();
-    (code, raw[split + 4..].to_vec())
+    (code, head, raw[split + 4..].to_vec())
+}
+
+/// DNS rebinding: a page elsewhere that points its own name at 127.0.0.1
+/// sends its own name as Host. Only the server's own names are answered,
+/// only in origin form, and every answer carries the protective headers.
+#[test]
+fn view_answers_only_its_own_names() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    small_run(&out);
+    let server = serve(&out);
+    let addr = address(&server.url);
+    let port = addr.rsplit_once(':').unwrap().1.to_string();
+    for host in [addr.clone(), format!("localhost:{port}")] {
+        let (code, head, body) = request(&server.url, "/files/stats.0001.json", Some(&host));
+        assert_eq!(code, 200, "{host}");
+        assert!(serde_json::from_slice::<serde_json::Value>(&body).is_ok());
+        let head = head.to_ascii_lowercase();
+        assert!(head.contains("x-content-type-options: nosniff"), "{head}");
+        assert!(
+            head.contains("content-security-policy: default-src 'none'"),
+            "{head}"
+        );
+    }
+    for host in [
+        Some("evil.example".to_string()),
+        Some(format!("evil.example:{port}")),
+        Some("127.0.0.1:1".to_string()),
+        None,
+    ] {
+        for target in ["/api/frames", "/files/stats.0001.json", "/"] {
+            let (code, head, body) = request(&server.url, target, host.as_deref());
+            assert_eq!(code, 403, "{host:?} {target}");
+            assert!(!String::from_utf8_lossy(&body).contains("frames"));
+            assert!(head.to_ascii_lowercase().contains("nosniff"));
+        }
+    }
+    // An absolute URL as the target, even with our own Host.
+    let target = format!("http://{addr}/files/stats.0001.json");
+    let (code, _, _) = request(&server.url, &target, Some(&addr));
+    assert_eq!(code, 400);
 }
 
 #[test]
