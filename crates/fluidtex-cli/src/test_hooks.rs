@@ -18,6 +18,9 @@
 //!   computing the next, as a run without the memory for write-behind does.
 //! - `FLUIDTEX_TEST_MEMORY_AVAILABLE=BYTES`: the memory available to the
 //!   up-front memory check, instead of the machine's.
+//! - `FLUIDTEX_TEST_RESIDENT_MEMORY=BYTES`: the resident memory the
+//!   per-frame memory limit (`--max-memory`) is checked against, instead
+//!   of the process's.
 
 use std::io::BufRead;
 use std::path::Path;
@@ -81,6 +84,7 @@ pub fn from_env() -> Result<TestHooks> {
         available_memory: number("FLUIDTEX_TEST_MEMORY_AVAILABLE")?,
         after_frame,
         write_in_place: std::env::var_os("FLUIDTEX_TEST_WRITE_IN_PLACE").is_some(),
+        resident_memory: number("FLUIDTEX_TEST_RESIDENT_MEMORY")?,
     })
 }
 

@@ -259,3 +259,57 @@ fn an_impossible_atlas_is_refused_before_any_frame_is_read() {
     let line = user_error(&args(&pattern, &out, &["--atlas", "16385"]));
     assert_eq!(line, "error: --atlas 16385: allowed 16 to 16384 texels");
 }
+
+/// A run past `--max-memory` stops after the frame that passed it, with
+/// the cause and the method's account in one line and a non-zero exit;
+/// `--resume` with a larger limit (here none) writes the files of an
+/// uninterrupted run.
+#[test]
+fn a_run_past_its_memory_limit_stops_with_the_cause_and_resumes_identically() {
+    let dir = tempfile::tempdir().unwrap();
+    let pattern = scene(dir.path(), "0-3");
+    let reference = dir.path().join("reference");
+    let args = |out: &Path| -> Vec<std::ffi::OsString> {
+        let mut a: Vec<std::ffi::OsString> = vec![
+            "run".into(),
+            "--mesh".into(),
+            pattern.clone().into(),
+            "--atlas".into(),
+            "64".into(),
+            "--quiet".into(),
+            "--out".into(),
+            out.into(),
+        ];
+        a.extend(["--max-memory".into(), "0".into()]);
+        a
+    };
+    ok(&args(&reference));
+    let limited = dir.path().join("limited");
+    let mut first = args(&limited);
+    first.truncate(first.len() - 2);
+    first.extend(["--max-memory".into(), "1G".into()]);
+    let out = fluidtex()
+        .args(&first)
+        .env("FLUIDTEX_TEST_RESIDENT_MEMORY", (3u64 << 30).to_string())
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let lines: Vec<&str> = stderr.lines().filter(|l| !l.is_empty()).collect();
+    assert_eq!(lines.len(), 1, "{stderr}");
+    assert!(
+        lines[0].starts_with("error: memory: 3.0 GiB after frame 0 (limit 1.0 GiB): "),
+        "{stderr}"
+    );
+    assert!(
+        lines[0].contains(" patches, "),
+        "the method's account: {stderr}"
+    );
+    // Frame 0 is finished and counted; nothing of frame 1 was written.
+    assert!(limited.join("color.0000.png").exists());
+    assert!(!limited.join("color.0001.png").exists());
+    let mut resume = args(&limited);
+    resume.push("--resume".into());
+    ok(&resume);
+    assert_same_outputs(&reference, &limited);
+}

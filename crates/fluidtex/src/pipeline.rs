@@ -42,6 +42,7 @@ pub use crate::exemplar::channels::{ChannelFormat, ChannelSpec};
 pub use crate::output::{
     Event, FrameHook, FrameStats, Job, MemoryEstimate, OutputOptions, PipelineError, TestHooks,
     available_memory, estimate_memory, frame_tag, load_state_bytes, patch_colour, proc_kib,
+    resident_memory,
 };
 
 /// Where frames come from: a file sequence or a generated scene.
@@ -202,8 +203,31 @@ fn drive(
                 },
                 sink,
             )?;
+            check_memory_limit(job, number, driver)?;
         }
         Ok(())
+    })
+}
+
+/// Stops the run after frame `number` (handed to the sink, so it is
+/// written and counted) when the process holds more than the job's limit:
+/// a run whose state grows with its history ends with the cause named
+/// instead of in the kernel's OOM killer, and `--resume` goes on.
+fn check_memory_limit(job: &Job, number: i32, driver: &Driver<'_>) -> Result<(), PipelineError> {
+    let Some(limit) = job.max_memory else {
+        return Ok(());
+    };
+    let Some(resident) = job.hooks.resident_memory.or_else(resident_memory) else {
+        return Ok(());
+    };
+    if resident <= limit {
+        return Ok(());
+    }
+    Err(PipelineError::MemoryLimit {
+        frame: number,
+        resident,
+        limit,
+        detail: driver.method().memory_report(),
     })
 }
 
@@ -528,6 +552,7 @@ mod tests {
                 },
                 resume: false,
                 fingerprint: "recycle".into(),
+                max_memory: None,
                 hooks: Default::default(),
             };
             let exemplar = std::sync::Arc::new(crate::exemplar::builtin_pebbles(64, 0));
@@ -561,6 +586,7 @@ mod tests {
             outputs: OutputOptions::default(),
             resume: false,
             fingerprint: String::new(),
+            max_memory: None,
             hooks: TestHooks {
                 available_memory: Some(available),
                 write_in_place: in_place,

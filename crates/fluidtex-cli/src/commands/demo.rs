@@ -53,7 +53,14 @@ pub fn demo(a: &DemoArgs) -> Result<()> {
         ..Default::default()
     };
     config.outputs.preview_every = a.preview_every;
-    execute(&config, a.out.clone(), &mut source, false, a.quiet)?;
+    execute(
+        &config,
+        a.out.clone(),
+        &mut source,
+        false,
+        a.quiet,
+        fluidtex::output::default_memory_limit(),
+    )?;
     if !a.quiet {
         eprintln!(
             "open {}/preview.0000.png (textured | patches), or mesh.FFFF.obj / .glb in any 3-D viewer",

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use anyhow::{Context, Error, Result, bail};
+use anyhow::{Context, Error, Result, anyhow, bail};
 use clap::Args;
 use fluidtex::atlas::AtlasParams;
 use fluidtex::exemplar::{
@@ -31,6 +31,11 @@ pub struct RunArgs {
     /// No progress bar and no summary
     #[arg(long)]
     pub quiet: bool,
+    /// Stop after the frame that leaves the run holding more than SIZE of
+    /// memory (e.g. 5.5G, 800M; 0: never) [what the machine has available at
+    /// the start, less a tenth]
+    #[arg(long, value_name = "SIZE")]
+    pub max_memory: Option<String>,
 }
 
 /// Size of the built-in exemplar in texels.
@@ -42,6 +47,7 @@ pub fn run(a: &RunArgs) -> Result<()> {
         None => Config::default(),
     };
     a.flags.apply(&mut config)?;
+    let limit = memory_limit(a.max_memory.as_deref())?;
     let pattern = config
         .mesh
         .clone()
@@ -57,22 +63,38 @@ pub fn run(a: &RunArgs) -> Result<()> {
             config.prim.as_deref(),
             config.frames.as_deref(),
         )?;
-        return execute(&config, out, &mut source, a.resume, a.quiet);
+        return execute(&config, out, &mut source, a.resume, a.quiet, limit);
     }
     let mut source = SequenceSource::open(&pattern, config.frames.as_deref(), options)?;
-    execute(&config, out, &mut source, a.resume, a.quiet)
+    execute(&config, out, &mut source, a.resume, a.quiet, limit)
 }
 
-/// Runs the configured method over `source` into `out` with a progress bar.
+/// The run's memory limit: `--max-memory` (0: none), or by default what
+/// the machine has available at the start less a tenth.
+pub fn memory_limit(flag: Option<&str>) -> Result<Option<u64>> {
+    match flag {
+        None => Ok(fluidtex::output::default_memory_limit()),
+        Some(text) => {
+            let bytes =
+                fluidtex::output::parse_size(text).map_err(|e| anyhow!("--max-memory {e}"))?;
+            Ok((bytes > 0).then_some(bytes))
+        }
+    }
+}
+
+/// Runs the configured method over `source` into `out` with a progress
+/// bar, stopping after the frame that passes `max_memory` bytes.
 pub fn execute(
     config: &Config,
     out: PathBuf,
     source: &mut dyn FrameSource,
     resume: bool,
     quiet: bool,
+    max_memory: Option<u64>,
 ) -> Result<()> {
     let mut method = build_method(config)?;
-    let job = build_job(config, out.clone(), resume)?;
+    let mut job = build_job(config, out.clone(), resume)?;
+    job.max_memory = max_memory;
     let total = source.frames().len() as u64;
     let progress = Progress::new(total, method.name(), quiet);
     let mut observer = |e: Event<'_>| match e {
@@ -253,6 +275,7 @@ pub fn build_job(config: &Config, out: PathBuf, resume: bool) -> Result<Job> {
         outputs: config.outputs.clone(),
         resume,
         fingerprint: config.fingerprint(),
+        max_memory: None,
         hooks: crate::test_hooks::from_env()?,
     })
 }

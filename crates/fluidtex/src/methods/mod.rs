@@ -262,6 +262,14 @@ pub trait Method: Send {
     /// Restores a state written by [`Method::save_state`].
     fn load_state(&mut self, bytes: &[u8]) -> Result<(), MethodError>;
 
+    /// The method's own account of its largest structures, for the
+    /// message of a run stopped by its memory limit (e.g. "370 patches,
+    /// 1.2 M patch triangles, 3.9 GiB of patch geometry"); `None` where
+    /// nothing it keeps grows with the run.
+    fn memory_report(&self) -> Option<String> {
+        None
+    }
+
     /// Takes back the last frame's per-texel buffers the caller has no use
     /// for (a `run` writes no file of the uv and levels, and writes an
     /// 8-bit colour atlas from its own 8-bit copy), so the next

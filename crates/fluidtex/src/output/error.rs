@@ -40,6 +40,19 @@ pub enum PipelineError {
         available: u64,
         fits: u32,
     },
+    /// The run passed its memory limit (`--max-memory`) after `frame`,
+    /// which is written; `detail` is the method's account.
+    #[error(
+        "memory: {} after frame {frame} (limit {}){}; a smaller --radius or --atlas \
+         reduces it, and --resume with a larger --max-memory (0: none) continues",
+        gib(*.resident), gib(*.limit), .detail.as_ref().map_or(String::new(), |d| format!(": {d}"))
+    )]
+    MemoryLimit {
+        frame: i32,
+        resident: u64,
+        limit: u64,
+        detail: Option<String>,
+    },
 }
 
 impl From<GeometryError> for PipelineError {

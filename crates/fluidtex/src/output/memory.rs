@@ -152,6 +152,54 @@ impl MemoryEstimate {
     }
 }
 
+/// The process's resident set (`VmRSS` of `/proc/self/status`) in bytes;
+/// `None` where there is no such file.
+pub fn resident_memory() -> Option<u64> {
+    proc_kib("/proc/self/status", "VmRSS:")
+}
+
+/// The memory limit of a run that names none: what the process holds now
+/// plus nine tenths of what the machine has available, so a run that grows
+/// stops with its cause named while the machine still has a tenth to
+/// spare (for the write in flight, and for everything else it runs);
+/// `None` where `/proc` says nothing (other systems: no limit).
+pub fn default_memory_limit() -> Option<u64> {
+    let available = available_memory()?;
+    Some(resident_memory().unwrap_or(0) + available / 10 * 9)
+}
+
+/// Parses a memory size: bytes, or a number with a binary suffix `K`,
+/// `M`, `G` or `T` (`KiB`, `MB`, ... read alike), e.g. `5.5G`, `800M`;
+/// `0` is 0 (no limit).
+pub fn parse_size(text: &str) -> Result<u64, String> {
+    let t = text.trim();
+    let digits = t
+        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .unwrap_or(t.len());
+    let (number, unit) = t.split_at(digits);
+    let shift = match unit
+        .trim()
+        .to_ascii_uppercase()
+        .trim_end_matches("IB")
+        .trim_end_matches('B')
+    {
+        "" => 0,
+        "K" => 10,
+        "M" => 20,
+        "G" => 30,
+        "T" => 40,
+        _ => return Err(format!("{text:?}: unknown unit (use K, M, G or T)")),
+    };
+    let value: f64 = number
+        .parse()
+        .map_err(|_| format!("{text:?}: not a size (e.g. 5.5G, 800M or bytes)"))?;
+    let bytes = value * 2f64.powi(shift);
+    if !(bytes.is_finite() && bytes < 1e18) {
+        return Err(format!("{text:?}: too large"));
+    }
+    Ok(bytes as u64)
+}
+
 /// `MemAvailable` of `/proc/meminfo` in bytes; `None` where there is no
 /// such file (other systems: the check is skipped).
 pub fn available_memory() -> Option<u64> {
@@ -171,4 +219,38 @@ pub fn proc_kib(path: &str, key: &str) -> Option<u64> {
         .parse()
         .ok()?;
     kib.checked_mul(1024)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sizes_parse_with_binary_units_and_bad_ones_are_named() {
+        for (text, bytes) in [
+            ("0", 0u64),
+            ("1048576", 1 << 20),
+            ("800M", 800 << 20),
+            ("800MiB", 800 << 20),
+            ("5.5G", 11 << 29),
+            ("2gb", 2 << 30),
+            ("1T", 1 << 40),
+            ("4k", 4096),
+        ] {
+            assert_eq!(parse_size(text), Ok(bytes), "{text}");
+        }
+        for bad in ["", "G", "5X", "-1G", "1e3", "1.2.3M", "99999999999T"] {
+            let err = parse_size(bad).expect_err(bad);
+            assert!(err.starts_with(&format!("{bad:?}")), "{err}");
+        }
+    }
+
+    #[test]
+    fn the_default_limit_leaves_a_tenth_of_the_available_memory() {
+        let (Some(limit), Some(available)) = (default_memory_limit(), available_memory()) else {
+            return; // no /proc here: no default limit either
+        };
+        assert!(limit >= available / 10 * 9, "{limit} {available}");
+        assert!(limit < available + resident_memory().unwrap_or(0) + (1 << 30));
+    }
 }

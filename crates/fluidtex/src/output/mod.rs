@@ -42,7 +42,10 @@ mod writer;
 pub use coherence::CoherenceSinkSettings;
 pub use error::PipelineError;
 pub use images::patch_colour;
-pub use memory::{MemoryEstimate, available_memory, estimate_memory, proc_kib};
+pub use memory::{
+    MemoryEstimate, available_memory, default_memory_limit, estimate_memory, parse_size, proc_kib,
+    resident_memory,
+};
 pub use options::{FrameHook, Job, OutputOptions, TestHooks};
 pub use report::{Event, FrameStats};
 pub use state::load_state_bytes;

@@ -63,6 +63,9 @@ pub struct Job {
     pub resume: bool,
     /// Identifies the configuration; a resumed run must match it.
     pub fingerprint: String,
+    /// Stop after the frame whose resident memory passes this many bytes
+    /// (`None`: never); see [`crate::output::default_memory_limit`].
+    pub max_memory: Option<u64>,
     /// Test hooks; front ends leave them at their default (none).
     pub hooks: TestHooks,
 }
@@ -84,6 +87,9 @@ pub struct TestHooks {
     /// Write each frame before computing the next, as a run without the
     /// memory for write-behind does (tests compare the two).
     pub write_in_place: bool,
+    /// Resident memory in bytes to check the memory limit with, instead
+    /// of the process's `VmRSS`.
+    pub resident_memory: Option<u64>,
 }
 
 /// See [`TestHooks::after_frame`].
@@ -96,6 +102,7 @@ impl std::fmt::Debug for TestHooks {
             .field("available_memory", &self.available_memory)
             .field("after_frame", &self.after_frame.as_ref().map(|_| "hook"))
             .field("write_in_place", &self.write_in_place)
+            .field("resident_memory", &self.resident_memory)
             .finish()
     }
 }

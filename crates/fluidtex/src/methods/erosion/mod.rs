@@ -732,6 +732,27 @@ impl Method for Erosion {
         Ok(bytes)
     }
 
+    fn memory_report(&self) -> Option<String> {
+        let patches = &self.state.patches;
+        let triangles: usize = patches.iter().map(|p| p.triangles.len()).sum();
+        let bytes: usize = patches.iter().map(Patch::geometry_bytes).sum();
+        let triangles = if triangles >= 1_000_000 {
+            format!("{:.1} M", triangles as f64 / 1e6)
+        } else {
+            triangles.to_string()
+        };
+        let mib = bytes as f64 / f64::from(1u32 << 20);
+        let geometry = if mib >= 1024.0 {
+            format!("{:.1} GiB", mib / 1024.0)
+        } else {
+            format!("{mib:.0} MiB")
+        };
+        Some(format!(
+            "{} patches, {triangles} patch triangles, {geometry} of patch geometry",
+            patches.len()
+        ))
+    }
+
     fn load_state(&mut self, bytes: &[u8]) -> Result<(), MethodError> {
         let (state, rest) = postcard::take_from_bytes::<ErosionState>(bytes)
             .map_err(|e| MethodError::State(e.to_string()))?;

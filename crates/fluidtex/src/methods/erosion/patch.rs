@@ -618,6 +618,17 @@ impl Patch {
         }
     }
 
+    /// Bytes held by the patch's per-vertex and per-triangle tables.
+    pub fn geometry_bytes(&self) -> usize {
+        use std::mem::size_of;
+        let weights = self.weight.len()
+            + self.weight_before.len()
+            + self.weight_older.iter().map(Vec::len).sum::<usize>();
+        self.positions.len() * (size_of::<Vec3>() + size_of::<Vec2>() + 1)
+            + weights * size_of::<f32>()
+            + self.triangles.len() * (size_of::<[u32; 3]>() + size_of::<f32>() + 1)
+    }
+
     /// Whether the patch's tables agree (see [`super::ErosionState::check`]).
     pub fn check(&self) -> Result<(), String> {
         let n = self.positions.len();
