@@ -233,25 +233,30 @@ def test_module_files(src_dir):
     return found
 
 
+def rust_files(src_dir):
+    """Every .rs file under `src_dir`, in a fixed order."""
+    for dirpath, dirs, files in os.walk(src_dir):
+        dirs.sort()
+        for f in sorted(files):
+            if f.endswith(".rs"):
+                yield os.path.join(dirpath, f)
+
+
 def collect_edges(src_dir, top_modules):
     """(from, to) -> [(file, line, in test code)] between top-level modules."""
     test_files = test_module_files(src_dir)
     edges = {}
-    for dirpath, _, files in os.walk(src_dir):
-        for f in sorted(files):
-            if not f.endswith(".rs"):
+    for full in rust_files(src_dir):
+        base, found = edges_of_file(src_dir, full, top_modules)
+        if not base:
+            continue
+        for target, line, test in found:
+            if target == base[0]:
                 continue
-            full = os.path.join(dirpath, f)
-            base, found = edges_of_file(src_dir, full, top_modules)
-            if not base:
-                continue
-            for target, line, test in found:
-                if target == base[0]:
-                    continue
-                test = test or full in test_files
-                edges.setdefault((base[0], target), []).append(
-                    (os.path.relpath(full, src_dir), line, test)
-                )
+            test = test or full in test_files
+            edges.setdefault((base[0], target), []).append(
+                (os.path.relpath(full, src_dir), line, test)
+            )
     return edges
 
 
@@ -297,22 +302,26 @@ def strongly_connected(g):
     return comps
 
 
-def report(edges, comps, include_tests):
+def report(edges, comps, include_tests, kind="cycle", where=None, known=()):
     """Each cycle and its edges. With `include_tests` only the edges made
-    by test code alone are listed (the others close library paths)."""
+    by test code alone are listed (the others close library paths).
+    `where(uses)` formats a list of uses and tells which are test code
+    (module edges: (file, line, test); file edges: (line, test))."""
+    where = where or (lambda uses: (", ".join(f"{f}:{l}" for (f, l, _) in uses[:4]), [u[2] for u in uses]))
     for comp in comps:
-        print("cycle among: " + " <-> ".join(comp))
+        print(f"{kind} among: " + " <-> ".join(comp))
         for a in comp:
             for b in comp:
                 uses = edges.get((a, b), [])
-                library = [u for u in uses if not u[2]]
+                library = [u for u, test in zip(uses, where(uses)[1]) if not test]
                 if include_tests and library:
                     continue
                 uses = uses if include_tests else library
                 if uses:
-                    where = ", ".join(f"{f}:{l}" for (f, l, _) in uses[:4])
+                    text, _ = where(uses)
                     more = f" (+{len(uses) - 4} more)" if len(uses) > 4 else ""
-                    print(f"  {a} -> {b}: {where}{more}")
+                    tag = " [known exception]" if (a, b) in known else ""
+                    print(f"  {a} -> {b}: {text}{more}{tag}")
 
 
 # ---- File level ----------------------------------------------------------
@@ -468,21 +477,17 @@ def collect_file_edges(src_dir):
         return any(mods.get(m[:k]) in test_files for k in range(1, len(m) + 1))
 
     edges = {}
-    for dirpath, _, files in os.walk(src_dir):
-        for f in sorted(files):
-            if not f.endswith(".rs"):
-                continue
-            full = os.path.join(dirpath, f)
-            rel = os.path.relpath(full, src_dir)
-            whole_test = is_test_file(rel)
-            here = module_of[rel]
-            for target, line, test in file_edges_of(src_dir, full, mods):
-                there = module_of[target]
-                if here[: len(there)] == there or there[: len(here)] == here:
-                    continue  # a module and its own sub-modules
-                uses = edges.setdefault((rel, target), [])
-                if (line, test or whole_test) not in uses:
-                    uses.append((line, test or whole_test))
+    for full in rust_files(src_dir):
+        rel = os.path.relpath(full, src_dir)
+        whole_test = is_test_file(rel)
+        here = module_of[rel]
+        for target, line, test in file_edges_of(src_dir, full, mods):
+            there = module_of[target]
+            if here[: len(there)] == there or there[: len(here)] == here:
+                continue  # a module and its own sub-modules
+            uses = edges.setdefault((rel, target), [])
+            if (line, test or whole_test) not in uses:
+                uses.append((line, test or whole_test))
     return sorted(set(mods.values())), edges
 
 
@@ -497,34 +502,43 @@ def file_graph(files, edges, include_tests, skip=()):
 
 
 def report_files(edges, comps, include_tests, known=()):
-    for comp in comps:
-        print("file cycle among: " + " <-> ".join(comp))
-        for a in comp:
-            for b in comp:
-                uses = edges.get((a, b), [])
-                library = [u for u in uses if not u[1]]
-                if include_tests and library:
-                    continue
-                uses = uses if include_tests else library
-                if uses:
-                    lines = ", ".join(str(l) for (l, _) in uses[:4])
-                    more = f" (+{len(uses) - 4} more)" if len(uses) > 4 else ""
-                    tag = " [known exception]" if (a, b) in known else ""
-                    print(f"  {a} -> {b}: line {lines}{more}{tag}")
+    """[`report`] for file cycles, whose uses are (line, test)."""
+    def where(uses):
+        return "line " + ", ".join(str(l) for (l, _) in uses[:4]), [u[1] for u in uses]
+
+    report(edges, comps, include_tests, "file cycle", where, known)
+
+
+def check_graph(nodes, kind, library_graph, test_graph, show):
+    """Prints the counts of a graph of `nodes` (a label with their count),
+    its cycles outside tests and those closed only by test code (`show`
+    lists a cycle's edges, all or test-only); returns the cycles outside
+    tests. The known exceptions are reported by the caller."""
+    n_edges = sum(len(v) for v in library_graph.values())
+    print(f"{nodes}, {n_edges} {kind} dependencies outside tests".replace("  ", " "))
+    library = strongly_connected(library_graph)
+    if library:
+        show(library, False)
+    else:
+        print(f"no {kind} cycle outside tests".replace("  ", " "))
+    with_tests = [c for c in strongly_connected(test_graph) if c not in library]
+    if with_tests:
+        print(f"{kind} cycles closed only by test code (not counted; test-only edges listed):".lstrip())
+        show(with_tests, True)
+    return library
 
 
 def check_files(src_dir):
     """The file-level check; True when it passes."""
     files, edges = collect_file_edges(src_dir)
     known = set(KNOWN_FILE_CYCLE_EDGES)
-    library_graph = file_graph(files, edges, False, known)
-    n_edges = sum(len(v) for v in library_graph.values())
-    print(f"{len(files)} files, {n_edges} file dependencies outside tests")
-    library = strongly_connected(library_graph)
-    if library:
-        report_files(edges, library, False)
-    else:
-        print("no file-level cycle outside tests")
+    library = check_graph(
+        f"{len(files)} files",
+        "file",
+        file_graph(files, edges, False, known),
+        file_graph(files, edges, True, known),
+        lambda comps, tests: report_files(edges, comps, tests),
+    )
     # The known exceptions: each still an edge of a cycle, or stale.
     full = strongly_connected(file_graph(files, edges, False))
     for a, b in KNOWN_FILE_CYCLE_EDGES:
@@ -535,10 +549,6 @@ def check_files(src_dir):
                 f"note: KNOWN_FILE_CYCLE_EDGES entry {a} -> {b} closes no cycle "
                 "any more; delete it"
             )
-    with_tests = [c for c in strongly_connected(file_graph(files, edges, True, known)) if c not in library]
-    if with_tests:
-        print("file cycles closed only by test code (not counted; test-only edges listed):")
-        report_files(edges, with_tests, True)
     return not library
 
 
@@ -546,18 +556,13 @@ def main():
     src_dir = sys.argv[1] if len(sys.argv) > 1 else "crates/fluidtex/src"
     top_modules = top_level_modules(src_dir)
     edges = collect_edges(src_dir, top_modules)
-    library_graph = graph(edges, top_modules, False)
-    n_edges = sum(len(v) for v in library_graph.values())
-    print(f"{len(top_modules)} top-level modules, {n_edges} dependencies outside tests")
-    library = strongly_connected(library_graph)
-    if library:
-        report(edges, library, False)
-    else:
-        print("no cycle outside tests")
-    with_tests = [c for c in strongly_connected(graph(edges, top_modules, True)) if c not in library]
-    if with_tests:
-        print("cycles closed only by test code (not counted; test-only edges listed):")
-        report(edges, with_tests, True)
+    library = check_graph(
+        f"{len(top_modules)} top-level modules",
+        "",
+        graph(edges, top_modules, False),
+        graph(edges, top_modules, True),
+        lambda comps, tests: report(edges, comps, tests),
+    )
     files_ok = check_files(src_dir)
     return 1 if library or not files_ok else 0
 

@@ -190,6 +190,18 @@ fn erosion() -> fluidtex::methods::erosion::Erosion {
     .unwrap()
 }
 
+/// [`erosion`] with the fixture's state loaded.
+fn erosion_with_fixture_state() -> fluidtex::methods::erosion::Erosion {
+    let mut m = erosion();
+    fluidtex::pipeline::load_state_bytes(
+        Path::new("state.bin"),
+        &read(&["fuzz/state.bin"])[0],
+        &mut m,
+    )
+    .unwrap();
+    m
+}
+
 #[test]
 fn fuzz_state_file() {
     let fixtures = read(&["fuzz/state.bin"]);
@@ -241,13 +253,7 @@ fn fuzz_state_file() {
 #[test]
 fn fuzz_method_state() {
     use fluidtex::methods::Method;
-    let mut m = erosion();
-    fluidtex::pipeline::load_state_bytes(
-        Path::new("state.bin"),
-        &read(&["fuzz/state.bin"])[0],
-        &mut m,
-    )
-    .unwrap();
+    let m = erosion_with_fixture_state();
     let inner = m.save_state().unwrap();
     let method = std::cell::RefCell::new(m);
     fuzz("method-state", CI_STATE_CASES, vec![inner], |b| {
@@ -263,14 +269,7 @@ fn fuzz_method_state() {
 fn crafted_method_states_are_refused_in_one_line() {
     use fluidtex::methods::Method;
     use fluidtex::methods::erosion::ErosionState;
-    let mut m = erosion();
-    fluidtex::pipeline::load_state_bytes(
-        Path::new("state.bin"),
-        &read(&["fuzz/state.bin"])[0],
-        &mut m,
-    )
-    .unwrap();
-    let good: ErosionState = m.state().clone();
+    let good: ErosionState = erosion_with_fixture_state().state().clone();
     assert!(good.patches.len() > 3, "the fixture has patches");
     let load = |state: &ErosionState| -> Result<(), String> {
         let bytes = postcard::to_allocvec(state).unwrap();
