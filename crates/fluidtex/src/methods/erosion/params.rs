@@ -1,0 +1,249 @@
+//! The erosion method's parameters ([`ErosionParams`]), with their
+//! defaults, their ranges and the settings they choose between: one
+//! config section (`[erosion]`) and one CLI flag per field.
+
+use serde::{Deserialize, Serialize};
+
+use super::transition;
+use super::update::Placement;
+use crate::methods::tone::Tone;
+use crate::methods::{MethodError, check_range};
+
+/// Parameters of the erosion method. Defaults follow DESIGN §1 and the
+/// 2021 paper; every field is also a config key and a CLI flag.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ErosionParams {
+    /// Patch radius r in world units (Sec. 4). `None`: `radius_fraction` ×
+    /// the bounding-box diagonal of the first non-empty frame.
+    pub radius: Option<f32>,
+    /// Default r as a fraction of the first frame's bounding-box diagonal [1/25].
+    pub radius_fraction: f32,
+    /// World size S covered by the exemplar's \[0,1]². `None`:
+    /// `exemplar_scale` × r.
+    pub exemplar_size: Option<f32>,
+    /// Default S as a multiple of r [2.6]: the authors' code used (2 + β) r, β = 0.6.
+    pub exemplar_scale: f32,
+    /// δ_max of Eq. 1 \[3]: triangles at or beyond this distortion have Q_T = 0.
+    pub delta_max: f32,
+    /// Distortion at which erosion starts: Q_T of Eq. 1 stays 1 up to δ_onset
+    /// and falls linearly to 0 at δ_max \[1.5; 1 is the paper's Eq. 1, where
+    /// any distortion lowers Q_T]. Above 1, a patch sheared by a slow flow
+    /// keeps every texel until its distortion is visible instead of shedding
+    /// a thin band of texels every frame from its first frame on; it comes
+    /// with a faster `erosion_rate` so patches are still gone by δ_max.
+    pub delta_onset: f32,
+    /// ε of the erosion test, Sec. 5.2 [0.1], in (0, 1).
+    pub epsilon: f32,
+    /// Vertices farther than this fraction of r from the next surface are removed [1/4] (Sec. 4).
+    pub far_fraction: f32,
+    /// B_V = 1 within this fraction of r of the patch centre [1/4] (Eq. 2).
+    pub centre_fraction: f32,
+    /// Poisson disks whose normals have a smaller dot product do not block each other [0.9].
+    pub normal_dot: f32,
+    /// RK4 steps per frame \[1].
+    pub substeps: u32,
+    /// Random rotation of each patch at creation [true] (seeded per patch id,
+    /// or per creation point for patches the update adds).
+    pub random_rotation: bool,
+    /// New-patch placement \[local]: `local` (the paper) or `global`.
+    pub placement: Placement,
+    /// How vertex weights w_V evolve over time \[progressive] (see [`WeightMode`]).
+    pub weights: WeightMode,
+    /// Progressive weights: the largest decrease of w_V per second of
+    /// animation [4.8, i.e. 0.2 per frame at 24 fps], so a patch takes at
+    /// least 1/rate seconds to erode from whole to nothing.
+    pub erosion_rate: f32,
+    /// Reach of the centre falloff D(u, v) of the erosion test (Sec. 5.2)
+    /// \[footprint] (see [`Falloff`]).
+    pub falloff: Falloff,
+    /// Orientation of the exemplar on new patches \[random] (see [`Orientation`]).
+    pub orientation: Orientation,
+    /// World direction the exemplar's up follows with `orientation = aligned` [0, 1, 0].
+    pub up_axis: [f32; 3],
+    /// The default r is never below this many median edge lengths of the
+    /// first frame \[4]: a patch must hold enough fluid triangles that
+    /// re-meshing noise does not dominate its shape.
+    pub radius_edges: f32,
+    /// Patch edges longer than this many median edge lengths of the current
+    /// frame are split at their midpoint after advection \[2] (0: never, as
+    /// in the paper). A stretched patch triangle is a long chord of the
+    /// curved surface whose middle leaves the surface, so its coverage
+    /// flickers as the fluid is re-meshed (see [`super::patch::Patch::refine`]).
+    pub split_edges: f32,
+    /// Per frame, each channel's mean over the covered texels is moved to
+    /// the exemplar's \[mean]; `match` also matches its contrast to the
+    /// exemplar's as shown (see [`crate::methods::tone`]): the
+    /// feature-guided compositing of Sec. 5.1–5.2 shows high-feature texels
+    /// more often than the exemplar has them. `off` leaves the composite as
+    /// the paper makes it. Only the erosion method itself; the baselines
+    /// are never matched.
+    pub tone: Tone,
+    /// Frames over which a texel whose source changes shows its old and its
+    /// new source together \[0: the paper, one source per texel always]
+    /// (see [`transition`]). Up to [`transition::MAX_FRAMES`]. Left out of
+    /// the settings (and so of a run's fingerprint) at 0.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub transition: u32,
+}
+
+fn is_zero(n: &u32) -> bool {
+    *n == 0
+}
+
+/// How the vertex weights w_V of Eq. 3 evolve from frame to frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum WeightMode {
+    /// w_V never increases and falls by at most `erosion_rate` per second
+    /// towards Q_V·B_V: an eroded texel never comes back, and a patch erodes
+    /// progressively instead of losing a large part of itself in one frame
+    /// (re-meshing jitters Q_V, and a new boundary drops B_V to 0 at once).
+    #[default]
+    Progressive,
+    /// The paper's: w_V = Q_V·B_V recomputed from scratch every frame.
+    Paper,
+}
+
+/// Where D(u, v) of the erosion test reaches 0.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Falloff {
+    /// At the patch's own footprint, uv distance r/S from the centre: every
+    /// patch is eroded along the features from its creation on, whatever S.
+    #[default]
+    Footprint,
+    /// The paper's formula: at uv distance 0.5, the edge of the exemplar
+    /// square. With S = 2.6 r the patch ends at uv distance ≈ 0.385, so D
+    /// stays ≥ 0.23 on the patch and an undistorted patch keeps its
+    /// polygonal border.
+    Paper,
+}
+
+/// Orientation of the exemplar on a new patch.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Orientation {
+    /// A seeded random rotation per patch: right for stochastic exemplars
+    /// (pebbles, gravel, foam).
+    #[default]
+    Random,
+    /// The exemplar's up follows `up_axis` projected on the tangent plane at
+    /// the patch centre, then is carried (deformed) with the patch: right for
+    /// oriented exemplars (bricks, streaks).
+    Aligned,
+}
+
+impl Default for ErosionParams {
+    fn default() -> Self {
+        ErosionParams {
+            radius: None,
+            radius_fraction: 1.0 / 25.0,
+            exemplar_size: None,
+            exemplar_scale: 2.6,
+            delta_max: 3.0,
+            delta_onset: 1.5,
+            epsilon: 0.1,
+            far_fraction: 0.25,
+            centre_fraction: 0.25,
+            normal_dot: 0.9,
+            substeps: 1,
+            random_rotation: true,
+            placement: Placement::Local,
+            weights: WeightMode::Progressive,
+            erosion_rate: 4.8,
+            falloff: Falloff::Footprint,
+            orientation: Orientation::Random,
+            up_axis: [0.0, 1.0, 0.0],
+            radius_edges: 4.0,
+            split_edges: 2.0,
+            tone: Tone::Mean,
+            transition: 0,
+        }
+    }
+}
+
+impl ErosionParams {
+    /// Checks every field's range.
+    pub fn validate(&self) -> Result<(), MethodError> {
+        if let Some(r) = self.radius {
+            check_range("radius", r, f32::MIN_POSITIVE, f32::MAX, "> 0")?;
+        }
+        check_range(
+            "radius_fraction",
+            self.radius_fraction,
+            1e-4,
+            1.0,
+            "[0.0001, 1]",
+        )?;
+        if let Some(s) = self.exemplar_size {
+            check_range("exemplar_size", s, f32::MIN_POSITIVE, f32::MAX, "> 0")?;
+        }
+        check_range(
+            "exemplar_scale",
+            self.exemplar_scale,
+            0.1,
+            100.0,
+            "[0.1, 100]",
+        )?;
+        check_range("delta_max", self.delta_max, 1.0001, 1000.0, "(1, 1000]")?;
+        if !(self.delta_onset >= 1.0 && self.delta_onset < self.delta_max) {
+            return Err(MethodError::InvalidParameter {
+                name: "delta_onset",
+                value: self.delta_onset.to_string(),
+                allowed: "[1, delta_max)",
+            });
+        }
+        check_range("epsilon", self.epsilon, 0.0, 0.9999, "[0, 1)")?;
+        check_range("far_fraction", self.far_fraction, 1e-3, 10.0, "[0.001, 10]")?;
+        check_range("centre_fraction", self.centre_fraction, 0.0, 1.0, "[0, 1]")?;
+        check_range("normal_dot", self.normal_dot, -1.0, 1.0, "[-1, 1]")?;
+        check_range("substeps", self.substeps as f32, 1.0, 64.0, "1..=64")?;
+        check_range(
+            "erosion_rate",
+            self.erosion_rate,
+            1e-3,
+            1e6,
+            "[0.001, 1e6] per second",
+        )?;
+        check_range("radius_edges", self.radius_edges, 0.0, 1000.0, "[0, 1000]")?;
+        check_range(
+            "transition",
+            self.transition as f32,
+            0.0,
+            transition::MAX_FRAMES as f32,
+            "0..=8 frames",
+        )?;
+        if self.split_edges != 0.0 {
+            check_range(
+                "split_edges",
+                self.split_edges,
+                0.5,
+                1000.0,
+                "0 or [0.5, 1000]",
+            )?;
+        }
+        let axis = glam::Vec3::from(self.up_axis);
+        if !axis.is_finite() || axis.length() < 1e-6 {
+            return Err(MethodError::InvalidParameter {
+                name: "up_axis",
+                value: format!("{:?}", self.up_axis),
+                allowed: "a finite, non-zero direction",
+            });
+        }
+        Ok(())
+    }
+}
+
+crate::named!(WeightMode {
+    Progressive => "progressive",
+    Paper => "paper",
+});
+crate::named!(Falloff {
+    Footprint => "footprint",
+    Paper => "paper",
+});
+crate::named!(Orientation {
+    Random => "random",
+    Aligned => "aligned",
+});

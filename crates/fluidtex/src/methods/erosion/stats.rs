@@ -1,0 +1,91 @@
+//! What an erosion step counts as it goes, and how it reports it in
+//! `stats.F.json` (the typed [`Stat`] keys).
+
+use super::Erosion;
+use super::fill::{self, FillBuffers};
+use crate::methods::{Stat, StatsExt};
+
+/// What one step did, for the statistics.
+#[derive(Default)]
+pub(super) struct StepCounts {
+    /// Patches lost in advection (left the surface, or a fresh start).
+    pub(super) deleted_before: usize,
+    pub(super) created: usize,
+    pub(super) forced: usize,
+    pub(super) candidate_pairs: usize,
+    /// Patch triangles dropped as wholly eroded for good.
+    pub(super) pruned: usize,
+    /// Patches no texel used.
+    pub(super) unused: usize,
+    /// Set on the frame that chose the radius.
+    pub(super) radius_rule: Option<String>,
+}
+
+/// What the blended fill adds to the lapped one.
+#[derive(Default)]
+pub(super) struct Blended {
+    /// Per texel, layers of visible weight.
+    pub(super) layers: Option<Vec<u8>>,
+    /// Patches that contributed a visible layer.
+    pub(super) used: Option<Vec<u32>>,
+    /// The lapped fill with a transition: the texels that still show an
+    /// earlier source ([`super::transition`]).
+    pub(super) transitions: Vec<fill::Transition>,
+}
+
+impl Blended {
+    /// Texels the update covered hold one new patch each.
+    pub(super) fn count_update(&mut self, source: &[u32]) {
+        if let Some(layers) = self.layers.as_mut() {
+            for (l, &s) in layers.iter_mut().zip(source) {
+                if *l == 0 && s != fill::OUTSIDE && s != fill::UNCOVERED {
+                    *l = 1;
+                }
+            }
+        }
+    }
+}
+
+impl Erosion {
+    /// The statistics of `stats.F.json`.
+    pub(super) fn record_stats(
+        &mut self,
+        stats: &mut crate::methods::MethodStats,
+        out: &FillBuffers,
+        counts: StepCounts,
+    ) {
+        let texels_in_charts = out.source.iter().filter(|&&s| s != fill::OUTSIDE).count();
+        let uncovered_after = out.source.iter().filter(|&&s| s == fill::UNCOVERED).count();
+        let dropped = std::mem::take(&mut self.dropped_by_reset);
+        stats.set(Stat::PatchesAlive, self.state.patches.len());
+        stats.set(Stat::PatchesCreated, counts.created);
+        stats.set(
+            Stat::PatchesDeleted,
+            counts.deleted_before + counts.unused + dropped,
+        );
+        stats.set(Stat::PatchesDeletedUnused, counts.unused);
+        stats.set(Stat::PatchesDeletedAdvection, counts.deleted_before);
+        stats.set(Stat::TexelsInCharts, texels_in_charts);
+        stats.set(Stat::UncoveredTexels, uncovered_after);
+        stats.set(Stat::ForcedTexels, counts.forced);
+        stats.set(Stat::CandidatePairs, counts.candidate_pairs);
+        stats.set(Stat::TrianglesPruned, counts.pruned);
+        stats.set(
+            Stat::PatchTriangles,
+            self.state
+                .patches
+                .iter()
+                .map(|p| p.triangles.len())
+                .sum::<usize>(),
+        );
+        if let Some(r) = self.state.radius {
+            stats.set(Stat::Radius, serde_json::json!(r));
+        }
+        if let Some(rule) = counts.radius_rule {
+            stats.set(Stat::RadiusRule, rule);
+        }
+        if let Some(s) = self.state.exemplar_size {
+            stats.set(Stat::ExemplarSize, serde_json::json!(s));
+        }
+    }
+}
