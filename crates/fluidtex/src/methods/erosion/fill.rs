@@ -48,6 +48,7 @@ pub use self::candidates::{
 pub use crate::provenance::{SOURCE_OUTSIDE as OUTSIDE, SOURCE_UNCOVERED as UNCOVERED};
 
 /// Everything the fill reads.
+#[derive(Clone, Copy)]
 pub struct FillContext<'a> {
     pub mesh: &'a TriMesh,
     /// `mesh`'s triangles as the candidate search reads them.
@@ -77,6 +78,47 @@ pub struct FillContext<'a> {
     /// Frames of the transition ([`super::transition`]); 0: one source per
     /// texel, the paper's fill.
     pub transition: u32,
+}
+
+/// The per-triangle erosion verdicts a fill reads ([`FillContext`]'s
+/// `verdicts`, `verdicts_before`, `verdicts_older`), computed once per
+/// frame.
+pub struct VerdictTables {
+    now: Vec<Vec<Verdict>>,
+    before: Vec<Vec<Verdict>>,
+    older: Vec<Vec<Vec<Verdict>>>,
+}
+
+impl VerdictTables {
+    /// This frame's verdicts of `unjudged`'s patches; the frame before's
+    /// where the fill records the renewal (`renewal`) or blends a
+    /// transition, and the older frames' a transition reads.
+    pub fn of(unjudged: &FillContext<'_>, renewal: bool) -> VerdictTables {
+        let history = unjudged.transition > 0;
+        VerdictTables {
+            now: unjudged.erosion_verdicts(),
+            before: if renewal || history {
+                unjudged.verdicts_before()
+            } else {
+                Vec::new()
+            },
+            older: if history {
+                unjudged.verdicts_older(unjudged.transition as usize - 1)
+            } else {
+                Vec::new()
+            },
+        }
+    }
+
+    /// `unjudged` reading these verdicts.
+    pub fn judge<'a>(&'a self, unjudged: FillContext<'a>) -> FillContext<'a> {
+        FillContext {
+            verdicts: &self.now,
+            verdicts_before: &self.before,
+            verdicts_older: &self.older,
+            ..unjudged
+        }
+    }
 }
 
 /// Where a surface point lies in a patch.

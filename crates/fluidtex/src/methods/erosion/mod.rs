@@ -326,38 +326,7 @@ impl Method for Erosion {
 
     fn step(&mut self, ctx: &FrameContext<'_>) -> Result<FrameResult, MethodError> {
         let mut clock = StageClock::default();
-        let atlas = ctx.atlas;
-        // The footprint pass samples every covered texel (blends excepted).
-        let defer_values = self.variant != Variant::Blend
-            && self.exemplar.filter == crate::exemplar::ExemplarFilter::Trilinear;
-        // Deferred values are first written by the footprint pass, late in
-        // the frame: fresh zero pages until then, instead of the last
-        // frame's values held idle (453 MB at 6144²) through the
-        // advection, the update and the fill.
-        let spare_values = self.spare.values.take().filter(|_| !defer_values);
-        let mut out = FillBuffers::reusing(
-            atlas.width,
-            atlas.height,
-            self.exemplar.total_channels(),
-            self.spare.uv.take(),
-            spare_values,
-            // Where the caller kept levels (an evaluation) and handed them
-            // back, they hold this frame's patch ids: a fresh id buffer
-            // goes to the caller every frame, and levels kept aside until
-            // the footprint pass would sit idle through the fill (151 MB
-            // at 6144²). A run keeps no levels: its ids are fresh pages.
-            self.spare
-                .exemplar_lod
-                .take()
-                .and_then(|lods| bytemuck::allocation::try_cast_vec(lods).ok()),
-        );
-        out.defer_values = defer_values;
-        // The lapped fill records what became of each texel's previous
-        // holder (the forced / unforced split of the switches); the blended
-        // fill shows every layer and has no single holder.
-        if self.variant != Variant::Blend && self.track_renewal {
-            out = out.with_renewal();
-        }
+        let mut out = self.fill_buffers(ctx.atlas);
         let mut counts = StepCounts::default();
         let mut blended = Blended::default();
         if ctx.mesh.is_empty() {
@@ -389,28 +358,7 @@ impl Method for Erosion {
         } else {
             super::footprint::Levels::Drop
         };
-        let exemplar_lod = (self.variant != Variant::Blend)
-            .then(|| match (&self.multi, &by_id) {
-                (Some(m), Some(by_id)) => {
-                    let all = m.set.exemplars();
-                    super::footprint::apply_footprint_filtering_by(
-                        &mut out,
-                        self.exemplar.filter,
-                        levels,
-                        |s| {
-                            let e = by_id.get(s as usize - 1).copied().unwrap_or(0);
-                            all.get(e as usize).map_or(&*self.exemplar, |a| a)
-                        },
-                    )
-                }
-                _ => super::footprint::apply_footprint_filtering_by(
-                    &mut out,
-                    self.exemplar.filter,
-                    levels,
-                    |_| &*self.exemplar,
-                ),
-            })
-            .flatten();
+        let exemplar_lod = self.filter_footprint(&mut out, levels, by_id.as_deref());
         clock.lap("exemplar filter");
         let in_transition = self.blend_transitions(
             &mut out,
@@ -418,9 +366,10 @@ impl Method for Erosion {
             exemplar_lod.as_deref(),
             by_id.as_deref(),
         );
-        if let Some((layers, _)) = &in_transition {
-            blended.layers = Some(layers.clone());
-        }
+        let in_transition = in_transition.map(|(layers, blended_texels)| {
+            blended.layers = Some(layers);
+            blended_texels
+        });
         clock.lap("transition");
         let tone = self.match_tone(&mut out, exemplar_lod.as_deref(), by_id.as_deref());
         clock.lap("tone");
@@ -435,31 +384,13 @@ impl Method for Erosion {
             ..Default::default()
         };
         self.record_stats(&mut result.stats, &out, counts);
-        if !tone.is_empty() {
-            let gains: Vec<&[f64]> = tone.iter().map(|m| m.gain.as_slice()).collect();
-            let means: Vec<&[f64]> = tone.iter().map(|m| m.mean.as_slice()).collect();
-            result
-                .stats
-                .insert("tone_gain".into(), serde_json::json!(gains));
-            result
-                .stats
-                .insert("tone_mean_before".into(), serde_json::json!(means));
-        }
-        if let Some((_, blended_texels)) = in_transition {
-            let covered = out
-                .source
-                .iter()
-                .filter(|&&s| s != fill::OUTSIDE && s != fill::UNCOVERED)
-                .count();
-            let share = blended_texels as f64 / covered.max(1) as f64;
-            result
-                .stats
-                .insert("transition_share".into(), serde_json::json!(share));
-        }
-        if let (Some(m), Some(by_id)) = (&self.multi, &by_id) {
-            let texels = exemplars::texels_per_exemplar(&out.source, by_id, m.set.len());
-            result.stats.insert("exemplar_texels".into(), texels.into());
-        }
+        self.record_frame_extras(
+            &mut result.stats,
+            &out,
+            &tone,
+            in_transition,
+            by_id.as_deref(),
+        );
         result.source = Some(out.source);
         result.uv = Some(out.uv);
         result.renewal = (!out.renewal.is_empty()).then_some(out.renewal);
@@ -559,6 +490,76 @@ impl Erosion {
         (radius, exemplar_size)
     }
 
+    /// This frame's fill buffers, refilling the spent ones the caller
+    /// handed back where they fit.
+    fn fill_buffers(&mut self, atlas: &crate::atlas::Atlas) -> FillBuffers {
+        // The footprint pass samples every covered texel (blends excepted).
+        let defer_values = self.variant != Variant::Blend
+            && self.exemplar.filter == crate::exemplar::ExemplarFilter::Trilinear;
+        // Deferred values are first written by the footprint pass, late in
+        // the frame: fresh zero pages until then, instead of the last
+        // frame's values held idle (453 MB at 6144²) through the
+        // advection, the update and the fill.
+        let spare_values = self.spare.values.take().filter(|_| !defer_values);
+        let mut out = FillBuffers::reusing(
+            atlas.width,
+            atlas.height,
+            self.exemplar.total_channels(),
+            self.spare.uv.take(),
+            spare_values,
+            // Where the caller kept levels (an evaluation) and handed them
+            // back, they hold this frame's patch ids: a fresh id buffer
+            // goes to the caller every frame, and levels kept aside until
+            // the footprint pass would sit idle through the fill (151 MB
+            // at 6144²). A run keeps no levels: its ids are fresh pages.
+            self.spare
+                .exemplar_lod
+                .take()
+                .and_then(|lods| bytemuck::allocation::try_cast_vec(lods).ok()),
+        );
+        out.defer_values = defer_values;
+        // The lapped fill records what became of each texel's previous
+        // holder (the forced / unforced split of the switches); the blended
+        // fill shows every layer and has no single holder.
+        if self.variant != Variant::Blend && self.track_renewal {
+            out = out.with_renewal();
+        }
+        out
+    }
+
+    /// The footprint pass ([`super::footprint`]) over `out` for the lapped
+    /// fills, each texel read from its patch's exemplar (`by_id`); the
+    /// levels per texel where `levels` keeps them.
+    fn filter_footprint(
+        &self,
+        out: &mut FillBuffers,
+        levels: super::footprint::Levels,
+        by_id: Option<&[u32]>,
+    ) -> Option<Vec<f32>> {
+        (self.variant != Variant::Blend)
+            .then(|| match (&self.multi, by_id) {
+                (Some(m), Some(by_id)) => {
+                    let all = m.set.exemplars();
+                    super::footprint::apply_footprint_filtering_by(
+                        out,
+                        self.exemplar.filter,
+                        levels,
+                        |s| {
+                            let e = by_id.get(s as usize - 1).copied().unwrap_or(0);
+                            all.get(e as usize).map_or(&*self.exemplar, |a| a)
+                        },
+                    )
+                }
+                _ => super::footprint::apply_footprint_filtering_by(
+                    out,
+                    self.exemplar.filter,
+                    levels,
+                    |_| &*self.exemplar,
+                ),
+            })
+            .flatten()
+    }
+
     /// The stages on a non-empty surface: advection, creation, weights,
     /// fill, update.
     fn step_surface(
@@ -578,11 +579,7 @@ impl Erosion {
         // 1. Advection and projection (Sec. 4).
         let carried = self.advect(ctx, &shape, radius, counts)?;
         clock.lap("advection");
-        let surface = FrameSurface {
-            mesh,
-            topology: ctx.topology,
-            vertex_normals: ctx.normals,
-        };
+        let surface = FrameSurface::of(ctx);
         // Initial distribution (frame 0, or a surface that reappears).
         let first_new_id = self.state.next_id;
         if self.state.patches.is_empty() {
@@ -591,14 +588,7 @@ impl Erosion {
         clock.lap("creation");
 
         // 2. Weights (Eqs. 1-3), then the triangles they erode for good.
-        self.update_weights(&shape, ctx.dt);
-        // A patch placed this frame showed nothing the frame before.
-        for p in &mut self.state.patches {
-            if p.id >= first_new_id {
-                p.weight_before.clear();
-                p.weight_older.clear();
-            }
-        }
+        self.update_weights(&shape, ctx.dt, first_new_id);
         counts.pruned = self.prune(&shape, test);
         clock.lap("weights");
 
@@ -609,46 +599,7 @@ impl Erosion {
         let mut blended = Blended::default();
         let exemplar = Arc::clone(&self.exemplar);
         let fluid = fill::FluidTriangles::new(mesh);
-        let uncovered = {
-            let frames = fill::patch_frames(&self.state.patches);
-            let unjudged = FillContext {
-                mesh,
-                fluid: &fluid,
-                patches: &self.state.patches,
-                frames: &frames,
-                exemplar: &exemplar,
-                feature: &feature,
-                test,
-                tolerance,
-                multi: multi_fill.as_ref(),
-                verdicts: &[],
-                verdicts_before: &[],
-                verdicts_older: &[],
-                transition: self.transition_frames(),
-            };
-            let verdicts = unjudged.erosion_verdicts();
-            let history = unjudged.transition > 0;
-            let before = if out.renewal.is_empty() && !history {
-                Vec::new()
-            } else {
-                unjudged.verdicts_before()
-            };
-            let older = if history {
-                unjudged.verdicts_older(unjudged.transition as usize - 1)
-            } else {
-                Vec::new()
-            };
-            let fill_ctx = FillContext {
-                verdicts: &verdicts,
-                verdicts_before: &before,
-                verdicts_older: &older,
-                ..unjudged
-            };
-            self.fill(ctx, &fill_ctx, out, counts, &mut blended)
-        };
-        clock.lap("fill");
-
-        // 4. Distribution update: new patches see the fill's settings.
+        // What the fill and the update share; the fill adds the patches.
         let template = FillContext {
             mesh,
             fluid: &fluid,
@@ -664,6 +615,18 @@ impl Erosion {
             verdicts_older: &[],
             transition: 0,
         };
+        let frames = fill::patch_frames(&self.state.patches);
+        let unjudged = FillContext {
+            patches: &self.state.patches,
+            frames: &frames,
+            transition: self.transition_frames(),
+            ..template
+        };
+        let tables = fill::VerdictTables::of(&unjudged, !out.renewal.is_empty());
+        let uncovered = self.fill(ctx, &tables.judge(unjudged), out, counts, &mut blended);
+        clock.lap("fill");
+
+        // 4. Distribution update: new patches see the fill's settings.
         let (seed, random) = (self.seed, self.params.random_rotation);
         let rotation = move |at| rotation_for(seed, random, location_key(at));
         let inputs = update::UpdateInputs {
@@ -718,7 +681,9 @@ impl Erosion {
     /// w_V of every patch (Eqs. 1-3), progressive (at most
     /// `erosion_rate` · dt lower than the last frame's) when eroding with
     /// progressive weights.
-    fn update_weights(&mut self, shape: &PatchShape, dt: f32) {
+    /// Patches from `first_new_id` on were placed this frame: they showed
+    /// nothing the frame before.
+    fn update_weights(&mut self, shape: &PatchShape, dt: f32, first_new_id: u32) {
         let max_drop = match (self.variant, self.params.weights) {
             (Variant::Erode, WeightMode::Progressive) => Some(self.params.erosion_rate * dt),
             _ => None,
@@ -727,6 +692,10 @@ impl Erosion {
         self.state.patches.par_iter_mut().for_each(|p| {
             p.remember_weights(older);
             p.update_weights(shape, max_drop);
+            if p.id >= first_new_id {
+                p.weight_before.clear();
+                p.weight_older.clear();
+            }
         });
     }
 

@@ -15,6 +15,7 @@ use serde::{Deserialize, Serialize};
 use super::distortion::{distortion, triangle_quality_from};
 use super::erode::{ErosionTest, Verdict};
 use crate::mesh::{Topology, TriMesh};
+use crate::methods::FrameContext;
 use crate::surface::velocity::FlowInterval;
 use crate::surface::{SurfaceIndex, SurfacePoint, closest_point_on_triangle, map_in_query_order};
 
@@ -243,6 +244,17 @@ pub struct FrameSurface<'a> {
     pub mesh: &'a TriMesh,
     pub topology: &'a Topology,
     pub vertex_normals: &'a [Vec3],
+}
+
+impl<'a> FrameSurface<'a> {
+    /// The surface of the frame `ctx` hands a method.
+    pub fn of(ctx: &FrameContext<'a>) -> FrameSurface<'a> {
+        FrameSurface {
+            mesh: ctx.mesh,
+            topology: ctx.topology,
+            vertex_normals: ctx.normals,
+        }
+    }
 }
 
 impl Patch {

@@ -88,4 +88,37 @@ impl Erosion {
             stats.set(Stat::ExemplarSize, serde_json::json!(s));
         }
     }
+
+    /// The frame's statistics beyond the counts: the tone maps applied,
+    /// the share of covered texels in transition (`blended_texels` of
+    /// them, with a transition) and, with several exemplars, the texels
+    /// each shows (`by_id`: the exemplar of each patch id).
+    pub(super) fn record_frame_extras(
+        &self,
+        stats: &mut crate::methods::MethodStats,
+        out: &FillBuffers,
+        tone: &[crate::methods::tone::ToneMap],
+        blended_texels: Option<usize>,
+        by_id: Option<&[u32]>,
+    ) {
+        if !tone.is_empty() {
+            let gains: Vec<&[f64]> = tone.iter().map(|m| m.gain.as_slice()).collect();
+            let means: Vec<&[f64]> = tone.iter().map(|m| m.mean.as_slice()).collect();
+            stats.insert("tone_gain".into(), serde_json::json!(gains));
+            stats.insert("tone_mean_before".into(), serde_json::json!(means));
+        }
+        if let Some(blended_texels) = blended_texels {
+            let covered = out
+                .source
+                .iter()
+                .filter(|&&s| s != fill::OUTSIDE && s != fill::UNCOVERED)
+                .count();
+            let share = blended_texels as f64 / covered.max(1) as f64;
+            stats.insert("transition_share".into(), serde_json::json!(share));
+        }
+        if let (Some(m), Some(by_id)) = (&self.multi, by_id) {
+            let texels = super::exemplars::texels_per_exemplar(&out.source, by_id, m.set.len());
+            stats.insert("exemplar_texels".into(), texels.into());
+        }
+    }
 }
