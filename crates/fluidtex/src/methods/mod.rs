@@ -28,9 +28,12 @@ pub mod tone;
 #[cfg(test)]
 mod multi_tests;
 #[cfg(test)]
+mod selection_tests;
+#[cfg(test)]
 pub(crate) mod test_clip;
 
 use glam::{Vec2, Vec3};
+use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use thiserror::Error;
 
@@ -256,6 +259,39 @@ pub trait Method: Send {
     /// Advances to `frame` and fills its atlas.
     fn step(&mut self, frame: &FrameContext<'_>) -> Result<FrameResult, MethodError>;
 
+    /// Phase 1 of a two-phase run: advances to `frame` as [`Method::step`]
+    /// does and returns the frame's [`Selection`] (which source shows at
+    /// each texel, serialised), not its channels. The default replays:
+    /// the selection is the state before the frame, and
+    /// [`Method::resample`] runs the whole step again from it.
+    fn select(&mut self, frame: &FrameContext<'_>) -> Result<Selection, MethodError> {
+        let before = self.save_state()?;
+        self.step(frame)?;
+        Ok(Selection::Replay(before))
+    }
+
+    /// Phase 2: the result of `frame` from its [`Selection`], written by
+    /// [`Method::select`] of a method built with the same settings (in
+    /// this process or another). The files made of it are those of a
+    /// one-pass run. A replayed selection needs `frame.previous`.
+    fn resample(
+        &mut self,
+        frame: &FrameContext<'_>,
+        selection: &Selection,
+    ) -> Result<FrameResult, MethodError> {
+        match selection {
+            Selection::Replay(before) => {
+                self.load_state(before)?;
+                self.step(frame)
+            }
+            Selection::Own(_) => Err(MethodError::State(format!(
+                "frame {}: the selection is not one the {} method writes",
+                frame.number,
+                self.name()
+            ))),
+        }
+    }
+
     /// The state needed to continue after the last step (for `--resume`).
     fn save_state(&self) -> Result<Vec<u8>, MethodError>;
 
@@ -294,6 +330,34 @@ pub trait Method: Send {
     /// sixth of its time, so a method may skip it when it is not read.
     fn set_renewal_read(&mut self, read: bool) {
         let _ = read;
+    }
+}
+
+/// A frame's selection, serialised: what a later process needs, besides
+/// the frame's geometry, to resample the frame into the bytes of a
+/// one-pass run ([`Method::select`], [`Method::resample`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Selection {
+    /// The method's own compact selection (for the patch methods: the
+    /// patches, their geometry and weights, as the frame's fill reads
+    /// them): resampled from the frame's geometry alone.
+    Own(Vec<u8>),
+    /// The method's state before the frame: resampling replays the
+    /// frame's whole step, so it needs the frame before's geometry too.
+    Replay(Vec<u8>),
+}
+
+impl Selection {
+    /// Whether resampling needs the frame before ([`Selection::Replay`]).
+    pub fn needs_previous(&self) -> bool {
+        matches!(self, Selection::Replay(_))
+    }
+
+    /// The serialised bytes, whichever the kind.
+    pub fn bytes(&self) -> &[u8] {
+        match self {
+            Selection::Own(b) | Selection::Replay(b) => b,
+        }
     }
 }
 

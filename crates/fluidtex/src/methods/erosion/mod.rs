@@ -22,6 +22,7 @@ pub mod feature_levels;
 pub mod fill;
 mod params;
 pub mod patch;
+mod selection;
 mod stats;
 pub mod transition;
 pub mod update;
@@ -311,6 +312,23 @@ impl Erosion {
     }
 }
 
+/// What the stages of one frame on a non-empty surface share.
+#[derive(Clone, Copy)]
+struct FrameSetup {
+    radius: f32,
+    shape: PatchShape,
+    align: Option<glam::Vec3>,
+    test: ErosionTest,
+    /// `advect` carried its patches: none are created.
+    carried: bool,
+}
+
+/// A frame's selection per texel, before any channel is sampled.
+struct Texels {
+    out: FillBuffers,
+    blended: Blended,
+}
+
 impl Method for Erosion {
     fn name(&self) -> &'static str {
         match self.variant {
@@ -326,77 +344,52 @@ impl Method for Erosion {
 
     fn step(&mut self, ctx: &FrameContext<'_>) -> Result<FrameResult, MethodError> {
         let mut clock = StageClock::default();
-        let mut out = self.fill_buffers(ctx.atlas);
         let mut counts = StepCounts::default();
-        let mut blended = Blended::default();
-        if ctx.mesh.is_empty() {
-            // The fluid vanished: nothing to project onto, every patch goes.
-            counts.deleted_before = self.state.patches.len();
-            self.state.patches.clear();
-            clock.lap("advection");
-        } else {
-            blended = self.step_surface(ctx, &mut out, &mut counts, &mut clock)?;
-        }
-        let mut kept = blended.used.take();
-        if !blended.transitions.is_empty() {
-            let ids = kept.get_or_insert_with(Vec::new);
-            ids.extend(blended.transitions.iter().map(|e| e.patch_id));
-        }
-        counts.unused = self.delete_unused(&out, kept.as_deref());
-        clock.lap("delete");
-        let by_id = self
-            .multi
-            .as_ref()
-            .map(|_| exemplars::by_id(&self.state.patches, self.state.next_id));
-        // Contrast tone matching reads each texel's level.
-        // So does a transition, which reads the earlier source at it.
-        let levels = if self.levels_read
-            || (self.variant == Variant::Erode && self.params.tone == Tone::Match)
-            || !blended.transitions.is_empty()
-        {
-            super::footprint::Levels::Keep
-        } else {
-            super::footprint::Levels::Drop
+        let setup = self.carry(ctx, &mut counts, &mut clock)?;
+        let texels = self.select_texels(ctx, setup, &mut counts, &mut clock);
+        Ok(self.resample_texels(texels, counts, clock))
+    }
+
+    /// The patches as this frame's fill reads them are the selection
+    /// ([`selection`]); the fill and the update run here too, for the
+    /// state of the next frame, but nothing is resampled.
+    fn select(&mut self, ctx: &FrameContext<'_>) -> Result<super::Selection, MethodError> {
+        let mut clock = StageClock::default();
+        let mut counts = StepCounts::default();
+        let setup = self.carry(ctx, &mut counts, &mut clock)?;
+        let bytes = self.snapshot(setup.as_ref().map(|s| s.carried), &counts)?;
+        // Only a resampled frame's switches are measured.
+        let track = std::mem::replace(&mut self.track_renewal, false);
+        let texels = self.select_texels(ctx, setup, &mut counts, &mut clock);
+        self.track_renewal = track;
+        self.keep_spare(texels);
+        Ok(super::Selection::Own(bytes))
+    }
+
+    fn resample(
+        &mut self,
+        ctx: &FrameContext<'_>,
+        selection: &super::Selection,
+    ) -> Result<FrameResult, MethodError> {
+        let super::Selection::Own(bytes) = selection else {
+            return Err(MethodError::State(format!(
+                "frame {}: a replayed selection, which the {} method does not write",
+                ctx.number,
+                self.name()
+            )));
         };
-        let exemplar_lod = self.filter_footprint(&mut out, levels, by_id.as_deref());
-        clock.lap("exemplar filter");
-        let in_transition = self.blend_transitions(
-            &mut out,
-            &blended.transitions,
-            exemplar_lod.as_deref(),
-            by_id.as_deref(),
-        );
-        let in_transition = in_transition.map(|(layers, blended_texels)| {
-            blended.layers = Some(layers);
-            blended_texels
-        });
-        clock.lap("transition");
-        let tone = self.match_tone(&mut out, exemplar_lod.as_deref(), by_id.as_deref());
-        clock.lap("tone");
-        let mut result = FrameResult {
-            channels: crate::exemplar::channels::split_interleaved(
-                out.width,
-                out.height,
-                std::mem::take(&mut out.values),
-                &self.exemplar,
-            ),
-            exemplar_lod,
-            ..Default::default()
+        let mut clock = StageClock::default();
+        let (mut counts, carried) = self.restore(bytes)?;
+        let setup = match carried {
+            Some(carried) if !ctx.mesh.is_empty() => Some(FrameSetup {
+                carried,
+                ..self.setup(ctx, &mut counts)?
+            }),
+            _ => None,
         };
-        self.record_stats(&mut result.stats, &out, counts);
-        self.record_frame_extras(
-            &mut result.stats,
-            &out,
-            &tone,
-            in_transition,
-            by_id.as_deref(),
-        );
-        result.source = Some(out.source);
-        result.uv = Some(out.uv);
-        result.renewal = (!out.renewal.is_empty()).then_some(out.renewal);
-        result.layers = blended.layers;
-        result.timings = clock.stages;
-        Ok(result)
+        clock.lap("selection");
+        let texels = self.select_texels(ctx, setup, &mut counts, &mut clock);
+        Ok(self.resample_texels(texels, counts, clock))
     }
 
     fn recycle(&mut self, spent: super::SpentBuffers) {
@@ -560,37 +553,174 @@ impl Erosion {
             .flatten()
     }
 
-    /// The stages on a non-empty surface: advection, creation, weights,
-    /// fill, update.
-    fn step_surface(
+    /// What the stages of a frame on a non-empty surface share.
+    fn setup(
         &mut self,
         ctx: &FrameContext<'_>,
-        out: &mut FillBuffers,
+        counts: &mut StepCounts,
+    ) -> Result<FrameSetup, MethodError> {
+        self.require_velocity(ctx)?;
+        let (radius, exemplar_size) = self.resolve_scale(ctx.mesh, counts);
+        Ok(FrameSetup {
+            radius,
+            shape: self.shape(radius, exemplar_size, ctx.mesh, ctx.atlas),
+            align: self.align_axis(),
+            test: self.prepare_tests(ctx, radius / exemplar_size)?,
+            carried: false,
+        })
+    }
+
+    /// The stages before the fill: advection, creation, weights (or, where
+    /// the fluid vanished, every patch dropped: `None`).
+    fn carry(
+        &mut self,
+        ctx: &FrameContext<'_>,
         counts: &mut StepCounts,
         clock: &mut StageClock,
-    ) -> Result<Blended, MethodError> {
-        let mesh = ctx.mesh;
-        self.require_velocity(ctx)?;
-        let (radius, exemplar_size) = self.resolve_scale(mesh, counts);
-        let shape = self.shape(radius, exemplar_size, mesh, ctx.atlas);
-        let align = self.align_axis();
-        let test = self.prepare_tests(ctx, radius / exemplar_size)?;
-
+    ) -> Result<Option<FrameSetup>, MethodError> {
+        if ctx.mesh.is_empty() {
+            // Nothing to project onto: every patch goes.
+            counts.deleted_before = self.state.patches.len();
+            self.state.patches.clear();
+            clock.lap("advection");
+            return Ok(None);
+        }
+        let mut setup = self.setup(ctx, counts)?;
+        let (shape, radius) = (setup.shape, setup.radius);
         // 1. Advection and projection (Sec. 4).
-        let carried = self.advect(ctx, &shape, radius, counts)?;
+        setup.carried = self.advect(ctx, &shape, radius, counts)?;
         clock.lap("advection");
-        let surface = FrameSurface::of(ctx);
         // Initial distribution (frame 0, or a surface that reappears).
         let first_new_id = self.state.next_id;
         if self.state.patches.is_empty() {
-            counts.created += self.seed_distribution(ctx, &surface, &shape, radius, align);
+            let surface = FrameSurface::of(ctx);
+            counts.created += self.seed_distribution(ctx, &surface, &shape, radius, setup.align);
         }
         clock.lap("creation");
-
         // 2. Weights (Eqs. 1-3), then the triangles they erode for good.
         self.update_weights(&shape, ctx.dt, first_new_id);
-        counts.pruned = self.prune(&shape, test);
+        counts.pruned = self.prune(&shape, setup.test);
         clock.lap("weights");
+        Ok(Some(setup))
+    }
+
+    /// Which patch shows at each texel: the fill, the update (new patches
+    /// where none did) and the deletion of patches no texel used.
+    fn select_texels(
+        &mut self,
+        ctx: &FrameContext<'_>,
+        setup: Option<FrameSetup>,
+        counts: &mut StepCounts,
+        clock: &mut StageClock,
+    ) -> Texels {
+        let mut out = self.fill_buffers(ctx.atlas);
+        let mut blended = match setup {
+            Some(setup) => self.fill_and_cover(ctx, &setup, &mut out, counts, clock),
+            None => Blended::default(),
+        };
+        let mut kept = blended.used.take();
+        if !blended.transitions.is_empty() {
+            let ids = kept.get_or_insert_with(Vec::new);
+            ids.extend(blended.transitions.iter().map(|e| e.patch_id));
+        }
+        counts.unused = self.delete_unused(&out, kept.as_deref());
+        clock.lap("delete");
+        Texels { out, blended }
+    }
+
+    /// Every channel from the texels' selection: the footprint pass, the
+    /// transitions, the tone; and the frame's statistics.
+    fn resample_texels(
+        &mut self,
+        texels: Texels,
+        counts: StepCounts,
+        mut clock: StageClock,
+    ) -> FrameResult {
+        let Texels {
+            mut out,
+            mut blended,
+        } = texels;
+        let by_id = self
+            .multi
+            .as_ref()
+            .map(|_| exemplars::by_id(&self.state.patches, self.state.next_id));
+        // Contrast tone matching reads each texel's level.
+        // So does a transition, which reads the earlier source at it.
+        let levels = if self.levels_read
+            || (self.variant == Variant::Erode && self.params.tone == Tone::Match)
+            || !blended.transitions.is_empty()
+        {
+            super::footprint::Levels::Keep
+        } else {
+            super::footprint::Levels::Drop
+        };
+        let exemplar_lod = self.filter_footprint(&mut out, levels, by_id.as_deref());
+        clock.lap("exemplar filter");
+        let in_transition = self.blend_transitions(
+            &mut out,
+            &blended.transitions,
+            exemplar_lod.as_deref(),
+            by_id.as_deref(),
+        );
+        let in_transition = in_transition.map(|(layers, blended_texels)| {
+            blended.layers = Some(layers);
+            blended_texels
+        });
+        clock.lap("transition");
+        let tone = self.match_tone(&mut out, exemplar_lod.as_deref(), by_id.as_deref());
+        clock.lap("tone");
+        let mut result = FrameResult {
+            channels: crate::exemplar::channels::split_interleaved(
+                out.width,
+                out.height,
+                std::mem::take(&mut out.values),
+                &self.exemplar,
+            ),
+            exemplar_lod,
+            ..Default::default()
+        };
+        self.record_stats(&mut result.stats, &out, counts);
+        self.record_frame_extras(
+            &mut result.stats,
+            &out,
+            &tone,
+            in_transition,
+            by_id.as_deref(),
+        );
+        result.source = Some(out.source);
+        result.uv = Some(out.uv);
+        result.renewal = (!out.renewal.is_empty()).then_some(out.renewal);
+        result.layers = blended.layers;
+        result.timings = clock.stages;
+        result
+    }
+
+    /// A selected frame's buffers, kept for the next (nothing resamples
+    /// them in the selecting phase).
+    fn keep_spare(&mut self, texels: Texels) {
+        let Texels { out, .. } = texels;
+        self.spare.uv = Some(out.uv);
+        self.spare.values = Some(out.values);
+    }
+
+    /// The fill and the update on a non-empty surface.
+    fn fill_and_cover(
+        &mut self,
+        ctx: &FrameContext<'_>,
+        setup: &FrameSetup,
+        out: &mut FillBuffers,
+        counts: &mut StepCounts,
+        clock: &mut StageClock,
+    ) -> Blended {
+        let mesh = ctx.mesh;
+        let FrameSetup {
+            radius,
+            shape,
+            align,
+            test,
+            carried,
+        } = *setup;
+        let surface = FrameSurface::of(ctx);
 
         // 3. Lapped (or blended) fill.
         let tolerance = LocateTolerance::for_radius(radius);
@@ -657,7 +787,7 @@ impl Erosion {
         }
         blended.count_update(&out.source);
         clock.lap("update");
-        Ok(blended)
+        blended
     }
 
     /// Erosion carries patches with the mesh velocity: a frame without it is an input error.

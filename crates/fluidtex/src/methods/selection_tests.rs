@@ -1,0 +1,148 @@
+//! Selection apart from resampling, for every method: a frame resampled
+//! from its serialised selection, by a method built afresh, is the
+//! one-pass frame bit for bit (channels, sources, uv, levels, layers,
+//! renewal, statistics). The patch methods' own selection needs the
+//! frame's geometry alone; the others replay the frame from the state
+//! before it.
+
+use std::sync::Arc;
+
+use super::registry::{MethodKind, MethodParams};
+use super::{FrameResult, Method, MethodError, Selection};
+use crate::exemplar::ExemplarSet;
+use crate::methods::test_clip::{Clip, noise_exemplar, scene};
+use crate::named::Named;
+
+fn build(params: &MethodParams, kind: MethodKind) -> Box<dyn Method> {
+    let exemplar = Arc::new(noise_exemplar(64, 4, 3));
+    params
+        .build_set(kind, 11, || {
+            Ok::<_, MethodError>(ExemplarSet::single(exemplar))
+        })
+        .expect("builds")
+}
+
+fn bits(values: &Option<Vec<f32>>) -> Option<Vec<u32>> {
+    values
+        .as_ref()
+        .map(|v| v.iter().map(|x| x.to_bits()).collect())
+}
+
+/// Everything of a result a file or a metric reads, but the timings.
+fn assert_same(label: &str, a: &FrameResult, b: &FrameResult) {
+    assert_eq!(a.channels.len(), b.channels.len(), "{label}: channels");
+    for (x, y) in a.channels.iter().zip(&b.channels) {
+        let (x, y): (Vec<u32>, Vec<u32>) = (
+            x.data.iter().map(|v| v.to_bits()).collect(),
+            y.data.iter().map(|v| v.to_bits()).collect(),
+        );
+        assert!(x == y, "{label}: channel values differ");
+    }
+    assert!(a.source == b.source, "{label}: sources differ");
+    let uv = |r: &FrameResult| {
+        r.uv.as_ref()
+            .map(|v| v.iter().flat_map(|p| [p.x, p.y]).collect::<Vec<f32>>())
+    };
+    assert!(bits(&uv(a)) == bits(&uv(b)), "{label}: uv differs");
+    assert!(
+        bits(&a.exemplar_lod) == bits(&b.exemplar_lod),
+        "{label}: levels differ"
+    );
+    assert!(a.layers == b.layers, "{label}: layers differ");
+    assert!(a.renewal == b.renewal, "{label}: renewal differs");
+    assert_eq!(a.stats, b.stats, "{label}: statistics differ");
+}
+
+/// Steps `kind` over `clip` in one pass, selects it in a second instance,
+/// and resamples every frame in a fresh third one; returns the selections.
+fn round_trip(params: &MethodParams, kind: MethodKind, clip: &Clip) -> Vec<Selection> {
+    let mut one_pass = build(params, kind);
+    let mut selecting = build(params, kind);
+    let mut selections = Vec::new();
+    for k in 0..clip.meshes.len() {
+        let expected = one_pass.step(&clip.ctx(k)).expect("step");
+        let selection = selecting.select(&clip.ctx(k)).expect("select");
+        let mut fresh = build(params, kind);
+        let mut ctx = clip.ctx(k);
+        if !selection.needs_previous() {
+            // The frame's geometry alone.
+            ctx.previous = None;
+        }
+        let got = fresh.resample(&ctx, &selection).expect("resample");
+        assert_same(&format!("{} frame {k}", kind.name()), &expected, &got);
+        selections.push(selection);
+    }
+    // Selecting advanced the state as the one-pass run did.
+    assert_eq!(
+        one_pass.save_state().expect("state"),
+        selecting.save_state().expect("state"),
+        "{}: state after the last frame",
+        kind.name()
+    );
+    selections
+}
+
+#[test]
+fn every_method_resamples_its_selection_into_the_one_pass_frame() {
+    let clip = scene("vortex", 16, 5, 128);
+    let params = MethodParams::default();
+    for &kind in MethodKind::ALL {
+        let selections = round_trip(&params, kind, &clip);
+        // The patch methods sharing erosion's patches select on their own.
+        let own = matches!(
+            kind,
+            MethodKind::Erosion | MethodKind::Advect | MethodKind::BlendDeformable
+        );
+        assert!(
+            selections.iter().all(|s| s.needs_previous() != own),
+            "{}: selection kind",
+            kind.name()
+        );
+    }
+}
+
+#[test]
+fn erosion_selections_with_a_transition_and_switches_resample_exactly() {
+    // A sheared flow renews patches every frame; a transition reads the
+    // weights of earlier frames, which the selection carries.
+    let clip = scene("vortex", 16, 6, 128);
+    let mut params = MethodParams::default();
+    params.erosion.transition = 2;
+    params.erosion.radius_fraction = 0.03;
+    params.erosion.radius_edges = 0.0;
+    let selections = round_trip(&params, MethodKind::Erosion, &clip);
+    // Compact: patches, not per-texel arrays (12 bytes a texel).
+    let texels = (clip.atlases[0].width * clip.atlases[0].height) as usize;
+    for s in &selections {
+        assert!(s.bytes().len() < texels * 12, "{} bytes", s.bytes().len());
+    }
+}
+
+#[test]
+fn a_damaged_or_foreign_selection_is_refused_in_one_line() {
+    let clip = scene("vortex", 16, 2, 64);
+    let params = MethodParams::default();
+    let mut selecting = build(&params, MethodKind::Erosion);
+    let selection = selecting.select(&clip.ctx(0)).expect("select");
+    let bytes = selection.bytes().to_vec();
+    let mut fresh = build(&params, MethodKind::Erosion);
+    for (label, damaged) in [
+        (
+            "truncated",
+            Selection::Own(bytes[..bytes.len() / 2].to_vec()),
+        ),
+        ("empty", Selection::Own(Vec::new())),
+        ("replayed", Selection::Replay(bytes.clone())),
+    ] {
+        let err = fresh
+            .resample(&clip.ctx(0), &damaged)
+            .expect_err(label)
+            .to_string();
+        assert!(err.contains("selection"), "{label}: {err}");
+        assert!(!err.contains('\n'), "{label}: {err}");
+    }
+    // A replayed selection is not one erosion reads, nor erosion's one a
+    // replaying method's.
+    let mut rigid = build(&params, MethodKind::LappedRigid);
+    assert!(rigid.resample(&clip.ctx(0), &selection).is_err());
+}
