@@ -18,7 +18,7 @@ use thiserror::Error;
 use crate::atlas::{AtlasError, AtlasParams};
 use crate::frame::{FrameGeometry, GeometryError, StageClock};
 use crate::mesh::{TriMesh, ValidationReport};
-use crate::methods::{FrameContext, FrameResult, Method, MethodError, SpentBuffers};
+use crate::methods::{FrameContext, FrameResult, Method, MethodError, Selection, SpentBuffers};
 
 /// Errors of the driver itself (a sink has its own error type, which
 /// converts from this one).
@@ -129,23 +129,62 @@ impl<'m> Driver<'m> {
         frame: PendingFrame,
         sink: &mut S,
     ) -> Result<(), S::Error> {
+        self.finish_frame(frame, sink, |method, ctx| method.step(ctx))
+    }
+
+    /// Phase 1 of a two-phase run: the method advances to `frame` and
+    /// returns its selection ([`Method::select`]); nothing is resampled.
+    /// The frame becomes the previous one.
+    pub fn select(&mut self, frame: &Arc<FrameGeometry>) -> Result<Selection, DriverError> {
+        self.check_velocity(frame)?;
+        let ctx = FrameContext::new(self.dt, frame, self.previous.as_deref());
+        let selection = self.method.select(&ctx)?;
+        self.previous = Some(Arc::clone(frame));
+        Ok(selection)
+    }
+
+    /// Phase 2: the method resamples `frame` from its `selection`
+    /// ([`Method::resample`]), after the frame set with
+    /// [`Driver::set_previous`]; then as [`Driver::step`].
+    pub fn resample<S: FrameSink>(
+        &mut self,
+        frame: PendingFrame,
+        selection: &Selection,
+        sink: &mut S,
+    ) -> Result<(), S::Error> {
+        self.finish_frame(frame, sink, |method, ctx| method.resample(ctx, selection))
+    }
+
+    /// A frame without the velocity the method needs is an input error.
+    fn check_velocity(&self, g: &FrameGeometry) -> Result<(), DriverError> {
+        if self.method.needs_velocity() && !g.mesh.is_empty() && g.mesh.velocity().is_none() {
+            return Err(DriverError::from(MethodError::MissingVelocity {
+                frame: g.number,
+                method: self.method.name(),
+            }));
+        }
+        Ok(())
+    }
+
+    /// The frame's result from `fill`, dilated, handed to `sink`; the
+    /// frame becomes the previous one.
+    fn finish_frame<S: FrameSink>(
+        &mut self,
+        frame: PendingFrame,
+        sink: &mut S,
+        fill: impl FnOnce(&mut dyn Method, &FrameContext<'_>) -> Result<FrameResult, MethodError>,
+    ) -> Result<(), S::Error> {
         let PendingFrame {
             geometry,
             mut clock,
         } = frame;
         let g = &*geometry;
-        if self.method.needs_velocity() && !g.mesh.is_empty() && g.mesh.velocity().is_none() {
-            return Err(DriverError::from(MethodError::MissingVelocity {
-                frame: g.number,
-                method: self.method.name(),
-            })
-            .into());
-        }
+        self.check_velocity(g)?;
         self.method
             .set_evaluation_buffers_read(sink.reads_evaluation_buffers());
         self.method.set_renewal_read(sink.reads_renewal());
         let ctx = FrameContext::new(self.dt, g, self.previous.as_deref());
-        let mut result = self.method.step(&ctx).map_err(DriverError::from)?;
+        let mut result = fill(&mut *self.method, &ctx).map_err(DriverError::from)?;
         clock.extend(&result.timings);
         for channel in &mut result.channels {
             g.atlas

@@ -24,6 +24,8 @@
 //! memory it needs ([`estimate_memory`]) and refuses when the machine has
 //! less available.
 
+mod phases;
+
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
@@ -40,9 +42,9 @@ use crate::output::{
 
 pub use crate::exemplar::channels::{ChannelFormat, ChannelSpec};
 pub use crate::output::{
-    Event, FrameHook, FrameStats, Job, MemoryEstimate, OutputOptions, PipelineError, TestHooks,
-    available_memory, estimate_memory, frame_tag, load_state_bytes, patch_colour, proc_kib,
-    resident_memory,
+    Event, FrameHook, FrameStats, Job, MemoryEstimate, OutputOptions, Phase, PipelineError,
+    TestHooks, available_memory, estimate_memory, frame_tag, load_state_bytes, patch_colour,
+    proc_kib, resident_memory,
 };
 
 /// Where frames come from: a file sequence or a generated scene.
@@ -74,6 +76,11 @@ pub fn run(
     method: &mut dyn Method,
     observer: &mut dyn FnMut(Event<'_>),
 ) -> Result<Summary, PipelineError> {
+    match job.phase {
+        Phase::OnePass => {}
+        Phase::Select => return phases::select(job, source, method, observer),
+        Phase::Resample => return phases::resample(job, source, method, observer),
+    }
     let start = Instant::now();
     // Everything that can be refused without reading a frame, first.
     job.atlas.validate().map_err(PipelineError::AtlasParams)?;
@@ -109,7 +116,16 @@ pub fn run(
     let mut driver = Driver::new(method, 1.0 / job.fps, job.atlas.gutter.max(1) * 2);
     driver.set_previous(previous);
     let done = write_frames(mode, writer, observer, |sink| {
-        drive(job, source, &frames, &mut driver, sink)
+        drive(
+            job,
+            source,
+            &frames,
+            &mut OnePass {
+                job,
+                driver: &mut driver,
+                sink,
+            },
+        )
     })?;
     drop(lock);
     Ok(Summary {
@@ -171,8 +187,7 @@ fn drive(
     job: &Job,
     source: &mut dyn FrameSource,
     frames: &[i32],
-    driver: &mut Driver<'_>,
-    sink: &mut FileSink<'_, '_, '_>,
+    each: &mut dyn FrameLoop,
 ) -> Result<(), PipelineError> {
     let total = frames.len();
     std::thread::scope(|scope| {
@@ -180,7 +195,7 @@ fn drive(
             .first()
             .map(|&number| Ahead::start(scope, job, source, number));
         for (k, &number) in frames.iter().enumerate() {
-            sink.observe(Event::Start {
+            each.observe(Event::Start {
                 number,
                 index: k,
                 total,
@@ -188,7 +203,7 @@ fn drive(
             let Some(this) = ahead.take() else { break };
             let (geometry, clock) = this.finish()?;
             if geometry.report.dropped_degenerate > 0 {
-                sink.observe(Event::Warning(format!(
+                each.observe(Event::Warning(format!(
                     "frame {number}: dropped {} zero-area triangles",
                     geometry.report.dropped_degenerate
                 )));
@@ -196,17 +211,38 @@ fn drive(
             ahead = frames
                 .get(k + 1)
                 .map(|&next| Ahead::start(scope, job, source, next));
-            driver.step(
-                PendingFrame {
-                    geometry: Arc::new(geometry),
-                    clock,
-                },
-                sink,
-            )?;
-            check_memory_limit(job, number, driver)?;
+            each.frame(PendingFrame {
+                geometry: Arc::new(geometry),
+                clock,
+            })?;
         }
         Ok(())
     })
+}
+
+/// What [`drive`] does with each built frame, and where its events go.
+trait FrameLoop {
+    fn observe(&mut self, event: Event<'_>);
+    fn frame(&mut self, frame: PendingFrame) -> Result<(), PipelineError>;
+}
+
+/// The one-pass run: each frame stepped and handed to the file sink.
+struct OnePass<'a, 'd, 'm, 'w, 's, 'o, 'p> {
+    job: &'a Job,
+    driver: &'d mut Driver<'m>,
+    sink: &'s mut FileSink<'w, 'o, 'p>,
+}
+
+impl FrameLoop for OnePass<'_, '_, '_, '_, '_, '_, '_> {
+    fn observe(&mut self, event: Event<'_>) {
+        self.sink.observe(event);
+    }
+
+    fn frame(&mut self, frame: PendingFrame) -> Result<(), PipelineError> {
+        let number = frame.geometry.number;
+        self.driver.step(frame, self.sink)?;
+        check_memory_limit(self.job, number, self.driver)
+    }
 }
 
 /// Stops the run after frame `number` (handed to the sink, so it is
@@ -553,6 +589,7 @@ mod tests {
                 resume: false,
                 fingerprint: "recycle".into(),
                 max_memory: None,
+                phase: Default::default(),
                 hooks: Default::default(),
             };
             let exemplar = std::sync::Arc::new(crate::exemplar::builtin_pebbles(64, 0));
@@ -587,6 +624,7 @@ mod tests {
             resume: false,
             fingerprint: String::new(),
             max_memory: None,
+            phase: Default::default(),
             hooks: TestHooks {
                 available_memory: Some(available),
                 write_in_place: in_place,

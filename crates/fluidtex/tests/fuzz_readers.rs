@@ -484,6 +484,7 @@ fn regenerate_fuzz_fixtures() {
         resume: false,
         fingerprint: "fuzz".into(),
         max_memory: None,
+        phase: Default::default(),
         hooks: Default::default(),
     };
     fluidtex::pipeline::run(&job, &mut source, &mut erosion(), &mut |_| {}).unwrap();

@@ -60,6 +60,7 @@ pub fn demo(a: &DemoArgs) -> Result<()> {
         false,
         a.quiet,
         fluidtex::output::default_memory_limit(),
+        fluidtex::pipeline::Phase::OnePass,
     )?;
     if !a.quiet {
         eprintln!(

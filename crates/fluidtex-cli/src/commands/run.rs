@@ -13,7 +13,7 @@ use fluidtex::exemplar::{
 use fluidtex::io::ReadOptions;
 use fluidtex::methods::{Method, Stat, StatsExt};
 use fluidtex::named::Named;
-use fluidtex::pipeline::{self, Event, FrameSource, Job, SequenceSource};
+use fluidtex::pipeline::{self, Event, FrameSource, Job, Phase, SequenceSource};
 
 use crate::config::{Config, RunFlags};
 use crate::progress::Progress;
@@ -36,6 +36,12 @@ pub struct RunArgs {
     /// the start, less a tenth]
     #[arg(long, value_name = "SIZE")]
     pub max_memory: Option<String>,
+    /// Run in two phases, for a render farm: `select` is the sequential
+    /// pass (per frame selection.F.bin and state.bin, no channels);
+    /// `resample` writes every file of the frames in --frames from their
+    /// selections, ranges in any order, in separate processes [one-pass]
+    #[arg(long, value_parser = crate::config::named::<Phase>(), default_value = "one-pass")]
+    pub phase: Phase,
 }
 
 /// Size of the built-in exemplar in texels.
@@ -63,10 +69,10 @@ pub fn run(a: &RunArgs) -> Result<()> {
             config.prim.as_deref(),
             config.frames.as_deref(),
         )?;
-        return execute(&config, out, &mut source, a.resume, a.quiet, limit);
+        return execute(&config, out, &mut source, a.resume, a.quiet, limit, a.phase);
     }
     let mut source = SequenceSource::open(&pattern, config.frames.as_deref(), options)?;
-    execute(&config, out, &mut source, a.resume, a.quiet, limit)
+    execute(&config, out, &mut source, a.resume, a.quiet, limit, a.phase)
 }
 
 /// The run's memory limit: `--max-memory` (0: none), or by default what
@@ -91,10 +97,12 @@ pub fn execute(
     resume: bool,
     quiet: bool,
     max_memory: Option<u64>,
+    phase: Phase,
 ) -> Result<()> {
     let mut method = build_method(config)?;
     let mut job = build_job(config, out.clone(), resume)?;
     job.max_memory = max_memory;
+    job.phase = phase;
     let total = source.frames().len() as u64;
     let progress = Progress::new(total, method.name(), quiet);
     let mut observer = |e: Event<'_>| match e {
@@ -136,7 +144,7 @@ pub fn execute(
         );
     }
     // --preview-video: a post-step; a missing ffmpeg is said, not an error.
-    if config.preview_video == Some(true) {
+    if config.preview_video == Some(true) && phase != Phase::Select {
         let every = config.outputs.preview_every;
         let outcome = super::preview_video::write(&out, job.fps, every)?;
         eprintln!("{}", outcome.describe());
@@ -276,6 +284,7 @@ pub fn build_job(config: &Config, out: PathBuf, resume: bool) -> Result<Job> {
         resume,
         fingerprint: config.fingerprint(),
         max_memory: None,
+        phase: Default::default(),
         hooks: crate::test_hooks::from_env()?,
     })
 }

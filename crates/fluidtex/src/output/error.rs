@@ -28,6 +28,13 @@ pub enum PipelineError {
     Output { path: PathBuf, message: String },
     #[error("cannot resume: {0}")]
     Resume(String),
+    /// A frame's selection (`selection.F.bin`) cannot be used.
+    #[error("frame {frame}: {path}: {message}")]
+    Selection {
+        frame: i32,
+        path: PathBuf,
+        message: String,
+    },
     #[error(
         "a {width}x{height} atlas needs about {} of memory and {} is available: \
          lower --atlas (at most {fits} fits)",

@@ -34,6 +34,7 @@ mod images;
 mod memory;
 mod options;
 mod report;
+mod selection;
 mod sink;
 mod state;
 pub mod write_behind;
@@ -46,12 +47,13 @@ pub use memory::{
     MemoryEstimate, available_memory, default_memory_limit, estimate_memory, parse_size, proc_kib,
     resident_memory,
 };
-pub use options::{FrameHook, Job, OutputOptions, TestHooks};
+pub use options::{FrameHook, Job, OutputOptions, Phase, TestHooks};
 pub use report::{Event, FrameStats};
+pub use selection::{SavedSelection, selection_path};
 pub use state::load_state_bytes;
 pub use writer::frame_tag;
 
 pub(crate) use coherence::CoherenceSink;
 pub(crate) use sink::{FileSink, write_frames};
-pub(crate) use state::load_for_resume;
+pub(crate) use state::{load_for_resume, save_state};
 pub(crate) use writer::{FrameWriter, MethodInfo};

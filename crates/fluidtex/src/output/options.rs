@@ -66,9 +66,32 @@ pub struct Job {
     /// Stop after the frame whose resident memory passes this many bytes
     /// (`None`: never); see [`crate::output::default_memory_limit`].
     pub max_memory: Option<u64>,
+    /// One pass, or one of the two phases of a split run \[one pass].
+    pub phase: Phase,
     /// Test hooks; front ends leave them at their default (none).
     pub hooks: TestHooks,
 }
+
+/// How a run goes through its frames.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Phase {
+    /// Every frame selected and resampled, its files written.
+    #[default]
+    OnePass,
+    /// Phase 1: the sequential pass; per frame `selection.F.bin` and
+    /// `state.bin`, no channels.
+    Select,
+    /// Phase 2: each frame resampled from its `selection.F.bin` alone
+    /// (frames in any order, in any process), every file of a one-pass
+    /// run written but `state.bin`.
+    Resample,
+}
+
+crate::named!(Phase {
+    OnePass => "one-pass",
+    Select => "select",
+    Resample => "resample",
+});
 
 /// Hooks that let tests stop a run at an exact point instead of racing it.
 #[derive(Clone, Default)]

@@ -41,6 +41,10 @@ pub struct FrameStats {
     /// previous patch only (erosion, advect).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub switch_forced_share: Option<f64>,
+    /// The selecting phase of a two-phase run: bytes of the frame's
+    /// `selection.F.bin` payload (reported, not written to a file).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub selection_bytes: Option<usize>,
     /// The share that switched though the patch of the frame before is
     /// within δ_max there: switches the method chose, not the flow.
     #[serde(skip_serializing_if = "Option::is_none")]

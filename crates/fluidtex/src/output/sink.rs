@@ -34,6 +34,11 @@ pub(crate) struct FileSink<'w, 'a, 'o> {
     /// Nothing submitted yet and a sink reads the first frame's previous
     /// geometry ([`Reads::first_previous`]).
     first_pending: bool,
+    /// Whether `state.bin` follows each frame (not when resampling).
+    saves_state: bool,
+    /// The next frame is resampled for the sinks of written frames only
+    /// ([`WriteJob::prime`]).
+    priming: bool,
 }
 
 /// Runs `body` (the frame loop) with a [`FileSink`] whose frames `writer`
@@ -52,6 +57,7 @@ pub(crate) fn write_frames(
     let preview_every = writer.job.outputs.preview_every;
     let formats: Vec<ChannelFormat> = writer.method.specs.iter().map(|s| s.format).collect();
     let first_frame = writer.first_frame;
+    let saves_state = writer.job.phase != super::Phase::Resample;
     write_behind::scope(
         mode,
         move |w: WriteJob| writer.write(w),
@@ -66,6 +72,8 @@ pub(crate) fn write_frames(
                 spent_values: None,
                 reads,
                 first_pending: reads.first_previous,
+                saves_state,
+                priming: false,
             };
             let looped = body(&mut sink);
             // The frames already handed over are written (and counted)
@@ -106,7 +114,8 @@ impl FrameSink for FileSink<'_, '_, '_> {
             result,
             clock,
         } = frame;
-        let state = method.save_state()?;
+        let state = self.saves_state.then(|| method.save_state()).transpose()?;
+        let prime = std::mem::take(&mut self.priming);
         // The per-texel uv and mip levels go back to the method; the layer
         // counts are the evaluation's too, and are not kept while the frame
         // is written. 8-bit channels travel as the samples their PNG holds
@@ -127,6 +136,7 @@ impl FrameSink for FileSink<'_, '_, '_> {
             method_stats: result.stats,
             clock: std::mem::take(clock),
             state,
+            prime,
         });
         let ready = self.writer.ready();
         self.report(ready)
@@ -139,6 +149,13 @@ impl FileSink<'_, '_, '_> {
         (self.observer)(event);
     }
 
+    /// The next frame is resampled only for what the sinks of written
+    /// frames keep of it: the frame before a resampled range, which its
+    /// first frame's coherence numbers are measured against.
+    pub(crate) fn prime_next(&mut self) {
+        self.priming = true;
+    }
+
     /// Tells the observer of each written frame (and of what went wrong
     /// in writing it, as the first error).
     fn report(
@@ -146,9 +163,16 @@ impl FileSink<'_, '_, '_> {
         results: Vec<Result<Written, PipelineError>>,
     ) -> Result<(), PipelineError> {
         for written in results {
-            let Written { stats, warnings } = written?;
+            let Written {
+                stats,
+                primed,
+                warnings,
+            } = written?;
             for w in warnings {
                 (self.observer)(Event::Warning(w));
+            }
+            if primed {
+                continue;
             }
             (self.observer)(Event::Done { stats: &stats });
             self.done += 1;

@@ -110,7 +110,7 @@ fn parse_state(path: &Path, bytes: &[u8]) -> Result<SavedState, PipelineError> {
 
 /// Replaces `state.bin` by the method state after `frame` (atomically):
 /// from now on the frame counts finished.
-pub(super) fn save_state(
+pub(crate) fn save_state(
     job: &Job,
     guard: &InputGuard,
     method: &str,

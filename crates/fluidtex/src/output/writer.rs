@@ -50,13 +50,20 @@ pub(super) struct WriteJob {
     /// Stages so far; the writer adds its own.
     pub clock: StageClock,
     /// [`crate::methods::Method::save_state`] after this frame, taken before
-    /// the method moves on to the next, for `state.bin`.
-    pub state: Vec<u8>,
+    /// the method moves on to the next, for `state.bin`; `None` where the
+    /// run keeps no state (resampling: the selecting phase keeps it).
+    pub state: Option<Vec<u8>>,
+    /// The frame is resampled only for what the sinks of written frames
+    /// keep of it (the coherence data the next frame is measured
+    /// against): none of its files is written.
+    pub prime: bool,
 }
 
 /// What the writer reports of a frame whose files and state are committed.
 pub(super) struct Written {
     pub stats: FrameStats,
+    /// A primed frame ([`WriteJob::prime`]): nothing written, nothing to count.
+    pub primed: bool,
     /// Said to the user before the frame counts done.
     pub warnings: Vec<String>,
 }
@@ -183,6 +190,7 @@ impl<'a> FrameWriter<'a> {
             method_stats,
             mut clock,
             state,
+            prime,
         } = w;
         // The time this frame waited for the writer is no stage of it.
         clock.restart();
@@ -191,8 +199,11 @@ impl<'a> FrameWriter<'a> {
         // Every file of the frame is staged, then all are renamed together,
         // then the state counts the frame; a failure before the state is
         // written leaves the frame uncounted and `--resume` redoes it.
+        // A primed frame's staged files are dropped, never renamed.
         let mut files = Staging::new(Some(self.guard), self.job.hooks.write.as_ref());
-        self.write_frame(&mut files, &g, &channels, source.as_deref())?;
+        if !prime {
+            self.write_frame(&mut files, &g, &channels, source.as_deref())?;
+        }
         clock.lap("write");
         let written = WrittenFrame {
             geometry: &g,
@@ -215,12 +226,23 @@ impl<'a> FrameWriter<'a> {
         // The channels (12 bytes a texel in colour alone) are written and
         // measured: not held while the debug views are made from the ids.
         drop(channels);
+        if prime {
+            return Ok(Written {
+                stats,
+                primed: true,
+                warnings,
+            });
+        }
         if let Some(ids) = source.filter(|_| self.job.outputs.debug) {
             self.write_debug_views(&mut files, &g, ids)?;
             clock.lap("debug");
         }
         self.commit(files, &mut stats, &clock, state, g.number)?;
-        Ok(Written { stats, warnings })
+        Ok(Written {
+            stats,
+            primed: false,
+            warnings,
+        })
     }
 
     /// Stages `stats.F.json` with the frame's timings, renames every file
@@ -231,7 +253,7 @@ impl<'a> FrameWriter<'a> {
         mut files: Staging<'_>,
         stats: &mut FrameStats,
         clock: &StageClock,
-        state: Vec<u8>,
+        state: Option<Vec<u8>>,
         number: i32,
     ) -> Result<(), PipelineError> {
         let job = self.job;
@@ -252,7 +274,9 @@ impl<'a> FrameWriter<'a> {
             &json,
         )?;
         files.commit()?;
-        save_state(job, self.guard, self.method.name, state, number)?;
+        if let Some(state) = state {
+            save_state(job, self.guard, self.method.name, state, number)?;
+        }
         if let Some(hook) = &job.hooks.after_frame {
             hook(number);
         }

@@ -1,0 +1,163 @@
+//! A run in two phases (`--phase select`, then `--phase resample` over
+//! ranges of frames in separate processes, in any order) writes the files
+//! of a one-pass run, byte for byte: for erosion, whose selection is its
+//! patches, and for lapped-rigid, which replays the frame from the state
+//! before it. Resampling a frame that was never selected is one line.
+
+#![allow(clippy::unwrap_used)]
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use common::*;
+
+/// A sheared flow, so patches renew between frames.
+fn scene(dir: &Path) -> PathBuf {
+    let scene = dir.join("scene");
+    ok(&[
+        "scene".as_ref(),
+        "vortex".as_ref(),
+        "--resolution".as_ref(),
+        "14".as_ref(),
+        "--frames".as_ref(),
+        "0-5".as_ref(),
+        "--out".as_ref(),
+        scene.as_os_str(),
+        "--quiet".as_ref(),
+    ]);
+    scene.join("fluid.####.ply")
+}
+
+fn args(method: &str, pattern: &Path, out: &Path, extra: &[&str]) -> Vec<std::ffi::OsString> {
+    let mut a: Vec<std::ffi::OsString> = [
+        "run".as_ref(),
+        "--mesh".as_ref(),
+        pattern.as_os_str(),
+        "--out".as_ref(),
+        out.as_os_str(),
+        "--method".as_ref(),
+        method.as_ref(),
+        "--atlas".as_ref(),
+        "96".as_ref(),
+        "--preview-every".as_ref(),
+        "2".as_ref(),
+        "--quiet".as_ref(),
+    ]
+    .map(std::ffi::OsString::from)
+    .to_vec();
+    a.extend(extra.iter().map(std::ffi::OsString::from));
+    a
+}
+
+/// A stats file without what differs between any two runs (the seconds)
+/// and between a one-pass and a resampled frame (the names of the stages
+/// timed).
+fn stats_without_stages(bytes: &[u8]) -> serde_json::Value {
+    let mut v = stats_without_timings(bytes);
+    v.as_object_mut().unwrap().remove("stage_order");
+    v
+}
+
+fn selections(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = files(dir)
+        .into_keys()
+        .filter(|n| n.starts_with("selection."))
+        .collect();
+    names.sort();
+    names
+}
+
+#[test]
+fn select_then_resample_in_ranges_writes_the_one_pass_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let pattern = scene(dir.path());
+    for method in ["erosion", "lapped-rigid"] {
+        let reference = dir.path().join(format!("{method}-one-pass"));
+        ok(&args(method, &pattern, &reference, &[]));
+        let split = dir.path().join(format!("{method}-split"));
+        ok(&args(method, &pattern, &split, &["--phase", "select"]));
+        // Phase 1 writes selections and the state, nothing else.
+        let mut written: Vec<String> = files(&split).into_keys().collect();
+        written.retain(|n| n != "state.bin" && n != ".fluidtex.lock");
+        let want: Vec<String> = (0..=5).map(|f| format!("selection.{f:04}.bin")).collect();
+        assert_eq!(written, want, "{method}: phase 1 files");
+        // The later range first, each range in its own process.
+        for range in ["3-5", "0-2"] {
+            ok(&args(
+                method,
+                &pattern,
+                &split,
+                &["--phase", "resample", "--frames", range],
+            ));
+        }
+        let (one, two) = (files(&reference), files(&split));
+        let mut names: Vec<&String> = two.keys().collect();
+        names.retain(|n| !n.starts_with("selection."));
+        assert_eq!(
+            one.keys().collect::<Vec<_>>(),
+            names,
+            "{method}: the same files"
+        );
+        assert_eq!(selections(&split).len(), 6);
+        for (name, bytes) in &one {
+            if name.starts_with("stats.") {
+                assert_eq!(
+                    stats_without_stages(bytes),
+                    stats_without_stages(&two[name]),
+                    "{method}: {name}"
+                );
+            } else {
+                assert!(bytes == &two[name], "{method}: {name} differs");
+            }
+        }
+        // The coherence numbers of a range's first frame are there too.
+        let stats: serde_json::Value = serde_json::from_slice(&two["stats.0003.json"]).unwrap();
+        assert!(
+            stats["source_switch_share"].is_number(),
+            "{method}: {stats}"
+        );
+    }
+}
+
+#[test]
+fn resampling_before_selecting_or_with_other_settings_is_one_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let pattern = scene(dir.path());
+    let out = dir.path().join("split");
+    let err = user_error(&args(
+        "erosion",
+        &pattern,
+        &out,
+        &["--phase", "resample", "--frames", "2-3"],
+    ));
+    assert!(err.contains("frame 2: "), "{err}");
+    assert!(err.contains("selection.0002.bin"), "{err}");
+    assert!(err.contains("--phase select"), "{err}");
+    ok(&args(
+        "erosion",
+        &pattern,
+        &out,
+        &["--phase", "select", "--frames", "0-2"],
+    ));
+    let err = user_error(&args(
+        "erosion",
+        &pattern,
+        &out,
+        &["--phase", "resample", "--frames", "1", "--seed", "9"],
+    ));
+    assert!(err.contains("another configuration"), "{err}");
+    // A damaged selection is refused, not read.
+    let path = out.join("selection.0001.bin");
+    let mut bytes = std::fs::read(&path).unwrap();
+    let last = bytes.len() - 1;
+    bytes[last] ^= 0x55;
+    std::fs::write(&path, bytes).unwrap();
+    let err = user_error(&args(
+        "erosion",
+        &pattern,
+        &out,
+        &["--phase", "resample", "--frames", "1"],
+    ));
+    assert!(err.contains("selection.0001.bin: damaged"), "{err}");
+}
