@@ -227,6 +227,7 @@ fn keys_set_by(flag: &str, takes_value: bool, keys: &BTreeSet<String>) -> BTreeS
             "off",
             "7,7,7",
             "a,b,c",
+            "select",
         ]
     } else {
         &[""]

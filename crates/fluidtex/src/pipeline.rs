@@ -157,11 +157,20 @@ fn open_output(
     job: &Job,
     observer: &mut dyn FnMut(Event<'_>),
 ) -> Result<crate::io::lock::Acquired, PipelineError> {
+    open_output_locking(job, observer, crate::io::lock::LOCK_FILE)
+}
+
+/// [`open_output`] with the lock file `lock`.
+fn open_output_locking(
+    job: &Job,
+    observer: &mut dyn FnMut(Event<'_>),
+    lock: &str,
+) -> Result<crate::io::lock::Acquired, PipelineError> {
     std::fs::create_dir_all(&job.out_dir).map_err(|e| PipelineError::Output {
         path: job.out_dir.clone(),
         message: format!("cannot create the output folder: {e}"),
     })?;
-    let lock = crate::io::OutputLock::acquire(&job.out_dir)?;
+    let lock = crate::io::OutputLock::acquire_named(&job.out_dir, lock)?;
     if let Some(stale) = &lock.stale {
         observer(Event::Warning(format!(
             "{}: took over the lock of a run that is no longer running ({})",

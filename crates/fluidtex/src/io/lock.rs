@@ -110,7 +110,14 @@ impl OutputLock {
     /// Takes the lock of `dir` (which must exist), or refuses with
     /// [`IoError::Locked`] naming the run that holds it.
     pub fn acquire(dir: &Path) -> Result<Acquired, IoError> {
-        let path = dir.join(LOCK_FILE);
+        OutputLock::acquire_named(dir, LOCK_FILE)
+    }
+
+    /// [`OutputLock::acquire`] of the lock file `name` in `dir`: a lock of
+    /// part of the folder's work (the resampling of a range of frames),
+    /// which runs beside other parts.
+    pub fn acquire_named(dir: &Path, name: &str) -> Result<Acquired, IoError> {
+        let path = dir.join(name);
         let os = |e: std::io::Error| IoError::Io {
             path: path.clone(),
             source: e,

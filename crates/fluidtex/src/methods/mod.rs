@@ -6,8 +6,22 @@
 //! provenance (source patch and exemplar uv). I/O, atlases, metrics and
 //! reports are shared, so a method is one folder here.
 //!
-//! - [`erosion`]: eroded deformable lapped textures, Gagnon et al. 2021 (default).
+//! - [`erosion`]: eroded deformable lapped textures, Gagnon et al. 2021
+//!   (default), and two baselines built from its patches: `advect` (the
+//!   first frame's patches carried, never renewed) and `blend-deformable`
+//!   (patches alpha-blended by weight).
+//! - [`dual_rest`]: two erosion layers reset in turn and cross-faded.
+//! - [`lapped_rigid`]: dynamic lapped textures with trackers, Gagnon et
+//!   al. 2016.
+//! - [`optimization`]: surface texture optimization with transport,
+//!   Kwatra et al. 2007.
 //! - [`atlas_check`]: a world-space checker, to look at the atlas chain itself.
+//!
+//! A frame is *selected* (which source shows at each texel, [`Selection`],
+//! serialisable) and *resampled* (every channel from the selection);
+//! [`Method::step`] does both in one pass, a two-phase run does them in
+//! different processes. The erosion family selects on its own (its
+//! patches); the other methods replay the frame from the state before it.
 //!
 //! [`footprint`] is a post-pass of the lapped methods: minified exemplar
 //! texels are re-read through the exemplar's mip pyramid. [`lapped`] holds

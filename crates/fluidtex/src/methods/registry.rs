@@ -1,10 +1,12 @@
 //! The methods fluidtex offers, by name: what `--method` accepts, what
 //! `compare` runs, and how each is built from its parameters.
 //!
-//! Adding a method: its folder under `methods/`, a variant here with its
-//! name, and its arm in [`MethodParams::build`] (plus its parameter section
-//! in [`MethodParams`] if it has parameters, which the CLI's config mirrors
-//! with a section and flags).
+//! Adding a method: its folder under `methods/` (a [`Method`]: `step`,
+//! and `select` / `resample` where it can split the two, which otherwise
+//! replay the frame), a variant here with its name, its arms in
+//! [`MethodParams::validate`] and [`MethodParams::build_set`] (plus its
+//! parameter section in [`MethodParams`] if it has parameters, which the
+//! CLI's config mirrors with a section and flags), and the README.
 
 use std::sync::Arc;
 

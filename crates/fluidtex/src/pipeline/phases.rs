@@ -3,9 +3,17 @@
 //! frame only its selection (`selection.F.bin`) and `state.bin`; phase 2
 //! ([`resample`]) turns each frame's selection into every file a one-pass
 //! run writes, frames independent of each other, so ranges of frames go
-//! to as many processes (or machines) as there are. Phase 1 then phase 2
-//! over all frames writes the bytes of a one-pass run (`stats.F.json`'s
-//! timings aside, as for any two runs).
+//! to as many processes (or machines sharing the folder) as there are, at
+//! once and beside phase 1 (a range holds only its own lock,
+//! `fluidtex.resample.A-B.lock`). Phase 1 then phase 2 over all frames
+//! writes the bytes of a one-pass run, the `selection.F.bin` files added
+//! and `stats.F.json`'s timings aside (its seconds, as for any two runs,
+//! and the names of the stages timed, which differ between the phases).
+//!
+//! Only the advection and creation (and the methods' state) are phase 1's
+//! alone: erosion's fill and update run in both phases (the selecting
+//! phase needs the coverage to place new patches), which is why its
+//! selection is the patches and not per-texel arrays.
 //!
 //! The coherence numbers of frame F (with debug outputs) measure it
 //! against frame F − 1 as written: a resampled range whose first frame
@@ -16,7 +24,8 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use super::{
-    FrameLoop, FrameSource, Summary, check_memory, check_memory_limit, drive, open_output, resume,
+    FrameLoop, FrameSource, Summary, check_memory, check_memory_limit, drive, open_output,
+    open_output_locking, resume,
 };
 use crate::driver::{Driver, PendingFrame};
 use crate::frame::{FrameGeometry, StageClock};
@@ -153,9 +162,16 @@ pub(super) fn resample(
     job.atlas.validate().map_err(PipelineError::AtlasParams)?;
     let specs = method.channel_specs();
     let mode = check_memory(job, &specs, observer)?;
-    let lock = open_output(job, observer)?;
+    // Ranges are resampled side by side, and beside the selecting run:
+    // each holds the lock of its range, and leaves the folder's
+    // temporaries alone (they may be another process's files in flight).
+    let listed = source.frames();
+    let range = match (listed.first(), listed.last()) {
+        (Some(a), Some(b)) => format!("{}-{}", frame_tag(*a), frame_tag(*b)),
+        _ => "none".to_string(),
+    };
+    let lock = open_output_locking(job, observer, &format!("fluidtex.resample.{range}.lock"))?;
     let guard = InputGuard::new(source.input_paths());
-    crate::io::remove_stale_temporaries(&job.out_dir, &guard)?;
     let frames: Vec<i32> = source
         .frames()
         .into_iter()
