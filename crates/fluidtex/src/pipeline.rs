@@ -105,15 +105,8 @@ pub fn run(
         specs,
     };
     let mut writer = FrameWriter::new(job, &guard, info, first_frame);
-    // The coherence numbers come with the debug outputs.
-    if job.outputs.debug {
-        let settings = CoherenceSinkSettings {
-            switch_map: job.outputs.switch_map,
-            ..Default::default()
-        };
-        writer.add_sink(Box::new(CoherenceSink::new(job, settings, resumed_after)));
-    }
-    let mut driver = Driver::new(method, 1.0 / job.fps, job.atlas.gutter.max(1) * 2);
+    add_coherence(job, &mut writer, resumed_after);
+    let mut driver = job_driver(job, method);
     driver.set_previous(previous);
     let done = write_frames(mode, writer, observer, |sink| {
         drive(
@@ -133,6 +126,24 @@ pub fn run(
         resumed_after,
         seconds: start.elapsed().as_secs_f64(),
     })
+}
+
+/// The coherence numbers come with the debug outputs: the sink that
+/// measures them, for a run resumed after `resumed_after` (if so).
+fn add_coherence(job: &Job, writer: &mut FrameWriter<'_>, resumed_after: Option<i32>) {
+    if job.outputs.debug {
+        let settings = CoherenceSinkSettings {
+            switch_map: job.outputs.switch_map,
+            ..Default::default()
+        };
+        writer.add_sink(Box::new(CoherenceSink::new(job, settings, resumed_after)));
+    }
+}
+
+/// The driver of `job`'s frames: its frame time, and dilation over the
+/// gutter (twice its width, at least 2 texels).
+fn job_driver<'m>(job: &Job, method: &'m mut dyn Method) -> Driver<'m> {
+    Driver::new(method, 1.0 / job.fps, job.atlas.gutter.max(1) * 2)
 }
 
 /// The memory estimate of the run, refused where the machine has less

@@ -24,16 +24,16 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use super::{
-    FrameLoop, FrameSource, Summary, check_memory, check_memory_limit, drive, open_output,
-    open_output_locking, resume,
+    FrameLoop, FrameSource, Summary, add_coherence, check_memory, check_memory_limit, drive,
+    job_driver, open_output, open_output_locking, resume,
 };
 use crate::driver::{Driver, PendingFrame};
 use crate::frame::{FrameGeometry, StageClock};
 use crate::io::{InputGuard, Staging};
 use crate::methods::Method;
 use crate::output::{
-    CoherenceSink, CoherenceSinkSettings, Event, FileSink, FrameStats, FrameWriter, Job,
-    MethodInfo, PipelineError, SavedSelection, frame_tag, save_state, write_frames,
+    Event, FileSink, FrameStats, FrameWriter, Job, MethodInfo, PipelineError, SavedSelection,
+    frame_tag, save_state, write_frames,
 };
 
 /// Phase 1: every frame of `source` selected, its selection and the
@@ -64,7 +64,7 @@ pub(super) fn select(
         (None, None)
     };
     let name = method.name();
-    let mut driver = Driver::new(method, 1.0 / job.fps, job.atlas.gutter.max(1) * 2);
+    let mut driver = job_driver(job, method);
     driver.set_previous(previous);
     let mut selecting = Selecting {
         job,
@@ -187,14 +187,8 @@ pub(super) fn resample(
     // its first frame only.
     let prime = head.previous.filter(|_| job.outputs.debug);
     let mut writer = FrameWriter::new(job, &guard, MethodInfo { name, specs }, head.first_frame);
-    if job.outputs.debug {
-        let settings = CoherenceSinkSettings {
-            switch_map: job.outputs.switch_map,
-            ..Default::default()
-        };
-        writer.add_sink(Box::new(CoherenceSink::new(job, settings, None)));
-    }
-    let mut driver = Driver::new(method, 1.0 / job.fps, job.atlas.gutter.max(1) * 2);
+    add_coherence(job, &mut writer, None);
+    let mut driver = job_driver(job, method);
     let total = frames.len();
     let done = write_frames(mode, writer, observer, |sink| {
         let primed = prime.map(|p| (p, true));
