@@ -351,7 +351,7 @@ impl Method for Erosion {
     }
 
     /// The patches as this frame's fill reads them are the selection
-    /// ([`selection`]); the fill and the update run here too, for the
+    /// (`erosion/selection.rs`); the fill and the update run here too, for the
     /// state of the next frame, but nothing is resampled.
     fn select(&mut self, ctx: &FrameContext<'_>) -> Result<super::Selection, MethodError> {
         let mut clock = StageClock::default();
