@@ -44,6 +44,8 @@ pub enum Command {
     Compare(Box<commands::compare::CompareArgs>),
     /// Show an output folder in a web browser: play, scrub, texture / patch view, stats
     View(commands::view::ViewArgs),
+    /// Run a shot on a render farm's scheduler (Slurm), in two phases
+    Farm(commands::farm::FarmArgs),
     /// Converts a USD stage to PLY frames (run by `--mesh FILE.usd`, in a
     /// child process so a damaged file cannot bring the tool down)
     #[command(hide = true)]
@@ -65,6 +67,7 @@ where
         Command::Bench(a) => commands::bench::bench(&a),
         Command::Compare(a) => commands::compare::compare(&a),
         Command::View(a) => commands::view::view(&a),
+        Command::Farm(a) => commands::farm::farm(&a),
         Command::UsdConvert(a) => usd::usd_convert(&a),
     }
 }

@@ -174,3 +174,49 @@ fn resampling_before_selecting_or_with_other_settings_is_one_line() {
     ));
     assert!(err.contains("selection.0001.bin: damaged"), "{err}");
 }
+
+/// A farm's faults: phase 1 killed in the middle of a write and run again
+/// with `--resume`, then a range killed in the middle of a frame's write
+/// (its lock and a temporary left behind) and requeued: the files are
+/// those of a one-pass run, and nothing of the killed runs is left.
+#[test]
+fn killed_phases_resume_to_the_one_pass_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let pattern = scene(dir.path());
+    let reference = dir.path().join("one-pass");
+    ok(&args("erosion", &pattern, &reference, &[]));
+    let split = dir.path().join("split");
+    let select = args("erosion", &pattern, &split, &["--phase", "select"]);
+    spawn_paused(&select, &[("FLUIDTEX_TEST_PAUSE_IN_WRITE", "5")]).kill();
+    assert_eq!(temporaries(&split).len(), 1, "the killed write's temporary");
+    let mut again = select.clone();
+    again.push("--resume".into());
+    ok(&again);
+    let resample = args(
+        "erosion",
+        &pattern,
+        &split,
+        &["--phase", "resample", "--frames", "0-5", "--resume"],
+    );
+    spawn_paused(&resample, &[("FLUIDTEX_TEST_PAUSE_IN_WRITE", "12")]).kill();
+    // The frame's files staged so far, none renamed.
+    assert!(!temporaries(&split).is_empty());
+    assert!(split.join("fluidtex.resample.0000-0005.lock").exists());
+    ok(&resample);
+    assert_eq!(temporaries(&split), Vec::<String>::new());
+    let (one, two) = (files(&reference), files(&split));
+    let mut names: Vec<&String> = two.keys().collect();
+    names.retain(|n| !n.starts_with("selection."));
+    assert_eq!(one.keys().collect::<Vec<_>>(), names);
+    for (name, bytes) in &one {
+        if name.starts_with("stats.") {
+            assert_eq!(
+                stats_without_stages(bytes),
+                stats_without_stages(&two[name]),
+                "{name}"
+            );
+        } else {
+            assert!(bytes == &two[name], "{name} differs");
+        }
+    }
+}

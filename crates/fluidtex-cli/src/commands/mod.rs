@@ -3,6 +3,7 @@
 pub mod bench;
 pub mod compare;
 pub mod demo;
+pub mod farm;
 pub mod info;
 pub mod preview_video;
 pub mod run;

@@ -152,6 +152,18 @@ pub fn execute(
     Ok(())
 }
 
+/// The frames `fluidtex run` would process for `config`'s sequence at
+/// `pattern` (a file sequence or a USD stage).
+pub fn frames_of(config: &Config, pattern: &str) -> Result<Vec<i32>> {
+    if crate::usd::is_usd(pattern) {
+        let source =
+            crate::usd::UsdSource::open(pattern, config.prim.as_deref(), config.frames.as_deref())?;
+        return Ok(source.frames());
+    }
+    let options = read_options(config.velocity.as_ref().map(|v| v.as_slice()))?;
+    Ok(SequenceSource::open(pattern, config.frames.as_deref(), options)?.frames())
+}
+
 /// The reader options for `--velocity a,b,c`.
 pub fn read_options(velocity: Option<&[String]>) -> Result<ReadOptions> {
     let mut o = ReadOptions::default();

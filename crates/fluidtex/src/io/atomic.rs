@@ -143,6 +143,18 @@ fn parent_dir(path: &Path) -> &Path {
 /// (`.<name>.<random>.tmp`); returns how many. Only names of that exact
 /// shape are touched, and never one of `guard`'s inputs.
 pub fn remove_stale_temporaries(dir: &Path, guard: &InputGuard) -> Result<usize, IoError> {
+    remove_stale_temporaries_of(dir, guard, |_| true)
+}
+
+/// [`remove_stale_temporaries`] of the files whose name `of` accepts
+/// only (`of` gets the name of the file a temporary was to replace): a
+/// run that shares its folder with others (the phases of a two-phase
+/// run) removes what it left itself, never another's files in flight.
+pub fn remove_stale_temporaries_of(
+    dir: &Path,
+    guard: &InputGuard,
+    of: impl Fn(&str) -> bool,
+) -> Result<usize, IoError> {
     let entries = match std::fs::read_dir(dir) {
         Ok(e) => e,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(0),
@@ -159,7 +171,9 @@ pub fn remove_stale_temporaries(dir: &Path, guard: &InputGuard) -> Result<usize,
         let Some(name) = name.to_str() else { continue };
         let looks_ours = name.starts_with('.')
             && name.ends_with(".tmp")
-            && name[1..name.len() - 4].contains('.');
+            && name[1..name.len() - 4]
+                .rsplit_once('.')
+                .is_some_and(|(target, _)| of(target));
         let path = entry.path();
         if !looks_ours || !entry.file_type().is_ok_and(|t| t.is_file()) {
             continue;
@@ -273,6 +287,28 @@ mod tests {
         assert_eq!(names, want);
         let missing = dir.path().join("nope");
         assert_eq!(remove_stale_temporaries(&missing, &guard).unwrap(), 0);
+    }
+
+    #[test]
+    fn a_run_sharing_its_folder_removes_only_its_own_temporaries() {
+        let dir = tempfile::tempdir().unwrap();
+        let names = [
+            ".colour.0003.png.Xa9k2Q.tmp",
+            ".colour.0004.png.b7.tmp",
+            ".selection.0003.bin.q1.tmp",
+        ];
+        for n in names {
+            std::fs::write(dir.path().join(n), b"x").unwrap();
+        }
+        let guard = InputGuard::default();
+        let mine = |target: &str| target.contains(".0003.") && !target.starts_with("selection.");
+        assert_eq!(
+            remove_stale_temporaries_of(dir.path(), &guard, mine).unwrap(),
+            1
+        );
+        assert!(!dir.path().join(names[0]).exists());
+        assert!(dir.path().join(names[1]).exists());
+        assert!(dir.path().join(names[2]).exists());
     }
 
     #[test]

@@ -51,7 +51,10 @@ use thiserror::Error;
 
 use crate::mesh::{self, MeshError, TriMesh, ValidationReport};
 
-pub use atomic::{InputGuard, Staging, WriteHook, remove_stale_temporaries, write_atomic};
+pub use atomic::{
+    InputGuard, Staging, WriteHook, remove_stale_temporaries, remove_stale_temporaries_of,
+    write_atomic,
+};
 pub use lock::OutputLock;
 pub use sequence::{Frame, FramePattern, FrameRange, Sequence};
 

@@ -55,7 +55,10 @@ pub(super) fn select(
         .check()?;
     let lock = open_output(job, observer)?;
     let guard = InputGuard::new(source.input_paths());
-    crate::io::remove_stale_temporaries(&job.out_dir, &guard)?;
+    // Only its own: resampled ranges may be writing beside it.
+    crate::io::remove_stale_temporaries_of(&job.out_dir, &guard, |target| {
+        target == "state.bin" || target.starts_with("selection.")
+    })?;
     let mut frames = source.frames();
     let first_frame = frames.first().copied().unwrap_or(0);
     let (previous, resumed_after) = if job.resume {
@@ -163,8 +166,9 @@ pub(super) fn resample(
     let specs = method.channel_specs();
     let mode = check_memory(job, &specs, observer)?;
     // Ranges are resampled side by side, and beside the selecting run:
-    // each holds the lock of its range, and leaves the folder's
-    // temporaries alone (they may be another process's files in flight).
+    // each holds the lock of its range, and removes only the temporaries
+    // of its own frames' files (others may be another process's files in
+    // flight).
     let listed = source.frames();
     let range = match (listed.first(), listed.last()) {
         (Some(a), Some(b)) => format!("{}-{}", frame_tag(*a), frame_tag(*b)),
@@ -172,6 +176,13 @@ pub(super) fn resample(
     };
     let lock = open_output_locking(job, observer, &format!("fluidtex.resample.{range}.lock"))?;
     let guard = InputGuard::new(source.input_paths());
+    let tags: Vec<String> = listed
+        .iter()
+        .map(|&f| format!(".{}.", frame_tag(f)))
+        .collect();
+    crate::io::remove_stale_temporaries_of(&job.out_dir, &guard, |target| {
+        !target.starts_with("selection.") && tags.iter().any(|t| target.contains(t.as_str()))
+    })?;
     let frames: Vec<i32> = source
         .frames()
         .into_iter()

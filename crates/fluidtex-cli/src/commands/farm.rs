@@ -1,0 +1,333 @@
+//! `fluidtex farm slurm`: a shot as jobs of an existing Slurm cluster, in
+//! the two phases of `fluidtex run --phase` (see the library's
+//! `pipeline::phases`): one phase-1 job (the sequential selection, every
+//! frame), then a job array of phase-2 tasks over chunks of frames that
+//! starts once phase 1 has succeeded (`afterok`). Every job runs
+//! `fluidtex run` with the shot's own arguments (given after `--`, exactly
+//! as to `fluidtex run`) plus `--phase`, `--frames` for its chunk and
+//! `--resume`, so a killed or requeued job goes on from its last finished
+//! frame. The scripts are written to `OUT/farm/`, with logs in
+//! `OUT/farm/logs/`; `--submit` hands them to `sbatch`.
+//!
+//! No scheduler of our own: the cluster's, through its command line.
+
+use std::ffi::{OsStr, OsString};
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, Parser, Subcommand};
+
+use crate::config::Config;
+
+#[derive(Args, Debug)]
+pub struct FarmArgs {
+    #[command(subcommand)]
+    pub scheduler: Scheduler,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Scheduler {
+    /// Write (and with --submit, submit) a shot's Slurm jobs: fluidtex farm
+    /// slurm [OPTIONS] -- RUN ARGUMENTS (as for `fluidtex run`)
+    Slurm(SlurmArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct SlurmArgs {
+    /// Frames per phase-2 task [10]
+    #[arg(long, default_value_t = 10)]
+    pub chunk: u32,
+    /// Slurm partition of every job (sbatch --partition) [the cluster's default]
+    #[arg(long)]
+    pub partition: Option<String>,
+    /// CPUs per job (sbatch --cpus-per-task; fluidtex uses as many threads) [2]
+    #[arg(long, default_value_t = 2)]
+    pub cpus: u32,
+    /// Time limit per job (sbatch --time, e.g. 2:00:00) [the partition's]
+    #[arg(long)]
+    pub time: Option<String>,
+    /// Submit the jobs through sbatch (otherwise only write the scripts)
+    #[arg(long)]
+    pub submit: bool,
+    /// The shot: `fluidtex run` arguments (--mesh, --out, settings), after `--`
+    #[arg(last = true, required = true, value_name = "RUN ARGUMENTS")]
+    pub run: Vec<OsString>,
+}
+
+pub fn farm(a: &FarmArgs) -> Result<()> {
+    match &a.scheduler {
+        Scheduler::Slurm(s) => slurm(s),
+    }
+}
+
+/// A shot, as its jobs see it.
+struct Shot {
+    /// The run arguments without `--frames` (each job gives its own).
+    args: Vec<OsString>,
+    out: PathBuf,
+    first: i32,
+    last: i32,
+    /// Where relative paths in the arguments are relative to.
+    workdir: PathBuf,
+    binary: PathBuf,
+}
+
+fn slurm(a: &SlurmArgs) -> Result<()> {
+    if a.chunk == 0 {
+        bail!("--chunk 0: give at least one frame per task");
+    }
+    if !(1..=4096).contains(&a.cpus) {
+        bail!("--cpus {}: allowed 1 to 4096", a.cpus);
+    }
+    let shot = shot(&a.run)?;
+    let farm = shot.out.join("farm");
+    std::fs::create_dir_all(farm.join("logs"))
+        .with_context(|| format!("{}: cannot create the folder", farm.display()))?;
+    let tasks = ((i64::from(shot.last) - i64::from(shot.first)) / i64::from(a.chunk) + 1) as u32;
+    let select = farm.join("select.sbatch");
+    let resample = farm.join("resample.sbatch");
+    write_script(&select, &select_script(a, &shot))?;
+    write_script(&resample, &resample_script(a, &shot, tasks))?;
+    write_script(&farm.join("submit.sh"), &submit_script(&select, &resample))?;
+    println!(
+        "{}: phase 1 in {}, phase 2 as {tasks} tasks of {} frames in {}",
+        shot.out.display(),
+        select.display(),
+        a.chunk,
+        resample.display()
+    );
+    if a.submit {
+        let first = sbatch(&[select.as_os_str()])?;
+        let dependency = OsString::from(format!("--dependency=afterok:{first}"));
+        let second = sbatch(&[dependency.as_os_str(), resample.as_os_str()])?;
+        println!("submitted: phase 1 job {first}, phase 2 array job {second}");
+    }
+    Ok(())
+}
+
+/// The shot the run arguments describe: checked as `fluidtex run` checks
+/// them, its frames found on disk (or in the stage).
+fn shot(run: &[OsString]) -> Result<Shot> {
+    for arg in run {
+        let text = arg.to_string_lossy();
+        for own in ["--phase", "--resume"] {
+            if text == own || text.starts_with(&format!("{own}=")) {
+                bail!("{own}: the farm gives each job its own; leave it out of the run arguments");
+            }
+        }
+    }
+    let mut argv: Vec<OsString> = vec!["fluidtex".into(), "run".into()];
+    argv.extend(run.iter().cloned());
+    let crate::Cli {
+        command: crate::Command::Run(r),
+    } = crate::Cli::try_parse_from(&argv)?
+    else {
+        bail!("the run arguments do not parse as `fluidtex run`");
+    };
+    let mut config = match &r.config {
+        Some(p) => Config::load(p)?,
+        None => Config::default(),
+    };
+    r.flags.apply(&mut config)?;
+    let pattern = config
+        .mesh
+        .clone()
+        .context("no mesh sequence: give --mesh PATTERN after --")?;
+    let out = config
+        .out
+        .clone()
+        .context("no output folder: give --out DIR after --")?;
+    let frames = super::run::frames_of(&config, &pattern)?;
+    let (Some(&first), Some(&last)) = (frames.first(), frames.last()) else {
+        bail!("{pattern}: no frames");
+    };
+    std::fs::create_dir_all(&out)
+        .with_context(|| format!("{}: cannot create the output folder", out.display()))?;
+    Ok(Shot {
+        args: without_frames(run),
+        out: std::fs::canonicalize(&out)?,
+        first,
+        last,
+        workdir: std::env::current_dir()?,
+        binary: std::env::current_exe().context("cannot find the fluidtex binary")?,
+    })
+}
+
+/// `args` without `--frames X` / `--frames=X`.
+fn without_frames(args: &[OsString]) -> Vec<OsString> {
+    let mut kept = Vec::new();
+    let mut skip = false;
+    for a in args {
+        if std::mem::take(&mut skip) {
+            continue;
+        }
+        let text = a.to_string_lossy();
+        if text == "--frames" {
+            skip = true;
+        } else if !text.starts_with("--frames=") {
+            kept.push(a.clone());
+        }
+    }
+    kept
+}
+
+/// `s` as one word of a POSIX shell.
+fn quote(s: &OsStr) -> String {
+    format!("'{}'", s.to_string_lossy().replace('\'', r"'\''"))
+}
+
+/// The `#SBATCH` lines of a job (`extra`: its own, each ending in a
+/// newline); sbatch reads them only above the first command.
+fn header(a: &SlurmArgs, shot: &Shot, name: &str, log: &str, extra: &str) -> String {
+    let mut h = format!(
+        "#!/bin/bash\n\
+         #SBATCH --job-name={name}\n\
+         #SBATCH --output={}\n\
+         #SBATCH --chdir={}\n\
+         #SBATCH --cpus-per-task={}\n\
+         #SBATCH --requeue\n",
+        shot.out.join("farm/logs").join(log).display(),
+        shot.workdir.display(),
+        a.cpus
+    );
+    if let Some(p) = &a.partition {
+        h.push_str(&format!("#SBATCH --partition={p}\n"));
+    }
+    if let Some(t) = &a.time {
+        h.push_str(&format!("#SBATCH --time={t}\n"));
+    }
+    h.push_str(extra);
+    h.push_str(&format!(
+        "set -euo pipefail\n\
+         export RAYON_NUM_THREADS=\"${{SLURM_CPUS_PER_TASK:-{}}}\"\n",
+        a.cpus
+    ));
+    h
+}
+
+/// `fluidtex run` with the shot's arguments, as a shell command.
+fn run_command(shot: &Shot) -> String {
+    let mut c = quote(shot.binary.as_os_str());
+    c.push_str(" run");
+    for arg in &shot.args {
+        c.push(' ');
+        c.push_str(&quote(arg));
+    }
+    c
+}
+
+fn select_script(a: &SlurmArgs, shot: &Shot) -> String {
+    format!(
+        "{}\
+         # Phase 1: the sequential pass, every frame; resumes after a kill.\n\
+         exec {} --frames '{}-{}' --phase select --resume --quiet\n",
+        header(a, shot, "fluidtex-select", "select-%j.log", ""),
+        run_command(shot),
+        shot.first,
+        shot.last
+    )
+}
+
+fn resample_script(a: &SlurmArgs, shot: &Shot, tasks: u32) -> String {
+    format!(
+        "{}\
+         # Phase 2: task k resamples frames FIRST + k * CHUNK onwards.\n\
+         first={}; last={}; chunk={}\n\
+         a=$((first + SLURM_ARRAY_TASK_ID * chunk))\n\
+         b=$((a + chunk - 1)); if [ \"$b\" -gt \"$last\" ]; then b=$last; fi\n\
+         exec {} --frames \"$a-$b\" --phase resample --resume --quiet\n",
+        header(
+            a,
+            shot,
+            "fluidtex-resample",
+            "resample-%A_%a.log",
+            &format!("#SBATCH --array=0-{}\n", tasks - 1)
+        ),
+        shot.first,
+        shot.last,
+        a.chunk,
+        run_command(shot)
+    )
+}
+
+fn submit_script(select: &Path, resample: &Path) -> String {
+    format!(
+        "#!/bin/bash\n\
+         # Submits phase 1, then phase 2 once phase 1 has succeeded.\n\
+         set -euo pipefail\n\
+         select=$(sbatch --parsable {})\n\
+         resample=$(sbatch --parsable --dependency=afterok:\"${{select%%;*}}\" {})\n\
+         echo \"phase 1 job $select, phase 2 array job $resample\"\n",
+        quote(select.as_os_str()),
+        quote(resample.as_os_str())
+    )
+}
+
+fn write_script(path: &Path, text: &str) -> Result<()> {
+    use std::os::unix::fs::PermissionsExt;
+    let mut staging = fluidtex::io::Staging::new(None, None);
+    staging.write(path, |w| std::io::Write::write_all(w, text.as_bytes()))?;
+    staging.commit()?;
+    std::fs::set_permissions(path, std::fs::Permissions::from_mode(0o755))
+        .with_context(|| format!("{}: cannot make it executable", path.display()))
+}
+
+/// Submits with `sbatch --parsable ARGS`; returns the job id.
+fn sbatch(args: &[&OsStr]) -> Result<String> {
+    let out = std::process::Command::new("sbatch")
+        .arg("--parsable")
+        .args(args)
+        .output()
+        .context("sbatch: cannot run it (is Slurm installed here?)")?;
+    if !out.status.success() {
+        bail!(
+            "sbatch {}: {}",
+            args.iter()
+                .map(|a| a.to_string_lossy())
+                .collect::<Vec<_>>()
+                .join(" "),
+            String::from_utf8_lossy(&out.stderr).trim()
+        );
+    }
+    let text = String::from_utf8_lossy(&out.stdout);
+    // `--parsable` prints "id" or "id;cluster".
+    let id = text
+        .trim()
+        .split(';')
+        .next()
+        .unwrap_or_default()
+        .to_string();
+    if id.is_empty() || !id.chars().all(|c| c.is_ascii_digit()) {
+        bail!("sbatch printed no job id: {}", text.trim());
+    }
+    Ok(id)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frames_are_left_out_in_both_spellings() {
+        let args: Vec<OsString> = ["--mesh", "a.ply", "--frames", "1-9", "--frames=2-3", "--x"]
+            .map(OsString::from)
+            .to_vec();
+        let kept: Vec<String> = without_frames(&args)
+            .iter()
+            .map(|a| a.to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(kept, ["--mesh", "a.ply", "--x"]);
+    }
+
+    #[test]
+    fn quoting_survives_the_shell() {
+        for s in ["plain", "with space", "it's", "$HOME `x` \"q\"", ""] {
+            let out = std::process::Command::new("sh")
+                .arg("-c")
+                .arg(format!("printf %s {}", quote(OsStr::new(s))))
+                .output()
+                .expect("sh runs");
+            assert_eq!(String::from_utf8_lossy(&out.stdout), s);
+        }
+    }
+}

@@ -1,0 +1,257 @@
+//! `fluidtex farm slurm`: the scripts it writes (every frame in phase 1,
+//! chunks in a phase-2 array that waits for it), what it refuses, and a
+//! shot submitted to a real single-node Slurm cluster
+//! (`tools/slurm_cluster.sh`) whose files are byte for byte those of a
+//! one-pass run. Without Slurm here that test says so and is skipped,
+//! except with FLUIDTEX_REQUIRE_TOOLS=1 (CI), where it must run.
+
+#![allow(clippy::unwrap_used)]
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+use common::*;
+
+fn scene(dir: &Path) -> PathBuf {
+    let scene = dir.join("scene");
+    ok(&[
+        "scene".as_ref(),
+        "vortex".as_ref(),
+        "--resolution".as_ref(),
+        "14".as_ref(),
+        "--frames".as_ref(),
+        "0-5".as_ref(),
+        "--out".as_ref(),
+        scene.as_os_str(),
+        "--quiet".as_ref(),
+    ]);
+    scene.join("fluid.####.ply")
+}
+
+/// The shot's `fluidtex run` arguments.
+fn shot(pattern: &Path, out: &Path) -> Vec<std::ffi::OsString> {
+    [
+        "--mesh".as_ref(),
+        pattern.as_os_str(),
+        "--out".as_ref(),
+        out.as_os_str(),
+        "--atlas".as_ref(),
+        "96".as_ref(),
+        "--preview-every".as_ref(),
+        "2".as_ref(),
+    ]
+    .map(std::ffi::OsString::from)
+    .to_vec()
+}
+
+fn farm(options: &[&str], run: &[std::ffi::OsString]) -> Vec<std::ffi::OsString> {
+    let mut a: Vec<std::ffi::OsString> = vec!["farm".into(), "slurm".into()];
+    a.extend(options.iter().map(std::ffi::OsString::from));
+    a.push("--".into());
+    a.extend(run.iter().cloned());
+    a
+}
+
+#[test]
+fn the_scripts_select_every_frame_then_resample_chunks_after_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let pattern = scene(dir.path());
+    let out = dir.path().join("shot");
+    let mut run = shot(&pattern, &out);
+    run.extend(["--frames".into(), "1-5".into()]);
+    ok(&farm(
+        &["--chunk", "2", "--cpus", "3", "--partition", "gpu"],
+        &run,
+    ));
+    let read = |name: &str| std::fs::read_to_string(out.join("farm").join(name)).unwrap();
+    let select = read("select.sbatch");
+    let resample = read("resample.sbatch");
+    assert!(
+        select.contains("--frames '1-5' --phase select --resume"),
+        "{select}"
+    );
+    assert!(select.contains("#SBATCH --cpus-per-task=3\n"), "{select}");
+    assert!(select.contains("#SBATCH --partition=gpu\n"), "{select}");
+    // 5 frames in chunks of 2: three tasks, the last of one frame.
+    assert!(resample.contains("#SBATCH --array=0-2\n"), "{resample}");
+    assert!(
+        resample.contains("first=1; last=5; chunk=2\n"),
+        "{resample}"
+    );
+    assert!(resample.contains("--phase resample --resume"), "{resample}");
+    // The shot's own --frames is not repeated (each job gives its own).
+    assert!(!resample.contains("'--frames'"), "{resample}");
+    assert!(read("submit.sh").contains("--dependency=afterok:"));
+    for script in ["select.sbatch", "resample.sbatch", "submit.sh"] {
+        let check = Command::new("bash")
+            .arg("-n")
+            .arg(out.join("farm").join(script))
+            .output()
+            .unwrap();
+        assert!(check.status.success(), "{script}: {check:?}");
+    }
+    // Task k's range, as the script computes it.
+    let ranges: Vec<String> = (0..3)
+        .map(|k| {
+            let body: String = resample
+                .lines()
+                .filter(|l| l.starts_with("first=") || l.starts_with("a=") || l.starts_with("b="))
+                .collect::<Vec<_>>()
+                .join("\n");
+            let out = Command::new("bash")
+                .arg("-c")
+                .arg(format!("{body}\necho \"$a-$b\""))
+                .env("SLURM_ARRAY_TASK_ID", k.to_string())
+                .output()
+                .unwrap();
+            String::from_utf8_lossy(&out.stdout).trim().to_string()
+        })
+        .collect();
+    assert_eq!(ranges, ["1-2", "3-4", "5-5"]);
+}
+
+#[test]
+fn what_the_farm_gives_each_job_is_refused_in_the_run_arguments() {
+    let dir = tempfile::tempdir().unwrap();
+    let pattern = scene(dir.path());
+    let out = dir.path().join("shot");
+    let mut run = shot(&pattern, &out);
+    run.extend(["--phase".into(), "select".into()]);
+    let err = user_error(&farm(&[], &run));
+    assert!(
+        err.contains("--phase: the farm gives each job its own"),
+        "{err}"
+    );
+    let err = user_error(&farm(&["--chunk", "0"], &shot(&pattern, &out)));
+    assert!(err.contains("--chunk 0"), "{err}");
+    let missing = dir.path().join("nothing.####.ply");
+    let err = user_error(&farm(&[], &shot(&missing, &out)));
+    assert!(err.contains("nothing"), "{err}");
+}
+
+/// A single-node cluster for the test's life (stopped on drop).
+struct Cluster {
+    dir: PathBuf,
+    conf: PathBuf,
+}
+
+impl Cluster {
+    fn start(dir: &Path) -> Result<Cluster, String> {
+        let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tools/slurm_cluster.sh");
+        let out = Command::new("bash")
+            .arg(&script)
+            .arg("start")
+            .arg(dir)
+            .output()
+            .map_err(|e| e.to_string())?;
+        if !out.status.success() {
+            return Err(String::from_utf8_lossy(&out.stderr).trim().to_string());
+        }
+        Ok(Cluster {
+            dir: dir.to_path_buf(),
+            conf: PathBuf::from(String::from_utf8_lossy(&out.stdout).trim()),
+        })
+    }
+
+    /// Jobs still queued or running.
+    fn queued(&self) -> usize {
+        let out = Command::new("squeue")
+            .args(["-h", "-o", "%i"])
+            .env("SLURM_CONF", &self.conf)
+            .output()
+            .unwrap();
+        String::from_utf8_lossy(&out.stdout).lines().count()
+    }
+}
+
+impl Drop for Cluster {
+    fn drop(&mut self) {
+        let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tools/slurm_cluster.sh");
+        let _ = Command::new("bash")
+            .arg(script)
+            .arg("stop")
+            .arg(&self.dir)
+            .output();
+    }
+}
+
+fn stats_without_stages(bytes: &[u8]) -> serde_json::Value {
+    let mut v = stats_without_timings(bytes);
+    v.as_object_mut().unwrap().remove("stage_order");
+    v
+}
+
+#[test]
+fn a_shot_on_a_real_slurm_cluster_writes_the_one_pass_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let cluster = match Cluster::start(&dir.path().join("cluster")) {
+        Ok(c) => c,
+        Err(why) => {
+            missing_tool("the Slurm farm test", &format!("no Slurm cluster: {why}"));
+            return;
+        }
+    };
+    let pattern = scene(dir.path());
+    let reference = dir.path().join("one-pass");
+    let mut one = vec!["run".into()];
+    one.extend(shot(&pattern, &reference));
+    one.push("--quiet".into());
+    ok(&one);
+    let out = dir.path().join("shot");
+    let submitted = fluidtex()
+        .args(farm(
+            &["--chunk", "2", "--cpus", "1", "--submit"],
+            &shot(&pattern, &out),
+        ))
+        .env("SLURM_CONF", &cluster.conf)
+        .output()
+        .unwrap();
+    check_ok(&submitted, &["farm slurm --submit"]);
+    let said = String::from_utf8_lossy(&submitted.stdout);
+    assert!(said.contains("submitted: phase 1 job "), "{said}");
+    let start = Instant::now();
+    while cluster.queued() > 0 {
+        assert!(
+            start.elapsed() < Duration::from_secs(240),
+            "the jobs did not finish in 240 s; logs in {}",
+            out.join("farm/logs").display()
+        );
+        std::thread::sleep(Duration::from_millis(500));
+    }
+    let logs: Vec<String> = std::fs::read_dir(out.join("farm/logs"))
+        .unwrap()
+        .map(|e| {
+            let p = e.unwrap().path();
+            format!("{}: {}", p.display(), std::fs::read_to_string(&p).unwrap())
+        })
+        .collect();
+    // One phase-1 log, three phase-2 task logs.
+    assert_eq!(logs.len(), 4, "{logs:#?}");
+    // The farm's scripts and logs are in a folder of their own.
+    let farm_folder = out.join("farm");
+    let moved = dir.path().join("farm-scripts");
+    std::fs::rename(&farm_folder, &moved).unwrap();
+    let (one, two) = (files(&reference), files(&out));
+    for (name, bytes) in &one {
+        let Some(theirs) = two.get(name) else {
+            panic!("{name} missing from the farm's output; logs: {logs:#?}");
+        };
+        if name.starts_with("stats.") {
+            assert_eq!(
+                stats_without_stages(bytes),
+                stats_without_stages(theirs),
+                "{name}"
+            );
+        } else {
+            assert!(bytes == theirs, "{name} differs");
+        }
+    }
+    let extra: Vec<&String> = two
+        .keys()
+        .filter(|n| !one.contains_key(*n) && !n.starts_with("selection."))
+        .collect();
+    assert!(extra.is_empty(), "{extra:?}");
+}
