@@ -1,5 +1,5 @@
-//! `fluidtex farm slurm`: the scripts it writes (every frame in phase 1,
-//! chunks in a phase-2 array that waits for it), what it refuses, and a
+//! `fluidtex farm slurm`: the scripts it writes (phase 1 as a chain of
+//! chunks, phase-2 chunk k after phase-1 chunk k), what it refuses, and a
 //! shot submitted to a real single-node Slurm cluster
 //! (`tools/slurm_cluster.sh`) whose files are byte for byte those of a
 //! one-pass run. Without Slurm here that test says so and is skipped,
@@ -56,7 +56,7 @@ fn farm(options: &[&str], run: &[std::ffi::OsString]) -> Vec<std::ffi::OsString>
 }
 
 #[test]
-fn the_scripts_select_every_frame_then_resample_chunks_after_it() {
+fn the_scripts_chain_phase_1_by_chunks_and_resample_each_chunk_after_its_own() {
     let dir = tempfile::tempdir().unwrap();
     let pattern = scene(dir.path());
     let out = dir.path().join("shot");
@@ -70,9 +70,11 @@ fn the_scripts_select_every_frame_then_resample_chunks_after_it() {
     let select = read("select.sbatch");
     let resample = read("resample.sbatch");
     assert!(
-        select.contains("--frames '1-5' --phase select --resume"),
+        select.contains("--frames \"$first-$b\" --phase select --resume"),
         "{select}"
     );
+    // One phase-1 task per chunk, one at a time.
+    assert!(select.contains("#SBATCH --array=0-2%1\n"), "{select}");
     assert!(select.contains("#SBATCH --cpus-per-task=3\n"), "{select}");
     assert!(select.contains("#SBATCH --partition=gpu\n"), "{select}");
     // 5 frames in chunks of 2: three tasks, the last of one frame.
@@ -84,7 +86,7 @@ fn the_scripts_select_every_frame_then_resample_chunks_after_it() {
     assert!(resample.contains("--phase resample --resume"), "{resample}");
     // The shot's own --frames is not repeated (each job gives its own).
     assert!(!resample.contains("'--frames'"), "{resample}");
-    assert!(read("submit.sh").contains("--dependency=afterok:"));
+    assert!(read("submit.sh").contains("--dependency=aftercorr:"));
     for script in ["select.sbatch", "resample.sbatch", "submit.sh"] {
         let check = Command::new("bash")
             .arg("-n")
@@ -93,24 +95,28 @@ fn the_scripts_select_every_frame_then_resample_chunks_after_it() {
             .unwrap();
         assert!(check.status.success(), "{script}: {check:?}");
     }
-    // Task k's range, as the script computes it.
-    let ranges: Vec<String> = (0..3)
-        .map(|k| {
-            let body: String = resample
-                .lines()
-                .filter(|l| l.starts_with("first=") || l.starts_with("a=") || l.starts_with("b="))
-                .collect::<Vec<_>>()
-                .join("\n");
-            let out = Command::new("bash")
-                .arg("-c")
-                .arg(format!("{body}\necho \"$a-$b\""))
-                .env("SLURM_ARRAY_TASK_ID", k.to_string())
-                .output()
-                .unwrap();
-            String::from_utf8_lossy(&out.stdout).trim().to_string()
-        })
-        .collect();
-    assert_eq!(ranges, ["1-2", "3-4", "5-5"]);
+    // Task k's frames, as the scripts compute them: phase 1 selects up to
+    // the end of chunk k, phase 2 resamples chunk k.
+    let ranges = |script: &str, echo: &str| -> Vec<String> {
+        (0..3)
+            .map(|k| {
+                let body: String = script
+                    .lines()
+                    .filter(|l| ["first=", "a=", "b="].iter().any(|p| l.starts_with(p)))
+                    .collect::<Vec<_>>()
+                    .join("\n");
+                let out = Command::new("bash")
+                    .arg("-c")
+                    .arg(format!("{body}\necho {echo}"))
+                    .env("SLURM_ARRAY_TASK_ID", k.to_string())
+                    .output()
+                    .unwrap();
+                String::from_utf8_lossy(&out.stdout).trim().to_string()
+            })
+            .collect()
+    };
+    assert_eq!(ranges(&resample, "\"$a-$b\""), ["1-2", "3-4", "5-5"]);
+    assert_eq!(ranges(&select, "\"$first-$b\""), ["1-2", "1-4", "1-5"]);
 }
 
 #[test]
@@ -211,7 +217,7 @@ fn a_shot_on_a_real_slurm_cluster_writes_the_one_pass_files() {
         .unwrap();
     check_ok(&submitted, &["farm slurm --submit"]);
     let said = String::from_utf8_lossy(&submitted.stdout);
-    assert!(said.contains("submitted: phase 1 job "), "{said}");
+    assert!(said.contains("submitted: phase 1 array job "), "{said}");
     let start = Instant::now();
     while cluster.queued() > 0 {
         assert!(
@@ -228,8 +234,8 @@ fn a_shot_on_a_real_slurm_cluster_writes_the_one_pass_files() {
             format!("{}: {}", p.display(), std::fs::read_to_string(&p).unwrap())
         })
         .collect();
-    // One phase-1 log, three phase-2 task logs.
-    assert_eq!(logs.len(), 4, "{logs:#?}");
+    // Three phase-1 and three phase-2 task logs.
+    assert_eq!(logs.len(), 6, "{logs:#?}");
     // The farm's scripts and logs are in a folder of their own.
     let farm_folder = out.join("farm");
     let moved = dir.path().join("farm-scripts");

@@ -1,13 +1,14 @@
 //! `fluidtex farm slurm`: a shot as jobs of an existing Slurm cluster, in
 //! the two phases of `fluidtex run --phase` (see the library's
-//! `pipeline::phases`): one phase-1 job (the sequential selection, every
-//! frame), then a job array of phase-2 tasks over chunks of frames that
-//! starts once phase 1 has succeeded (`afterok`). Every job runs
-//! `fluidtex run` with the shot's own arguments (given after `--`, exactly
-//! as to `fluidtex run`) plus `--phase`, `--frames` for its chunk and
-//! `--resume`, so a killed or requeued job goes on from its last finished
-//! frame. The scripts are written to `OUT/farm/`, with logs in
-//! `OUT/farm/logs/`; `--submit` hands them to `sbatch`.
+//! `pipeline::phases`). Every job runs `fluidtex run` with the shot's own
+//! arguments (given after `--`, exactly as to `fluidtex run`) plus
+//! `--phase`, `--frames` for its chunk and `--resume`, so a killed or
+//! requeued job goes on from its last finished frame. Phase 1 runs as a
+//! chain of array tasks, one per chunk of frames, one at a time; phase-2
+//! task k depends on phase-1 task k only (`aftercorr`), so a chunk is
+//! resampled while phase 1 goes on with the next ones. The scripts are
+//! written to `OUT/farm/`, with logs in `OUT/farm/logs/`; `--submit`
+//! hands them to `sbatch`.
 //!
 //! No scheduler of our own: the cluster's, through its command line.
 
@@ -86,21 +87,21 @@ fn slurm(a: &SlurmArgs) -> Result<()> {
     let tasks = ((i64::from(shot.last) - i64::from(shot.first)) / i64::from(a.chunk) + 1) as u32;
     let select = farm.join("select.sbatch");
     let resample = farm.join("resample.sbatch");
-    write_script(&select, &select_script(a, &shot))?;
+    write_script(&select, &select_script(a, &shot, tasks))?;
     write_script(&resample, &resample_script(a, &shot, tasks))?;
     write_script(&farm.join("submit.sh"), &submit_script(&select, &resample))?;
     println!(
-        "{}: phase 1 in {}, phase 2 as {tasks} tasks of {} frames in {}",
+        "{}: {tasks} chunks of {} frames, phase 1 in {}, phase 2 in {}",
         shot.out.display(),
-        select.display(),
         a.chunk,
+        select.display(),
         resample.display()
     );
     if a.submit {
         let first = sbatch(&[select.as_os_str()])?;
-        let dependency = OsString::from(format!("--dependency=afterok:{first}"));
+        let dependency = OsString::from(format!("--dependency=aftercorr:{first}"));
         let second = sbatch(&[dependency.as_os_str(), resample.as_os_str()])?;
-        println!("submitted: phase 1 job {first}, phase 2 array job {second}");
+        println!("submitted: phase 1 array job {first}, phase 2 array job {second}");
     }
     Ok(())
 }
@@ -216,25 +217,46 @@ fn run_command(shot: &Shot) -> String {
     c
 }
 
-fn select_script(a: &SlurmArgs, shot: &Shot) -> String {
+/// The shell lines that set `a` and `b`, the frames of task
+/// `SLURM_ARRAY_TASK_ID` (chunk k: FIRST + k * CHUNK onwards).
+fn chunk_lines(a: &SlurmArgs, shot: &Shot) -> String {
+    format!(
+        "first={}; last={}; chunk={}\n\
+         a=$((first + SLURM_ARRAY_TASK_ID * chunk))\n\
+         b=$((a + chunk - 1)); if [ \"$b\" -gt \"$last\" ]; then b=$last; fi\n",
+        shot.first, shot.last, a.chunk
+    )
+}
+
+/// Phase 1 as a chain: task k selects every frame up to the end of chunk
+/// k, going on from `state.bin` (`--resume`), one task at a time (`%1`).
+/// Phase-2 task k waits for phase-1 task k alone (`aftercorr`), so a chunk
+/// is resampled as soon as its frames are selected; should the tasks run
+/// out of order, a later one has selected the earlier chunks' frames too.
+fn select_script(a: &SlurmArgs, shot: &Shot, tasks: u32) -> String {
     format!(
         "{}\
-         # Phase 1: the sequential pass, every frame; resumes after a kill.\n\
-         exec {} --frames '{}-{}' --phase select --resume --quiet\n",
-        header(a, shot, "fluidtex-select", "select-%j.log", ""),
+         # Phase 1, the sequential pass: task k selects the frames up to the\n\
+         # end of chunk k, going on from the last selected (--resume).\n\
+         {}\
+         exec {} --frames \"$first-$b\" --phase select --resume --quiet\n",
+        header(
+            a,
+            shot,
+            "fluidtex-select",
+            "select-%A_%a.log",
+            &format!("#SBATCH --array=0-{}%1\n", tasks - 1)
+        ),
+        chunk_lines(a, shot),
         run_command(shot),
-        shot.first,
-        shot.last
     )
 }
 
 fn resample_script(a: &SlurmArgs, shot: &Shot, tasks: u32) -> String {
     format!(
         "{}\
-         # Phase 2: task k resamples frames FIRST + k * CHUNK onwards.\n\
-         first={}; last={}; chunk={}\n\
-         a=$((first + SLURM_ARRAY_TASK_ID * chunk))\n\
-         b=$((a + chunk - 1)); if [ \"$b\" -gt \"$last\" ]; then b=$last; fi\n\
+         # Phase 2: task k resamples chunk k once phase-1 task k is done.\n\
+         {}\
          exec {} --frames \"$a-$b\" --phase resample --resume --quiet\n",
         header(
             a,
@@ -243,9 +265,7 @@ fn resample_script(a: &SlurmArgs, shot: &Shot, tasks: u32) -> String {
             "resample-%A_%a.log",
             &format!("#SBATCH --array=0-{}\n", tasks - 1)
         ),
-        shot.first,
-        shot.last,
-        a.chunk,
+        chunk_lines(a, shot),
         run_command(shot)
     )
 }
@@ -253,10 +273,10 @@ fn resample_script(a: &SlurmArgs, shot: &Shot, tasks: u32) -> String {
 fn submit_script(select: &Path, resample: &Path) -> String {
     format!(
         "#!/bin/bash\n\
-         # Submits phase 1, then phase 2 once phase 1 has succeeded.\n\
+         # Submits phase 1, then phase 2: chunk k once phase 1 has chunk k.\n\
          set -euo pipefail\n\
          select=$(sbatch --parsable {})\n\
-         resample=$(sbatch --parsable --dependency=afterok:\"${{select%%;*}}\" {})\n\
+         resample=$(sbatch --parsable --dependency=aftercorr:\"${{select%%;*}}\" {})\n\
          echo \"phase 1 job $select, phase 2 array job $resample\"\n",
         quote(select.as_os_str()),
         quote(resample.as_os_str())
