@@ -261,3 +261,78 @@ fn a_shot_on_a_real_slurm_cluster_writes_the_one_pass_files() {
         .collect();
     assert!(extra.is_empty(), "{extra:?}");
 }
+
+#[test]
+fn a_shots_file_writes_each_shot_and_names_the_shot_it_refuses() {
+    let dir = tempfile::tempdir().unwrap();
+    let pattern = scene(dir.path());
+    let shots = dir.path().join("shots.toml");
+    let arg_list = |out: &str, frames: &str| {
+        format!(
+            "[\"--mesh\", \"{}\", \"--out\", \"{}\", \"--frames\", \"{frames}\"]",
+            pattern.display(),
+            dir.path().join(out).display()
+        )
+    };
+    std::fs::write(
+        &shots,
+        format!(
+            "[[shot]]\nname = \"sh010\"\nargs = {}\n\n[[shot]]\nargs = {}\n",
+            arg_list("sh010", "0-5"),
+            arg_list("sh020", "2-3")
+        ),
+    )
+    .unwrap();
+    ok(&[
+        "farm".as_ref(),
+        "slurm".as_ref(),
+        "--chunk".as_ref(),
+        "3".as_ref(),
+        "--shots".as_ref(),
+        shots.as_os_str(),
+    ]);
+    let array = |out: &str| {
+        let text =
+            std::fs::read_to_string(dir.path().join(out).join("farm/resample.sbatch")).unwrap();
+        text.lines()
+            .find(|l| l.starts_with("#SBATCH --array="))
+            .unwrap()
+            .to_string()
+    };
+    assert_eq!(array("sh010"), "#SBATCH --array=0-1");
+    assert_eq!(array("sh020"), "#SBATCH --array=0-0");
+    // A shot that cannot run is named, and nothing of any shot is written.
+    let bad = dir.path().join("bad.toml");
+    let missing = dir.path().join("nothing.####.ply");
+    std::fs::write(
+        &bad,
+        format!(
+            "[[shot]]\nargs = {}\n\n[[shot]]\nname = \"sh040\"\nargs = [\"--mesh\", \"{}\", \"--out\", \"{}\"]\n",
+            arg_list("sh030", "0-5"),
+            missing.display(),
+            dir.path().join("sh040").display()
+        ),
+    )
+    .unwrap();
+    let run = |file: &Path| -> Vec<std::ffi::OsString> {
+        vec!["farm".into(), "slurm".into(), "--shots".into(), file.into()]
+    };
+    let err = user_error(&run(&bad));
+    assert!(err.contains("bad.toml: sh040: "), "{err}");
+    assert!(!dir.path().join("sh030").exists());
+    // Two shots into one folder, and an unknown key.
+    std::fs::write(
+        &bad,
+        format!(
+            "[[shot]]\nargs = {}\n[[shot]]\nargs = {}\n",
+            arg_list("a", "0-1"),
+            arg_list("a", "2-3")
+        ),
+    )
+    .unwrap();
+    let err = user_error(&run(&bad));
+    assert!(err.contains("bad.toml: shot 2: writes into "), "{err}");
+    std::fs::write(&bad, "[[shot]]\nargz = []\n").unwrap();
+    let err = user_error(&run(&bad));
+    assert!(err.contains("bad.toml: unknown field `argz`"), "{err}");
+}

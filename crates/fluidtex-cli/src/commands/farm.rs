@@ -29,7 +29,8 @@ pub struct FarmArgs {
 #[derive(Subcommand, Debug)]
 pub enum Scheduler {
     /// Write (and with --submit, submit) a shot's Slurm jobs: fluidtex farm
-    /// slurm [OPTIONS] -- RUN ARGUMENTS (as for `fluidtex run`)
+    /// slurm [OPTIONS] -- RUN ARGUMENTS (as for `fluidtex run`), or
+    /// --shots FILE for several
     Slurm(SlurmArgs),
 }
 
@@ -50,9 +51,61 @@ pub struct SlurmArgs {
     /// Submit the jobs through sbatch (otherwise only write the scripts)
     #[arg(long)]
     pub submit: bool,
+    /// Several shots: a TOML file of `[[shot]]` tables, each with `args`
+    /// (its `fluidtex run` arguments) and an optional `name`
+    #[arg(long, value_name = "FILE", conflicts_with = "run")]
+    pub shots: Option<PathBuf>,
     /// The shot: `fluidtex run` arguments (--mesh, --out, settings), after `--`
-    #[arg(last = true, required = true, value_name = "RUN ARGUMENTS")]
+    #[arg(
+        last = true,
+        required_unless_present = "shots",
+        value_name = "RUN ARGUMENTS"
+    )]
     pub run: Vec<OsString>,
+}
+
+/// `--shots FILE`: one table per shot.
+#[derive(Debug, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ShotsFile {
+    shot: Vec<ShotEntry>,
+}
+
+#[derive(Debug, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ShotEntry {
+    /// For messages [shot N].
+    name: Option<String>,
+    /// The shot's `fluidtex run` arguments, as after `--`.
+    args: Vec<String>,
+}
+
+/// The shots of `--shots FILE`, each with the name messages give it, or
+/// the one after `--` (no name).
+fn listed_shots(a: &SlurmArgs) -> Result<Vec<(Option<String>, Vec<OsString>)>> {
+    let Some(path) = &a.shots else {
+        return Ok(vec![(None, a.run.clone())]);
+    };
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("{}: cannot read it", path.display()))?;
+    let file: ShotsFile = toml::from_str(&text)
+        .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.message().replace('\n', " ")))?;
+    if file.shot.is_empty() {
+        bail!("{}: no [[shot]] table", path.display());
+    }
+    Ok(file
+        .shot
+        .into_iter()
+        .enumerate()
+        .map(|(k, s)| {
+            let name = s.name.unwrap_or_else(|| format!("shot {}", k + 1));
+            let label = format!("{}: {name}", path.display());
+            (
+                Some(label),
+                s.args.into_iter().map(OsString::from).collect(),
+            )
+        })
+        .collect())
 }
 
 pub fn farm(a: &FarmArgs) -> Result<()> {
@@ -80,15 +133,35 @@ fn slurm(a: &SlurmArgs) -> Result<()> {
     if !(1..=4096).contains(&a.cpus) {
         bail!("--cpus {}: allowed 1 to 4096", a.cpus);
     }
-    let shot = shot(&a.run)?;
+    // Every shot checked before anything is written or submitted.
+    let mut shots = Vec::new();
+    for (label, run) in listed_shots(a)? {
+        let s = match &label {
+            Some(label) => shot(&run).with_context(|| label.clone())?,
+            None => shot(&run)?,
+        };
+        let label = label.unwrap_or_default();
+        if let Some((other, _)) = shots.iter().find(|(_, o): &&(String, Shot)| o.out == s.out) {
+            bail!("{label}: writes into {} as {other} does", s.out.display());
+        }
+        shots.push((label, s));
+    }
+    for (_, s) in &shots {
+        write_shot(a, s)?;
+    }
+    Ok(())
+}
+
+/// Writes one shot's scripts (and submits them, with `--submit`).
+fn write_shot(a: &SlurmArgs, shot: &Shot) -> Result<()> {
     let farm = shot.out.join("farm");
     std::fs::create_dir_all(farm.join("logs"))
         .with_context(|| format!("{}: cannot create the folder", farm.display()))?;
     let tasks = ((i64::from(shot.last) - i64::from(shot.first)) / i64::from(a.chunk) + 1) as u32;
     let select = farm.join("select.sbatch");
     let resample = farm.join("resample.sbatch");
-    write_script(&select, &select_script(a, &shot, tasks))?;
-    write_script(&resample, &resample_script(a, &shot, tasks))?;
+    write_script(&select, &select_script(a, shot, tasks))?;
+    write_script(&resample, &resample_script(a, shot, tasks))?;
     write_script(&farm.join("submit.sh"), &submit_script(&select, &resample))?;
     println!(
         "{}: {tasks} chunks of {} frames, phase 1 in {}, phase 2 in {}",
@@ -142,11 +215,10 @@ fn shot(run: &[OsString]) -> Result<Shot> {
     let (Some(&first), Some(&last)) = (frames.first(), frames.last()) else {
         bail!("{pattern}: no frames");
     };
-    std::fs::create_dir_all(&out)
-        .with_context(|| format!("{}: cannot create the output folder", out.display()))?;
     Ok(Shot {
         args: without_frames(run),
-        out: std::fs::canonicalize(&out)?,
+        out: std::path::absolute(&out)
+            .with_context(|| format!("{}: no absolute path", out.display()))?,
         first,
         last,
         workdir: std::env::current_dir()?,

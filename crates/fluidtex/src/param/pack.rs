@@ -175,6 +175,21 @@ impl Grid {
     }
 }
 
+/// The order charts are placed in: largest box first, index on ties, so
+/// independent of scale. (Box area rather than the longer side: long thin
+/// sheets then come after the compact charts of similar extent, whose
+/// holes they can line; measured 70.7 % against 69.4 % mean fill on
+/// dam-break frames 10–20.)
+fn packing_order(prepared: &[Prepared]) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..prepared.len()).collect();
+    let key = |p: &Prepared| p.size.x * p.size.y;
+    order.sort_by(|&a, &b| {
+        let (sa, sb) = (key(&prepared[a]), key(&prepared[b]));
+        sb.total_cmp(&sa).then(a.cmp(&b))
+    });
+    order
+}
+
 /// Packs `charts` into the atlas; see the module doc.
 pub fn pack(charts: &[FlatChart], params: &PackParams) -> Result<Packing, PackError> {
     let too_many = PackError::TooManyCharts {
@@ -198,16 +213,7 @@ pub fn pack(charts: &[FlatChart], params: &PackParams) -> Result<Packing, PackEr
         return Err(too_many);
     }
     let prepared: Vec<Prepared> = charts.par_iter().map(prepare).collect();
-    // Largest box first, index on ties: independent of scale. (Box area
-    // rather than the longer side: long thin sheets then come after the
-    // compact charts of similar extent, whose holes they can line;
-    // measured 70.7 % against 69.4 % mean fill on dam-break frames 10–20.)
-    let mut order: Vec<usize> = (0..prepared.len()).collect();
-    let key = |p: &Prepared| p.size.x * p.size.y;
-    order.sort_by(|&a, &b| {
-        let (sa, sb) = (key(&prepared[a]), key(&prepared[b]));
-        sb.total_cmp(&sa).then(a.cmp(&b))
-    });
+    let order = packing_order(&prepared);
     let largest = prepared
         .iter()
         .map(|p| p.size.max_element())
