@@ -1,9 +1,9 @@
 //! Selection apart from resampling, for every method: a frame resampled
 //! from its serialised selection, by a method built afresh, is the
 //! one-pass frame bit for bit (channels, sources, uv, levels, layers,
-//! renewal, statistics). The patch methods' own selection needs the
-//! frame's geometry alone; the others replay the frame from the state
-//! before it.
+//! renewal, statistics). The patch methods' and the optimization's own
+//! selections need the frame's geometry alone; the others replay the
+//! frame from the state before it.
 
 use std::sync::Arc;
 
@@ -88,10 +88,14 @@ fn every_method_resamples_its_selection_into_the_one_pass_frame() {
     let params = MethodParams::default();
     for &kind in MethodKind::ALL {
         let selections = round_trip(&params, kind, &clip);
-        // The patch methods sharing erosion's patches select on their own.
+        // The patch methods sharing erosion's patches, and the
+        // optimization's points, select on their own.
         let own = matches!(
             kind,
-            MethodKind::Erosion | MethodKind::Advect | MethodKind::BlendDeformable
+            MethodKind::Erosion
+                | MethodKind::Advect
+                | MethodKind::BlendDeformable
+                | MethodKind::Optimization
         );
         assert!(
             selections.iter().all(|s| s.needs_previous() != own),

@@ -34,6 +34,7 @@ pub mod neighbourhood;
 pub mod orientation;
 pub mod output;
 pub mod search;
+mod selection;
 pub mod solve;
 pub mod transport;
 
@@ -310,6 +311,12 @@ pub struct Optimization {
     search: Vec<Option<LevelSearch>>,
     /// The last frame's lattice (rebuilt from the previous mesh after a resume).
     last_lattice: Option<Lattice>,
+    /// Selecting ([`selection`]): the frame's points are synthesised but
+    /// not resampled into the atlas.
+    selecting: bool,
+    /// The exemplar level the last frame's atlas shows (see
+    /// [`Optimization::atlas_output`]).
+    last_lod: Option<f32>,
 }
 
 impl Optimization {
@@ -326,6 +333,8 @@ impl Optimization {
             state: OptimizationState::default(),
             search: Vec::new(),
             last_lattice: None,
+            selecting: false,
+            last_lod: None,
         })
     }
 
@@ -392,25 +401,39 @@ impl Optimization {
     /// texels on each point spacing `h`, so an atlas texel holds
     /// (exemplar width / working width) × (atlas texel / h) exemplar texels.
     fn atlas_output(
-        &self,
+        &mut self,
         atlas: &crate::atlas::Atlas,
         lattice: &Lattice,
         s: &[f32],
         h: f32,
         result: &mut FrameResult,
     ) {
-        let k = self.exemplar.total_channels();
-        result.channels = output::fill(atlas, lattice, s, k, &self.exemplar);
-        if let Some(search) = self.search.first().and_then(|s| s.as_ref()) {
+        self.last_lod = self.search.first().and_then(|s| s.as_ref()).map(|search| {
             let per_point = self.exemplar.size().0 as f32 / search.exemplar.width as f32;
             let points_per_texel = if atlas.scale > 0.0 && h > 0.0 {
                 (1.0 / (atlas.scale * h as f64)) as f32
             } else {
                 1.0
             };
-            let lod = (per_point * points_per_texel).log2().max(0.0);
-            result.exemplar_lod = Some(output::lod_map(atlas, lod));
+            (per_point * points_per_texel).log2().max(0.0)
+        });
+        if !self.selecting {
+            self.resample_points(atlas, lattice, s, self.last_lod, result);
         }
+    }
+
+    /// Every channel from the points' values, and the level `lod` shown.
+    fn resample_points(
+        &self,
+        atlas: &crate::atlas::Atlas,
+        lattice: &Lattice,
+        s: &[f32],
+        lod: Option<f32>,
+        result: &mut FrameResult,
+    ) {
+        let k = self.exemplar.total_channels();
+        result.channels = output::fill(atlas, lattice, s, k, &self.exemplar);
+        result.exemplar_lod = lod.map(|lod| output::lod_map(atlas, lod));
     }
 
     /// A frame where nothing moved ([`is_still`]): the previous frame's
@@ -896,6 +919,18 @@ impl Method for Optimization {
         self.last_lattice = Some(lattice);
         result.timings = clock.stages;
         Ok(result)
+    }
+
+    fn select(&mut self, ctx: &FrameContext<'_>) -> Result<super::Selection, MethodError> {
+        self.select_frame(ctx)
+    }
+
+    fn resample(
+        &mut self,
+        ctx: &FrameContext<'_>,
+        selection: &super::Selection,
+    ) -> Result<FrameResult, MethodError> {
+        self.resample_frame(ctx, selection)
     }
 
     fn save_state(&self) -> Result<Vec<u8>, MethodError> {
