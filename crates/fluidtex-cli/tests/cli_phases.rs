@@ -8,26 +8,9 @@
 
 mod common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use common::*;
-
-/// A sheared flow, so patches renew between frames.
-fn scene(dir: &Path) -> PathBuf {
-    let scene = dir.join("scene");
-    ok(&[
-        "scene".as_ref(),
-        "vortex".as_ref(),
-        "--resolution".as_ref(),
-        "14".as_ref(),
-        "--frames".as_ref(),
-        "0-5".as_ref(),
-        "--out".as_ref(),
-        scene.as_os_str(),
-        "--quiet".as_ref(),
-    ]);
-    scene.join("fluid.####.ply")
-}
 
 fn args(method: &str, pattern: &Path, out: &Path, extra: &[&str]) -> Vec<std::ffi::OsString> {
     let mut a: Vec<std::ffi::OsString> = [
@@ -50,15 +33,6 @@ fn args(method: &str, pattern: &Path, out: &Path, extra: &[&str]) -> Vec<std::ff
     a
 }
 
-/// A stats file without what differs between any two runs (the seconds)
-/// and between a one-pass and a resampled frame (the names of the stages
-/// timed).
-fn stats_without_stages(bytes: &[u8]) -> serde_json::Value {
-    let mut v = stats_without_timings(bytes);
-    v.as_object_mut().unwrap().remove("stage_order");
-    v
-}
-
 fn selections(dir: &Path) -> Vec<String> {
     let mut names: Vec<String> = files(dir)
         .into_keys()
@@ -71,7 +45,7 @@ fn selections(dir: &Path) -> Vec<String> {
 #[test]
 fn select_then_resample_in_ranges_writes_the_one_pass_files() {
     let dir = tempfile::tempdir().unwrap();
-    let pattern = scene(dir.path());
+    let pattern = small_vortex(dir.path());
     for method in ["erosion", "lapped-rigid"] {
         let reference = dir.path().join(format!("{method}-one-pass"));
         ok(&args(method, &pattern, &reference, &[]));
@@ -104,26 +78,8 @@ fn select_then_resample_in_ranges_writes_the_one_pass_files() {
         for (a, child) in running {
             check_ok(&child.wait_with_output().unwrap(), &a);
         }
-        let (one, two) = (files(&reference), files(&split));
-        let mut names: Vec<&String> = two.keys().collect();
-        names.retain(|n| !n.starts_with("selection."));
-        assert_eq!(
-            one.keys().collect::<Vec<_>>(),
-            names,
-            "{method}: the same files"
-        );
+        let two = assert_two_phase_matches(&reference, &split);
         assert_eq!(selections(&split).len(), 6);
-        for (name, bytes) in &one {
-            if name.starts_with("stats.") {
-                assert_eq!(
-                    stats_without_stages(bytes),
-                    stats_without_stages(&two[name]),
-                    "{method}: {name}"
-                );
-            } else {
-                assert!(bytes == &two[name], "{method}: {name} differs");
-            }
-        }
         // The coherence numbers of a range's first frame are there too.
         let stats: serde_json::Value = serde_json::from_slice(&two["stats.0003.json"]).unwrap();
         assert!(
@@ -136,7 +92,7 @@ fn select_then_resample_in_ranges_writes_the_one_pass_files() {
 #[test]
 fn resampling_before_selecting_or_with_other_settings_is_one_line() {
     let dir = tempfile::tempdir().unwrap();
-    let pattern = scene(dir.path());
+    let pattern = small_vortex(dir.path());
     let out = dir.path().join("split");
     let err = user_error(&args(
         "erosion",
@@ -182,7 +138,7 @@ fn resampling_before_selecting_or_with_other_settings_is_one_line() {
 #[test]
 fn killed_phases_resume_to_the_one_pass_files() {
     let dir = tempfile::tempdir().unwrap();
-    let pattern = scene(dir.path());
+    let pattern = small_vortex(dir.path());
     let reference = dir.path().join("one-pass");
     ok(&args("erosion", &pattern, &reference, &[]));
     let split = dir.path().join("split");
@@ -204,19 +160,5 @@ fn killed_phases_resume_to_the_one_pass_files() {
     assert!(split.join("fluidtex.resample.0000-0005.lock").exists());
     ok(&resample);
     assert_eq!(temporaries(&split), Vec::<String>::new());
-    let (one, two) = (files(&reference), files(&split));
-    let mut names: Vec<&String> = two.keys().collect();
-    names.retain(|n| !n.starts_with("selection."));
-    assert_eq!(one.keys().collect::<Vec<_>>(), names);
-    for (name, bytes) in &one {
-        if name.starts_with("stats.") {
-            assert_eq!(
-                stats_without_stages(bytes),
-                stats_without_stages(&two[name]),
-                "{name}"
-            );
-        } else {
-            assert!(bytes == &two[name], "{name} differs");
-        }
-    }
+    assert_two_phase_matches(&reference, &split);
 }

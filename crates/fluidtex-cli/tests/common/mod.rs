@@ -119,6 +119,62 @@ pub fn stats_without_timings(bytes: &[u8]) -> serde_json::Value {
     v
 }
 
+/// A stats file without what differs between any two runs (the seconds)
+/// and between a one-pass and a two-phase run's frame (the names of the
+/// stages timed).
+pub fn stats_without_stages(bytes: &[u8]) -> serde_json::Value {
+    let mut v = stats_without_timings(bytes);
+    v.as_object_mut().unwrap().remove("stage_order");
+    v
+}
+
+/// Asserts that `two_phase` holds the files of the one-pass run in
+/// `one_pass` with their bytes (stats without their timings), plus only
+/// the selections (`selection.F.bin`); returns the two-phase files.
+pub fn assert_two_phase_matches(one_pass: &Path, two_phase: &Path) -> BTreeMap<String, Vec<u8>> {
+    let (one, two) = (files(one_pass), files(two_phase));
+    let mut names: Vec<&String> = two.keys().collect();
+    names.retain(|n| !n.starts_with("selection."));
+    assert_eq!(
+        one.keys().collect::<Vec<_>>(),
+        names,
+        "{} and {}: the same files",
+        one_pass.display(),
+        two_phase.display()
+    );
+    for (name, bytes) in &one {
+        if name.starts_with("stats.") {
+            assert_eq!(
+                stats_without_stages(bytes),
+                stats_without_stages(&two[name]),
+                "{name} differs"
+            );
+        } else {
+            assert!(bytes == &two[name], "{name} differs");
+        }
+    }
+    two
+}
+
+/// `fluidtex scene vortex` at resolution 14, frames 0-5, into `dir/scene`:
+/// a small sheared flow whose patches renew between frames. Returns the
+/// frames' pattern.
+pub fn small_vortex(dir: &Path) -> PathBuf {
+    let scene = dir.join("scene");
+    ok(&[
+        "scene".as_ref(),
+        "vortex".as_ref(),
+        "--resolution".as_ref(),
+        "14".as_ref(),
+        "--frames".as_ref(),
+        "0-5".as_ref(),
+        "--out".as_ref(),
+        scene.as_os_str(),
+        "--quiet".as_ref(),
+    ]);
+    scene.join("fluid.####.ply")
+}
+
 /// Asserts that two output folders hold the same files with the same
 /// bytes, except for the timings inside `stats.F.json`.
 pub fn assert_same_outputs(a: &Path, b: &Path) {

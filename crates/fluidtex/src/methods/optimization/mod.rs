@@ -468,13 +468,18 @@ impl Optimization {
         self.state.values.clear();
         self.state.orientation.clear();
         self.last_lattice = None;
+        result.channels = self.empty_channels(atlas);
+        result.stats.insert("points".into(), 0.into());
+    }
+
+    /// Every channel of `atlas`, black.
+    fn empty_channels(&self, atlas: &crate::atlas::Atlas) -> Vec<Texture> {
         let mut layout = vec![self.exemplar.colour.channels];
         layout.extend(self.exemplar.channels.iter().map(|c| c.texture.channels));
-        result.channels = layout
+        layout
             .into_iter()
             .map(|c| Texture::filled(atlas.width, atlas.height, c, 0.0))
-            .collect();
-        result.stats.insert("points".into(), 0.into());
+            .collect()
     }
 
     /// Point spacing h, fixed on the first frame with a surface: the finer

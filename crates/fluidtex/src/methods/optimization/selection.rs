@@ -11,7 +11,6 @@ use serde::{Deserialize, Serialize};
 use super::Optimization;
 use super::lattice::Lattice;
 use crate::methods::{FrameContext, FrameResult, Method, MethodError, Selection};
-use crate::texture::Texture;
 
 /// What [`Optimization::select_frame`] writes (`m` = 0: no surface).
 #[derive(Serialize, Deserialize)]
@@ -70,12 +69,7 @@ impl Optimization {
         let atlas = ctx.atlas;
         let k = self.exemplar.total_channels();
         if selected.m == 0 || ctx.mesh.is_empty() {
-            let mut layout = vec![self.exemplar.colour.channels];
-            layout.extend(self.exemplar.channels.iter().map(|c| c.texture.channels));
-            result.channels = layout
-                .into_iter()
-                .map(|c| Texture::filled(atlas.width, atlas.height, c, 0.0))
-                .collect();
+            result.channels = self.empty_channels(atlas);
             return Ok(result);
         }
         if !(selected.m.is_power_of_two() && selected.m <= 128) {
