@@ -18,10 +18,57 @@ struct Selected {
     m: u32,
     values: Vec<f32>,
     lod: Option<f32>,
-    /// `stats.F.json`'s method numbers, as JSON text (postcard cannot read
-    /// an arbitrary JSON value back); serde_json's `float_roundtrip` reads
-    /// every number back to the same bits.
-    stats: String,
+    /// `stats.F.json`'s method numbers.
+    stats: Vec<(String, Json)>,
+}
+
+/// A JSON value in a form postcard reads back (it cannot read an
+/// arbitrary `serde_json::Value`, which needs a self-describing format),
+/// numbers kept exactly as they were: JSON text read back would round
+/// some floats to a neighbouring value.
+#[derive(Serialize, Deserialize)]
+enum Json {
+    Null,
+    Bool(bool),
+    Unsigned(u64),
+    Signed(i64),
+    Float(f64),
+    Text(String),
+    Array(Vec<Json>),
+    Object(Vec<(String, Json)>),
+}
+
+impl Json {
+    fn of(v: &serde_json::Value) -> Json {
+        use serde_json::Value as V;
+        match v {
+            V::Null => Json::Null,
+            V::Bool(b) => Json::Bool(*b),
+            V::Number(n) => match (n.as_u64(), n.as_i64()) {
+                (Some(u), _) => Json::Unsigned(u),
+                (None, Some(i)) => Json::Signed(i),
+                _ => Json::Float(n.as_f64().unwrap_or(f64::NAN)),
+            },
+            V::String(s) => Json::Text(s.clone()),
+            V::Array(a) => Json::Array(a.iter().map(Json::of).collect()),
+            V::Object(o) => Json::Object(o.iter().map(|(k, v)| (k.clone(), Json::of(v))).collect()),
+        }
+    }
+
+    fn value(self) -> serde_json::Value {
+        use serde_json::Value as V;
+        match self {
+            Json::Null => V::Null,
+            Json::Bool(b) => V::Bool(b),
+            Json::Unsigned(u) => V::from(u),
+            Json::Signed(i) => V::from(i),
+            // Not finite: JSON has no such number, as the writer says.
+            Json::Float(f) => serde_json::Number::from_f64(f).map_or(V::Null, V::Number),
+            Json::Text(s) => V::String(s),
+            Json::Array(a) => V::Array(a.into_iter().map(Json::value).collect()),
+            Json::Object(o) => V::Object(o.into_iter().map(|(k, v)| (k, v.value())).collect()),
+        }
+    }
 }
 
 fn state_error(e: impl std::fmt::Display) -> MethodError {
@@ -38,7 +85,9 @@ impl Optimization {
         let stepped = self.step(ctx);
         self.selecting = false;
         let result = stepped?;
-        let stats = serde_json::to_string(&result.stats).map_err(state_error)?;
+        let stats = (result.stats.iter())
+            .map(|(k, v)| (k.clone(), Json::of(v)))
+            .collect();
         let selected = Selected {
             m: if ctx.mesh.is_empty() { 0 } else { self.state.m },
             values: self.state.values.clone(),
@@ -63,7 +112,9 @@ impl Optimization {
         };
         let selected: Selected = postcard::from_bytes(bytes).map_err(state_error)?;
         let mut result = FrameResult {
-            stats: serde_json::from_str(&selected.stats).map_err(state_error)?,
+            stats: (selected.stats.into_iter())
+                .map(|(k, v)| (k, v.value()))
+                .collect(),
             ..FrameResult::default()
         };
         let atlas = ctx.atlas;
