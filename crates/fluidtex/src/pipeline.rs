@@ -153,12 +153,19 @@ fn check_memory(
     specs: &[ChannelSpec],
     observer: &mut dyn FnMut(Event<'_>),
 ) -> Result<Mode, PipelineError> {
-    let estimate = estimate_memory(&job.atlas, specs, &job.outputs)
-        .with_available(job.hooks.available_memory.or_else(available_memory));
-    estimate.check()?;
+    let estimate = fitting_estimate(job, specs)?;
     let (mode, estimate) = write_mode(job, estimate, specs, observer);
     observer(Event::Memory(estimate));
     Ok(mode)
+}
+
+/// The memory estimate of `job` with what the machine has available,
+/// refused where it does not fit.
+fn fitting_estimate(job: &Job, specs: &[ChannelSpec]) -> Result<MemoryEstimate, PipelineError> {
+    let estimate = estimate_memory(&job.atlas, specs, &job.outputs)
+        .with_available(job.hooks.available_memory.or_else(available_memory));
+    estimate.check()?;
+    Ok(estimate)
 }
 
 /// Creates the output folder and takes its lock (taken before the

@@ -55,5 +55,5 @@ pub use writer::frame_tag;
 
 pub(crate) use coherence::CoherenceSink;
 pub(crate) use sink::{FileSink, write_frames};
-pub(crate) use state::{load_for_resume, save_state};
+pub(crate) use state::{STATE_FILE, load_for_resume, save_state};
 pub(crate) use writer::{FrameWriter, MethodInfo};

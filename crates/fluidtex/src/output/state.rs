@@ -27,7 +27,7 @@ struct SavedState {
     checksum: u32,
 }
 
-const STATE_FILE: &str = "state.bin";
+pub(crate) const STATE_FILE: &str = "state.bin";
 /// 2: the checksum was added.
 const STATE_VERSION: u32 = 2;
 

@@ -25,15 +25,15 @@ use std::time::Instant;
 
 use super::{
     FrameLoop, FrameSource, Summary, add_coherence, check_memory, check_memory_limit, drive,
-    job_driver, open_output, open_output_locking, resume,
+    fitting_estimate, job_driver, open_output, open_output_locking, resume,
 };
 use crate::driver::{Driver, PendingFrame};
 use crate::frame::{FrameGeometry, StageClock};
 use crate::io::{InputGuard, Staging};
 use crate::methods::Method;
 use crate::output::{
-    Event, FileSink, FrameStats, FrameWriter, Job, MethodInfo, PipelineError, SavedSelection,
-    frame_tag, save_state, write_frames,
+    Event, FileSink, FrameStats, FrameWriter, Job, MethodInfo, PipelineError, STATE_FILE,
+    SavedSelection, frame_tag, save_state, write_frames,
 };
 
 /// Phase 1: every frame of `source` selected, its selection and the
@@ -46,18 +46,12 @@ pub(super) fn select(
 ) -> Result<Summary, PipelineError> {
     let start = Instant::now();
     job.atlas.validate().map_err(PipelineError::AtlasParams)?;
-    crate::output::estimate_memory(&job.atlas, &method.channel_specs(), &job.outputs)
-        .with_available(
-            job.hooks
-                .available_memory
-                .or_else(crate::output::available_memory),
-        )
-        .check()?;
+    fitting_estimate(job, &method.channel_specs())?;
     let lock = open_output(job, observer)?;
     let guard = InputGuard::new(source.input_paths());
     // Only its own: resampled ranges may be writing beside it.
     crate::io::remove_stale_temporaries_of(&job.out_dir, &guard, |target| {
-        target == "state.bin" || target.starts_with("selection.")
+        target == STATE_FILE || target.starts_with("selection.")
     })?;
     let mut frames = source.frames();
     let first_frame = frames.first().copied().unwrap_or(0);
@@ -183,9 +177,7 @@ pub(super) fn resample(
     crate::io::remove_stale_temporaries_of(&job.out_dir, &guard, |target| {
         !target.starts_with("selection.") && tags.iter().any(|t| target.contains(t.as_str()))
     })?;
-    let frames: Vec<i32> = source
-        .frames()
-        .into_iter()
+    let frames: Vec<i32> = (listed.iter().copied())
         .filter(|&f| !(job.resume && is_written(job, f)))
         .collect();
     let Some(&first) = frames.first() else {
@@ -201,6 +193,8 @@ pub(super) fn resample(
     add_coherence(job, &mut writer, None);
     let mut driver = job_driver(job, method);
     let total = frames.len();
+    // The first frame's selection is read once.
+    let mut head = Some(head);
     let done = write_frames(mode, writer, observer, |sink| {
         let primed = prime.map(|p| (p, true));
         let listed = frames.iter().map(|&f| (f, false));
@@ -212,7 +206,10 @@ pub(super) fn resample(
                     total,
                 });
             }
-            let saved = SavedSelection::read(job, name, number)?;
+            let saved = match head.take_if(|h| h.frame == number && !prime) {
+                Some(h) => h,
+                None => SavedSelection::read(job, name, number)?,
+            };
             resample_frame(job, source, &mut driver, sink, &saved, prime)?;
         }
         Ok(())
