@@ -33,7 +33,8 @@ use crate::mesh::TriMesh;
 pub struct Lattice {
     /// Steps per fluid edge (a power of two).
     pub m: u32,
-    /// The fluid mesh's triangles (corner order kept).
+    /// The fluid mesh's triangles, their corners as point ids (corner
+    /// order kept).
     pub triangles: Vec<[u32; 3]>,
     vertex_count: u32,
     /// Sorted fluid edge (lo, hi) → edge index.
@@ -56,10 +57,29 @@ impl Lattice {
     /// The lattice of `mesh` with `m` steps per edge (m ≥ 1).
     pub fn new(mesh: &TriMesh, m: u32) -> Lattice {
         let m = m.max(1);
-        let mut edges = HashMap::with_capacity(mesh.triangles.len() * 2);
+        // Corner points are the fluid vertices that some triangle uses, in
+        // vertex order: every point then belongs to the finest level, whose
+        // vertex k is point k (the synthesis and the atlas index the finest
+        // values by point id). A vertex no triangle uses (one left behind
+        // by a dropped zero-area triangle) gets no point.
+        let mut corner = vec![u32::MAX; mesh.vertex_count()];
+        for &v in mesh.triangles.iter().flatten() {
+            corner[v as usize] = 0;
+        }
+        let mut used = Vec::new();
+        for (v, c) in corner.iter_mut().enumerate() {
+            if *c == 0 {
+                *c = used.len() as u32;
+                used.push(v);
+            }
+        }
+        let triangles: Vec<[u32; 3]> = (mesh.triangles.iter())
+            .map(|t| t.map(|v| corner[v as usize]))
+            .collect();
+        let mut edges = HashMap::with_capacity(triangles.len() * 2);
         let mut edge_count = 0u32;
         let mut edge_ends = Vec::new();
-        for tri in &mesh.triangles {
+        for tri in &triangles {
             for k in 0..3 {
                 let (a, b) = (tri[k], tri[(k + 1) % 3]);
                 edges.entry(edge_key(a, b)).or_insert_with(|| {
@@ -75,18 +95,20 @@ impl Lattice {
             row_offset[i + 1] = row_offset[i] + (m as usize - 1 - i) as u32;
         }
         let interior_per_triangle = if m >= 3 { (m - 1) * (m - 2) / 2 } else { 0 };
-        let vertex_count = mesh.vertex_count() as u32;
+        let vertex_count = used.len() as u32;
         let total = vertex_count as usize
             + edge_count as usize * (m as usize - 1)
-            + mesh.triangles.len() * interior_per_triangle as usize;
-        let vn = mesh.vertex_normals();
+            + triangles.len() * interior_per_triangle as usize;
+        let all_normals = mesh.vertex_normals();
+        let vp: Vec<Vec3> = used.iter().map(|&v| mesh.positions[v]).collect();
+        let vn: Vec<Vec3> = used.iter().map(|&v| all_normals[v]).collect();
         let mut positions = Vec::with_capacity(total);
         let mut normals = Vec::with_capacity(total);
-        positions.extend_from_slice(&mesh.positions);
+        positions.extend_from_slice(&vp);
         normals.extend_from_slice(&vn);
         let mf = m as f32;
         for &(a, b) in &edge_ends {
-            let (pa, pb) = (mesh.positions[a as usize], mesh.positions[b as usize]);
+            let (pa, pb) = (vp[a as usize], vp[b as usize]);
             let (na, nb) = (vn[a as usize], vn[b as usize]);
             for s in 1..m {
                 let f = s as f32 / mf;
@@ -94,8 +116,8 @@ impl Lattice {
                 normals.push(na.lerp(nb, f).normalize_or_zero());
             }
         }
-        for tri in &mesh.triangles {
-            let p = tri.map(|v| mesh.positions[v as usize]);
+        for tri in &triangles {
+            let p = tri.map(|v| vp[v as usize]);
             let n = tri.map(|v| vn[v as usize]);
             for i in 1..m {
                 for j in 1..(m - i) {
@@ -108,7 +130,7 @@ impl Lattice {
         }
         Lattice {
             m,
-            triangles: mesh.triangles.clone(),
+            triangles,
             vertex_count,
             edges,
             edge_count,
