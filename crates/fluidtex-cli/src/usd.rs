@@ -104,6 +104,10 @@ impl FrameSource for UsdSource {
     fn input_paths(&self) -> Vec<PathBuf> {
         vec![self.file.clone()]
     }
+
+    fn largest_triangles(&mut self) -> Result<Option<u64>, PipelineError> {
+        self.inner.largest_triangles()
+    }
 }
 
 /// `fluidtex usd-convert FILE --out DIR \[--prim PATH]` (hidden): writes

@@ -43,8 +43,8 @@ use crate::output::{
 pub use crate::exemplar::channels::{ChannelFormat, ChannelSpec};
 pub use crate::output::{
     Event, FrameHook, FrameStats, Job, MemoryEstimate, OutputOptions, Phase, PipelineError,
-    TestHooks, available_memory, estimate_memory, frame_tag, load_state_bytes, patch_colour,
-    proc_kib, resident_memory,
+    TestHooks, UNKNOWN_TRIANGLES, available_memory, estimate_memory, frame_tag, load_state_bytes,
+    patch_colour, proc_kib, resident_memory,
 };
 
 /// Where frames come from: a file sequence or a generated scene.
@@ -57,6 +57,13 @@ pub trait FrameSource {
     /// Input files (never overwritten by outputs).
     fn input_paths(&self) -> Vec<PathBuf> {
         Vec::new()
+    }
+    /// The triangle count of the largest frame, for the memory estimate
+    /// made before the first frame; `None` where the source cannot tell
+    /// without reading every frame (the estimate then assumes
+    /// [`UNKNOWN_TRIANGLES`]).
+    fn largest_triangles(&mut self) -> Result<Option<u64>, PipelineError> {
+        Ok(None)
     }
 }
 
@@ -84,8 +91,8 @@ pub fn run(
     let start = Instant::now();
     // Everything that can be refused without reading a frame, first.
     job.atlas.validate().map_err(PipelineError::AtlasParams)?;
+    let mode = check_memory(job, source, method, observer)?;
     let specs = method.channel_specs();
-    let mode = check_memory(job, &specs, observer)?;
     // Held until this function returns, on success and on error alike.
     let lock = open_output(job, observer)?;
     let guard = InputGuard::new(source.input_paths());
@@ -150,20 +157,39 @@ fn job_driver<'m>(job: &Job, method: &'m mut dyn Method) -> Driver<'m> {
 /// available and reported to `observer`; returns how frames are written.
 fn check_memory(
     job: &Job,
-    specs: &[ChannelSpec],
+    source: &mut dyn FrameSource,
+    method: &dyn Method,
     observer: &mut dyn FnMut(Event<'_>),
 ) -> Result<Mode, PipelineError> {
-    let estimate = fitting_estimate(job, specs)?;
-    let (mode, estimate) = write_mode(job, estimate, specs, observer);
+    let estimate = fitting_estimate(job, source, method)?;
+    let (mode, estimate) = write_mode(job, estimate, &method.channel_specs(), observer);
     observer(Event::Memory(estimate));
     Ok(mode)
 }
 
-/// The memory estimate of `job` with what the machine has available,
-/// refused where it does not fit.
-fn fitting_estimate(job: &Job, specs: &[ChannelSpec]) -> Result<MemoryEstimate, PipelineError> {
-    let estimate = estimate_memory(&job.atlas, specs, &job.outputs)
-        .with_available(job.hooks.available_memory.or_else(available_memory));
+/// The memory estimate of `job` (its largest frame's triangles from
+/// `source`, what `method` holds) with what the machine has available,
+/// refused where it does not fit. An atlas that cannot fit on its own is
+/// refused before any frame is read.
+fn fitting_estimate(
+    job: &Job,
+    source: &mut dyn FrameSource,
+    method: &dyn Method,
+) -> Result<MemoryEstimate, PipelineError> {
+    let available = job.hooks.available_memory.or_else(available_memory);
+    let estimate = |triangles: u64| {
+        estimate_memory(
+            &job.atlas,
+            &method.channel_specs(),
+            &job.outputs,
+            method.memory_model(&job.atlas),
+            triangles,
+        )
+        .with_available(available)
+    };
+    estimate(0).check()?;
+    let triangles = source.largest_triangles()?.unwrap_or(UNKNOWN_TRIANGLES);
+    let estimate = estimate(triangles);
     estimate.check()?;
     Ok(estimate)
 }
@@ -439,6 +465,19 @@ impl FrameSource for SequenceSource {
         Ok((frame.mesh, frame.report))
     }
 
+    /// Reads the frame with the largest file: the frames of a simulation
+    /// share one format and one set of properties, so the file size
+    /// follows the element counts.
+    fn largest_triangles(&mut self) -> Result<Option<u64>, PipelineError> {
+        let size =
+            |f: i32| std::fs::metadata(self.sequence.pattern().path(f)).map_or(0, |m| m.len());
+        let Some(largest) = self.frames.iter().copied().max_by_key(|&f| (size(f), -f)) else {
+            return Ok(None);
+        };
+        let frame = self.sequence.read_frame(largest)?;
+        Ok(Some(frame.mesh.triangles.len() as u64))
+    }
+
     fn input_paths(&self) -> Vec<PathBuf> {
         self.frames
             .iter()
@@ -544,6 +583,15 @@ impl FrameSource for SceneSource {
             .map_err(|e| PipelineError::Source(format!("scene frame {f}: {e}")))?;
         Ok((mesh, report))
     }
+
+    /// The first frame's count: a scene's surface changes little in size
+    /// over its frames, and generating every one would double the run.
+    fn largest_triangles(&mut self) -> Result<Option<u64>, PipelineError> {
+        let Some(&first) = self.frames.first() else {
+            return Ok(None);
+        };
+        Ok(Some(self.read(first)?.0.triangles.len() as u64))
+    }
 }
 
 #[cfg(test)]
@@ -635,8 +683,8 @@ mod tests {
     /// serial estimate only, frames are written in place with one warning;
     /// with memory for both, behind, with no warning and the larger
     /// estimate reported; a test can ask for in place. The added bytes per
-    /// texel are exactly the written frame's: channels, ids, debug views
-    /// and encoders.
+    /// texel are exactly the written frame's: quantized channels, ids and
+    /// debug ids.
     #[test]
     fn write_behind_only_where_its_memory_is_available() {
         let channels = vec![ChannelSpec {
@@ -658,31 +706,34 @@ mod tests {
                 ..Default::default()
             },
         };
-        let serial = estimate_memory(
-            &AtlasParams::square(1024),
-            &channels,
-            &OutputOptions::default(),
-        );
+        let model = crate::methods::MemoryModel::default();
+        let estimate = |outputs: &OutputOptions| {
+            estimate_memory(
+                &AtlasParams::square(1024),
+                &channels,
+                outputs,
+                model,
+                50_000,
+            )
+        };
+        let serial = estimate(&OutputOptions::default());
         let behind = serial
             .clone()
             .writing_behind(&channels, &OutputOptions::default());
-        // 4·4 channel floats + 4 ids + 20 debug + 8 encoding.
-        assert_eq!(
-            behind.bytes_per_texel - serial.bytes_per_texel,
-            16 + 4 + 20 + 8
-        );
-        assert_eq!(behind.bytes - serial.bytes, (1 << 20) * 48);
+        // The written frame's 4 8-bit samples, 4 ids and 4 debug ids.
+        assert_eq!(behind.bytes_per_texel - serial.bytes_per_texel, 4 + 4 + 4);
+        assert_eq!(behind.bytes - serial.bytes, (1 << 20) * 12);
         let no_debug = OutputOptions {
             debug: false,
             ..Default::default()
         };
-        let lean = estimate_memory(&AtlasParams::square(1024), &channels, &no_debug);
+        let lean = estimate(&no_debug);
         assert_eq!(
             lean.clone()
                 .writing_behind(&channels, &no_debug)
                 .bytes_per_texel
                 - lean.bytes_per_texel,
-            28
+            8
         );
         for (available, in_place, mode, warned) in [
             (behind.bytes, false, Mode::Behind, false),

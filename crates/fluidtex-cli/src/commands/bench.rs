@@ -91,6 +91,11 @@ impl FrameSource for Memory {
             .map(|(_, m)| (m.clone(), ValidationReport::default()))
             .ok_or_else(|| PipelineError::Source(format!("frame {f} was not generated")))
     }
+
+    fn largest_triangles(&mut self) -> Result<Option<u64>, PipelineError> {
+        let most = self.frames.iter().map(|(_, m)| m.triangles.len()).max();
+        Ok(most.map(|n| n as u64))
+    }
 }
 
 /// One frame's figures: frame, stage seconds, stage order, method stats.

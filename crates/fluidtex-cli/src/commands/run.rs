@@ -105,6 +105,7 @@ pub fn execute(
     job.phase = phase;
     let total = source.frames().len() as u64;
     let progress = Progress::new(total, method.name(), quiet);
+    let mut estimated = None;
     let mut observer = |e: Event<'_>| match e {
         Event::Start { number, .. } => progress.set_message(format!("frame {number}")),
         Event::Done { stats } => {
@@ -122,7 +123,10 @@ pub fn execute(
             progress.inc();
         }
         Event::Warning(w) => progress.warn(&w),
-        Event::Memory(m) => progress.info(&format!("memory: {}", m.describe())),
+        Event::Memory(m) => {
+            progress.info(&format!("memory: {}", m.describe()));
+            estimated = Some(m.bytes);
+        }
     };
     let summary = pipeline::run(&job, source, method.as_mut(), &mut observer)?;
     progress.finish();
@@ -142,6 +146,15 @@ pub fn execute(
             summary.seconds,
             out.display()
         );
+        // How close the up-front estimate came: a user sizing farm nodes
+        // reads the real peak here.
+        if let (Some(peak), Some(estimate)) = (fluidtex::output::peak_memory(), estimated) {
+            eprintln!(
+                "peak memory {} (estimated {})",
+                fluidtex::output::gib(peak),
+                fluidtex::output::gib(estimate)
+            );
+        }
     }
     // --preview-video: a post-step; a missing ffmpeg is said, not an error.
     if config.preview_video == Some(true) && phase != Phase::Select {

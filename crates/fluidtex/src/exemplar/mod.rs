@@ -159,6 +159,21 @@ struct Packed {
 }
 
 impl Exemplar {
+    /// Bytes the exemplar holds: its textures, the packed copy the lookups
+    /// read and its mip pyramid (for the memory estimate).
+    pub fn memory_bytes(&self) -> u64 {
+        let floats = self.colour.data.len()
+            + self
+                .channels
+                .iter()
+                .map(|c| c.texture.data.len())
+                .sum::<usize>()
+            + self.feature.map.data.len()
+            + self.packed.data.len()
+            + self.packed.mips.iter().map(|l| l.data.len()).sum::<usize>();
+        4 * floats as u64
+    }
+
     /// Assembles an exemplar, checking that every texture is non-empty,
     /// finite, well formed and the size of `colour`, that channel names are
     /// unique, and that the feature map is valid.

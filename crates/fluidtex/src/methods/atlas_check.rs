@@ -90,6 +90,17 @@ impl Method for AtlasCheck {
         false
     }
 
+    fn memory_model(&self, _: &crate::atlas::AtlasParams) -> super::MemoryModel {
+        // A colour per chart and nothing kept between frames; its charts'
+        // colours and the uv of each texel are all it adds.
+        super::MemoryModel {
+            fixed: 0,
+            per_triangle: 200,
+            per_texel: 8,
+            per_thread: 0,
+        }
+    }
+
     fn channel_specs(&self) -> Vec<ChannelSpec> {
         vec![ChannelSpec {
             name: "color".into(),

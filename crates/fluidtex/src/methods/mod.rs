@@ -258,6 +258,47 @@ pub enum MethodError {
     Input(String),
 }
 
+/// What a method holds in memory besides the per-texel result every
+/// method returns (channels and source ids), for the estimate a run makes
+/// before its first frame ([`crate::output::estimate_memory`]). Each
+/// method's figures come from measured peaks; the default is the patch
+/// methods' (the largest).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MemoryModel {
+    /// Bytes held whatever the surface (exemplars beyond the built-in one,
+    /// search structures, synthesis points).
+    pub fixed: u64,
+    /// Bytes per triangle of the largest frame at the peak of a frame
+    /// (patch geometry, candidate pairs), besides the frames' geometry.
+    pub per_triangle: u64,
+    /// Bytes per atlas texel besides the result's channels and ids (uv,
+    /// exemplar level, renewal flags, blend weights).
+    pub per_texel: u64,
+    /// Bytes per worker thread besides the 4 MiB every run counts
+    /// (per-thread scratch of the method's parallel stages).
+    pub per_thread: u64,
+}
+
+impl Default for MemoryModel {
+    /// The patch methods': see [`erosion::Erosion`]'s model.
+    fn default() -> MemoryModel {
+        MemoryModel {
+            fixed: 0,
+            per_triangle: PATCH_BYTES_PER_TRIANGLE,
+            per_texel: 13,
+            per_thread: 0,
+        }
+    }
+}
+
+/// Bytes per surface triangle a patch method holds at the peak of a frame:
+/// its patch triangles (3 to 10 per surface triangle, each with its
+/// vertices, weights and flattened uv) and the fill's candidate pairs (40
+/// to 70 per surface triangle). Measured on a Mantaflow splash: 3.5 kB per
+/// triangle over a 48-frame run, 4.5 kB when a run starts at the splash's
+/// largest frame (85k triangles), where every patch is created at once.
+pub const PATCH_BYTES_PER_TRIANGLE: u64 = 3700;
+
 /// One texturing method.
 pub trait Method: Send {
     /// The name used on the command line.
@@ -312,6 +353,13 @@ pub trait Method: Send {
 
     /// Restores a state written by [`Method::save_state`].
     fn load_state(&mut self, bytes: &[u8]) -> Result<(), MethodError>;
+
+    /// What the method holds in memory at the peak of a frame with an atlas
+    /// of `atlas`, for the estimate made before the first frame.
+    fn memory_model(&self, atlas: &crate::atlas::AtlasParams) -> MemoryModel {
+        let _ = atlas;
+        MemoryModel::default()
+    }
 
     /// The method's own account of its largest structures, for the
     /// message of a run stopped by its memory limit (e.g. "370 patches,

@@ -35,17 +35,18 @@ pub enum PipelineError {
         path: PathBuf,
         message: String,
     },
+    /// The estimate ([`super::estimate_memory`]) is above the memory
+    /// available; `what` names the atlas (and the triangles where known),
+    /// `advice` the way out.
     #[error(
-        "a {width}x{height} atlas needs about {} of memory and {} is available: \
-         lower --atlas (at most {fits} fits)",
+        "{what} needs about {} of memory and {} is available: {advice}",
         gib(*.needed), gib(*.available)
     )]
     Memory {
-        width: u32,
-        height: u32,
+        what: String,
         needed: u64,
         available: u64,
-        fits: u32,
+        advice: String,
     },
     /// The run passed its memory limit (`--max-memory`) after `frame`,
     /// which is written; `detail` is the method's account.
@@ -78,7 +79,7 @@ impl From<DriverError> for PipelineError {
 }
 
 /// Bytes as "1.3 GiB" or "512 MiB".
-pub(super) fn gib(bytes: u64) -> String {
+pub fn gib(bytes: u64) -> String {
     if bytes >= 1 << 30 {
         format!("{:.1} GiB", bytes as f64 / (1u64 << 30) as f64)
     } else {

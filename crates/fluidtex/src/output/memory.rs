@@ -1,22 +1,29 @@
-//! The memory a run needs, estimated before any frame is read from the
-//! atlas size and the output channels alone, and what the machine has
-//! available (Linux `/proc`).
+//! The memory a run needs, estimated before the first frame is textured
+//! from the atlas size, the output channels, the largest frame's triangle
+//! count and the method's own model of what it holds, and what the machine
+//! has available (Linux `/proc`).
 
 use crate::atlas::AtlasParams;
 use crate::exemplar::channels::{ChannelFormat, ChannelSpec};
+use crate::methods::MemoryModel;
 
 use super::error::{PipelineError, gib};
 use super::options::OutputOptions;
 
-/// What a run is expected to need in memory, from the atlas size and the
-/// output channels alone (known before any frame is read).
+/// What a run is expected to need in memory at its peak.
 #[derive(Clone, Debug, PartialEq)]
 pub struct MemoryEstimate {
     pub width: u32,
     pub height: u32,
     /// Bytes held per atlas texel at the peak of a frame (see [`estimate_memory`]).
     pub bytes_per_texel: u64,
-    /// Bytes that do not scale with the atlas (meshes, exemplar, patches).
+    /// Triangles of the largest frame the estimate assumes.
+    pub triangles: u64,
+    /// Bytes held per triangle of the largest frame: the frames' geometry
+    /// and the method's state ([`MemoryModel::per_triangle`]).
+    pub bytes_per_triangle: u64,
+    /// Bytes that do not scale with the atlas: the program, the method's
+    /// fixed part and the triangles' share.
     pub base_bytes: u64,
     /// The estimate in bytes.
     pub bytes: u64,
@@ -24,68 +31,114 @@ pub struct MemoryEstimate {
     pub available: Option<u64>,
 }
 
-/// Memory the frames of a run need besides the atlas: two meshes with their
-/// BVHs, the exemplar and the patch state. 256 MiB covers a dam-break frame
-/// (85k triangles, 5k patches) with room; a heavier scene is not refused
-/// for it, since the check only catches atlases that cannot fit.
-const BASE_BYTES: u64 = 256 << 20;
+/// The program itself and the built-in exemplar: the resident set of a
+/// run on a tiny mesh at a tiny atlas is 15–25 MB.
+const PROGRAM_BYTES: u64 = 28 << 20;
+
+/// Bytes per worker thread: its stack, its allocator arena and the scratch
+/// buffers of the parallel stages (measured: erosion's peak grows by about
+/// 2.4 MiB per thread from 1 to 16 threads).
+pub const THREAD_BYTES: u64 = 4 << 20;
+
+/// Bytes per triangle of the frame geometry alive at once (the previous
+/// frame, the current one and the next one being read and built): mesh,
+/// surface BVH, topology, normals and atlas charts, about 200 bytes per
+/// triangle each. Measured: `lapped-rigid`, whose own state is small,
+/// holds 0.8 kB per triangle in all between 14k and 85k triangles.
+const GEOMETRY_BYTES_PER_TRIANGLE: u64 = 700;
+
+/// Triangles assumed where the source cannot tell the largest frame's
+/// count before reading it (a dam-break frame has 85k).
+pub const UNKNOWN_TRIANGLES: u64 = 100_000;
 
 /// Components per output channel in the memory estimate (C): an upper
 /// bound, colour has 3 or 4.
 const ESTIMATE_COMPONENTS: u64 = 4;
 
-/// Bytes per texel of the debug outputs, an upper bound: the float patch
-/// colours of a preview frame (12), the dilated copy of the ids that
-/// `patches.F.png` is coloured from (4) and the ids as floats that
-/// `source.F.exr` takes without a copy (4). The channels are dropped before
-/// the last two are made, and those two are not alive together.
+/// Bytes per texel of the debug outputs at their peak: the copy of the
+/// ids that `patches.F.png` is coloured from (4). The float ids of
+/// `source.F.exr` and the float colours of a preview frame are made one
+/// after another, from buffers the frame has already dropped.
 fn debug_bytes(outputs: &OutputOptions) -> u64 {
-    if outputs.debug { 12 + 4 + 4 } else { 0 }
+    let ids = if outputs.debug { 4 } else { 0 };
+    // The switch map keeps the frame before's ids (4) and draws its own
+    // image (4).
+    let switches = if outputs.switch_map { 8 } else { 0 };
+    ids + switches
 }
 
-/// Bytes per texel of the encoders: quantized samples and the compressed
-/// image, about 2 bytes per component (4 for 16-bit and float).
+/// Bytes per triangle of the frame geometry alive at once: with the
+/// switch map, the written frame's predecessor too.
+fn geometry_bytes(outputs: &OutputOptions) -> u64 {
+    if outputs.switch_map {
+        GEOMETRY_BYTES_PER_TRIANGLE * 4 / 3
+    } else {
+        GEOMETRY_BYTES_PER_TRIANGLE
+    }
+}
+
+/// Bytes per texel of one frame's quantized channels (C samples per
+/// channel, 1, 2 or 4 bytes each): what the encoders read; the compressed
+/// image they write is no larger.
 fn encode_bytes(channels: &[ChannelSpec]) -> u64 {
     channels
         .iter()
         .map(|c| match c.format {
-            ChannelFormat::Png8 => 2 * ESTIMATE_COMPONENTS,
-            ChannelFormat::Png16 | ChannelFormat::Exr => 4 * ESTIMATE_COMPONENTS,
+            ChannelFormat::Png8 => ESTIMATE_COMPONENTS,
+            ChannelFormat::Png16 => 2 * ESTIMATE_COMPONENTS,
+            ChannelFormat::Exr => 4 * ESTIMATE_COMPONENTS,
         })
         .sum()
 }
 
-/// Estimates the memory of a run before any frame is read.
+/// Estimates the peak memory of a run before its first frame is textured.
 ///
-/// Per atlas texel, at the peak of a frame (the write, while the method's
-/// result is alive), with C = 4 components per output channel (an upper
-/// bound: colour is 3 or 4):
-/// - the method's fill: C floats per channel, a source id and a uv
-///   (4·C·channels + 12 bytes), and its result textures (4·C·channels + 8);
-/// - the debug outputs: 20 at most (float patch colours on preview frames,
-///   12; a copy of the ids for `patches.F.png`, 4; float ids for
-///   `source.F.exr`, 4);
-/// - encoding: quantized samples and the compressed image, about 2 bytes
-///   per component (up to 4 for 16-bit).
+/// Per atlas texel, with C = 4 components per output channel (an upper
+/// bound: colour has 3 or 4):
+/// - the method's result: C floats per channel and a source id
+///   (4·C·channels + 4), and what the method adds
+///   ([`MemoryModel::per_texel`]: uv, levels, blend weights);
+/// - writing: the quantized channels the encoders read (C bytes per 8-bit
+///   channel, 2·C per 16-bit, 4·C per float), with the debug outputs a
+///   copy of the ids (4), with the switch map the frame before's ids and
+///   the map (8).
 ///
-/// An upper bound by design. Measured (erosion demo, built-in pebbles,
-/// one 8-bit colour channel): peak RSS 104 MB at 1024² and 253 MB at
-/// 2048², a slope of 49 bytes per texel against the estimate's 80.
+/// Per triangle of the largest frame: the geometry of the frames alive at
+/// once (700 bytes, a third more with the switch map) and the method's state ([`MemoryModel::per_triangle`]).
+/// Besides: the program (28 MiB), 4 MiB per worker thread and what the
+/// method adds per thread ([`MemoryModel::per_thread`]), and the method's
+/// fixed part ([`MemoryModel::fixed`]).
+///
+/// An upper bound by design, checked against measured peaks (erosion,
+/// lapped-rigid and optimization on a Mantaflow splash of 14k–85k
+/// triangles, atlas 256² to 4096²: the estimate is 1.1 to 2 times the
+/// peak resident set) and by the CLI test
+/// `estimates_bound_the_measured_peak`.
 pub fn estimate_memory(
     atlas: &AtlasParams,
     channels: &[ChannelSpec],
     outputs: &OutputOptions,
+    model: MemoryModel,
+    triangles: u64,
 ) -> MemoryEstimate {
     let components = ESTIMATE_COMPONENTS * channels.len().max(1) as u64;
     let bytes_per_texel =
-        4 * components + 12 + 4 * components + 8 + debug_bytes(outputs) + encode_bytes(channels);
+        4 * components + 4 + model.per_texel + encode_bytes(channels) + debug_bytes(outputs);
+    let bytes_per_triangle = geometry_bytes(outputs) + model.per_triangle;
+    let threads = rayon::current_num_threads() as u64;
+    let base_bytes = PROGRAM_BYTES
+        + threads * (THREAD_BYTES + model.per_thread)
+        + model.fixed
+        + triangles * bytes_per_triangle;
     let texels = u64::from(atlas.width) * u64::from(atlas.height);
     MemoryEstimate {
         width: atlas.width,
         height: atlas.height,
         bytes_per_texel,
-        base_bytes: BASE_BYTES,
-        bytes: texels * bytes_per_texel + BASE_BYTES,
+        triangles,
+        bytes_per_triangle,
+        base_bytes,
+        bytes: texels * bytes_per_texel + base_bytes,
         available: None,
     }
 }
@@ -93,16 +146,10 @@ pub fn estimate_memory(
 impl MemoryEstimate {
     /// The estimate when frame t is written while frame t+1 is computed
     /// ([`super::write_behind`]): besides the computing frame's peak, the
-    /// written frame's channels (4·C·channels bytes per texel: floats on
-    /// preview frames; an 8-bit PNG channel is handed over as its C bytes
-    /// otherwise, so this is the bound), its source ids (4), its debug
-    /// views and its encoders' buffers are alive.
+    /// written frame's quantized channels, its source ids (4) and its
+    /// debug views are alive.
     pub fn writing_behind(mut self, channels: &[ChannelSpec], outputs: &OutputOptions) -> Self {
-        let written = 4 * ESTIMATE_COMPONENTS * channels.len().max(1) as u64
-            + 4
-            + debug_bytes(outputs)
-            + encode_bytes(channels);
-        self.bytes_per_texel += written;
+        self.bytes_per_texel += encode_bytes(channels) + 4 + debug_bytes(outputs);
         self.bytes =
             u64::from(self.width) * u64::from(self.height) * self.bytes_per_texel + self.base_bytes;
         self
@@ -126,30 +173,62 @@ impl MemoryEstimate {
         }
         let texels = available.saturating_sub(self.base_bytes) / self.bytes_per_texel.max(1);
         // Whole multiples of 256 texels: atlas sizes people type.
-        let side = (texels as f64).sqrt() as u64 / 256 * 256;
+        let side =
+            ((texels as f64).sqrt() as u64 / 256 * 256).min(u64::from(crate::atlas::MAX_SIDE));
+        let mut what = format!("a {}x{} atlas", self.width, self.height);
+        if self.triangles > 0 {
+            what += &format!(" with {} triangles", count(self.triangles));
+        }
+        let advice = if side > 0 {
+            format!("lower --atlas (at most {side} fits)")
+        } else {
+            format!(
+                "even without an atlas it needs about {} (the program, the frames and \
+                 the method's state); texture a coarser mesh, or run on a machine with \
+                 more memory",
+                gib(self.base_bytes)
+            )
+        };
         Err(PipelineError::Memory {
-            width: self.width,
-            height: self.height,
+            what,
             needed: self.bytes,
             available,
-            fits: side.min(u64::from(crate::atlas::MAX_SIDE)) as u32,
+            advice,
         })
     }
 
-    /// "about 1.3 GiB for a 4096x4096 atlas (80 bytes per texel); 20.1 GiB available".
+    /// "about 1.3 GiB for a 4096x4096 atlas (45 bytes per texel) and 85k
+    /// triangles (4.4 kB each); 20.1 GiB available".
     pub fn describe(&self) -> String {
         let available = match self.available {
             Some(a) => format!("{} available", gib(a)),
             None => "available memory unknown".into(),
         };
         format!(
-            "about {} for a {}x{} atlas ({} bytes per texel); {available}",
+            "about {} for a {}x{} atlas ({} bytes per texel) and {} triangles ({:.1} kB each); {available}",
             gib(self.bytes),
             self.width,
             self.height,
-            self.bytes_per_texel
+            self.bytes_per_texel,
+            count(self.triangles),
+            self.bytes_per_triangle as f64 / 1000.0,
         )
     }
+}
+
+/// A count as people say it: "850", "85k", "2.1M".
+fn count(n: u64) -> String {
+    match n {
+        0..1_000 => n.to_string(),
+        1_000..1_000_000 => format!("{}k", (n + 500) / 1000),
+        _ => format!("{:.1}M", n as f64 / 1e6),
+    }
+}
+
+/// The process's peak resident set (`VmHWM` of `/proc/self/status`) in
+/// bytes; `None` where there is no such file.
+pub fn peak_memory() -> Option<u64> {
+    proc_kib("/proc/self/status", "VmHWM:")
 }
 
 /// The process's resident set (`VmRSS` of `/proc/self/status`) in bytes;

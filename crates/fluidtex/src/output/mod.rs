@@ -41,11 +41,11 @@ pub mod write_behind;
 mod writer;
 
 pub use coherence::CoherenceSinkSettings;
-pub use error::PipelineError;
+pub use error::{PipelineError, gib};
 pub use images::patch_colour;
 pub use memory::{
-    MemoryEstimate, available_memory, default_memory_limit, estimate_memory, parse_size, proc_kib,
-    resident_memory,
+    MemoryEstimate, UNKNOWN_TRIANGLES, available_memory, default_memory_limit, estimate_memory,
+    parse_size, peak_memory, proc_kib, resident_memory,
 };
 pub use options::{FrameHook, Job, OutputOptions, Phase, TestHooks};
 pub use report::{Event, FrameStats};

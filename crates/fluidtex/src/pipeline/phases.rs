@@ -46,7 +46,7 @@ pub(super) fn select(
 ) -> Result<Summary, PipelineError> {
     let start = Instant::now();
     job.atlas.validate().map_err(PipelineError::AtlasParams)?;
-    fitting_estimate(job, &method.channel_specs())?;
+    fitting_estimate(job, source, method)?;
     let lock = open_output(job, observer)?;
     let guard = InputGuard::new(source.input_paths());
     // Only its own: resampled ranges may be writing beside it.
@@ -157,8 +157,8 @@ pub(super) fn resample(
 ) -> Result<Summary, PipelineError> {
     let start = Instant::now();
     job.atlas.validate().map_err(PipelineError::AtlasParams)?;
+    let mode = check_memory(job, source, method, observer)?;
     let specs = method.channel_specs();
-    let mode = check_memory(job, &specs, observer)?;
     // Ranges are resampled side by side, and beside the selecting run:
     // each holds the lock of its range, and removes only the temporaries
     // of its own frames' files (others may be another process's files in

@@ -418,6 +418,30 @@ impl Method for Erosion {
         Ok(bytes)
     }
 
+    fn memory_model(&self, _: &crate::atlas::AtlasParams) -> super::MemoryModel {
+        let exemplars: u64 = match &self.multi {
+            Some(m) => m.set.exemplars().iter().map(|e| e.memory_bytes()).sum(),
+            None => self.exemplar.memory_bytes(),
+        };
+        // Per texel besides channels and ids: uv (8), exemplar level (4)
+        // and renewal flags (1); a blend adds its accumulated channels and
+        // weights, a transition the second source's uv and weight.
+        let blend = if self.variant == Variant::Blend {
+            24
+        } else {
+            0
+        };
+        let transition = if self.transition_frames() > 0 { 16 } else { 0 };
+        super::MemoryModel {
+            // The feature levels and tone statistics are built from each
+            // exemplar and are no larger than it.
+            fixed: 2 * exemplars,
+            per_triangle: super::PATCH_BYTES_PER_TRIANGLE,
+            per_texel: 13 + blend + transition,
+            per_thread: 0,
+        }
+    }
+
     fn memory_report(&self) -> Option<String> {
         let patches = &self.state.patches;
         let triangles: usize = patches.iter().map(|p| p.triangles.len()).sum();

@@ -832,6 +832,22 @@ impl Method for LappedRigid {
         "lapped-rigid"
     }
 
+    fn memory_model(&self, _: &crate::atlas::AtlasParams) -> super::MemoryModel {
+        let exemplars: u64 = match &self.multi {
+            Some(m) => m.set.exemplars().iter().map(|e| e.memory_bytes()).sum(),
+            None => self.exemplar.memory_bytes(),
+        };
+        // Rigid trackers are few and small: measured, the whole run holds
+        // 0.8 kB per triangle with the frames' geometry. Per texel: the
+        // blend's accumulated colour and weight, and the heaviest layer's uv.
+        super::MemoryModel {
+            fixed: 2 * exemplars,
+            per_triangle: 300,
+            per_texel: 24,
+            per_thread: 0,
+        }
+    }
+
     fn channel_specs(&self) -> Vec<ChannelSpec> {
         crate::exemplar::channels::exemplar_channels(&self.exemplar)
     }
