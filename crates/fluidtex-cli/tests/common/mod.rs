@@ -379,3 +379,42 @@ impl Paused {
         (status.success(), self.stderr.join().unwrap())
     }
 }
+
+/// "69 MiB" or "1.3 GiB" (as the CLI prints sizes) in bytes.
+pub fn size(text: &str) -> f64 {
+    let (number, unit) = text.trim().split_once(' ').unwrap();
+    let unit = match unit {
+        "MiB" => 1u64 << 20,
+        "GiB" => 1 << 30,
+        other => panic!("unit {other:?} in {text:?}"),
+    };
+    number.parse::<f64>().unwrap() * unit as f64
+}
+
+/// The text of `line` between `start` and the next `end`.
+pub fn between<'a>(line: &'a str, start: &str, end: &str) -> &'a str {
+    let from = line
+        .find(start)
+        .unwrap_or_else(|| panic!("{start:?} in {line:?}"))
+        + start.len();
+    let to = line[from..]
+        .find(end)
+        .unwrap_or_else(|| panic!("{end:?} in {line:?}"));
+    &line[from..from + to]
+}
+
+/// A run's stderr (without `--quiet`) ends with `peak memory P (estimated
+/// E)`: the estimate made before the first frame bounds the peak it then
+/// reached, by no more than twice. Returns (peak, estimate) in bytes.
+pub fn assert_estimate_bounds_peak(stderr: &str, what: &str) -> (f64, f64) {
+    let line = stderr
+        .lines()
+        .find(|l| l.starts_with("peak memory "))
+        .unwrap_or_else(|| panic!("{what}: no peak memory line: {stderr}"));
+    let measured = size(between(line, "peak memory ", " ("));
+    let estimated = size(between(line, "(estimated ", ")"));
+    eprintln!("{what}: {line}");
+    assert!(estimated >= measured, "{what}: {line}");
+    assert!(estimated <= 2.0 * measured, "{what}: {line}");
+    (measured, estimated)
+}
