@@ -1,6 +1,7 @@
 //! Times the software rasterizer on a 58k-triangle wavy sheet at 1024²
-//! (the DESIGN §7 reference: 71 ms) and writes a preview sheet (unlit
-//! | lit) of the sheet textured with the built-in pebbles.
+//! (the reference figure in docs/design.md, *Crates and measurements*:
+//! 71 ms) and writes a preview sheet (unlit | lit) of the sheet textured
+//! with the built-in pebbles.
 //!
 //! `cargo run --release -p fluidtex --example render_preview -- OUT.png`
 

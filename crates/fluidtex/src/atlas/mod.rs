@@ -1,6 +1,6 @@
 //! The output atlas of a frame: the fluid mesh cut into charts, each
 //! flattened and packed into a W×H texture, with every texel inside a chart
-//! knowing the surface point it shows (DESIGN §1 "Output atlas").
+//! knowing the surface point it shows (docs/design.md, *Output atlas*).
 //!
 //! **Pipeline** ([`Atlas::build`]):
 //! 1. segmentation into disc-like charts ([`crate::param::charts`]),

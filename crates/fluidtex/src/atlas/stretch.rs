@@ -24,8 +24,8 @@ pub struct StretchStats {
 }
 
 /// σ₁/σ₂ of the map from the flat triangle `uv` to the 3-D triangle `q`
-/// (singular values as in Sorkine et al. 2002, DESIGN §1 "Triangle
-/// distortion").
+/// (singular values as in Sorkine et al. 2002; docs/design.md, *Triangle
+/// distortion*).
 pub(crate) fn conformal_ratio(uv: [[f64; 2]; 3], q: [[f64; 3]; 3]) -> f64 {
     let [(s1, t1), (s2, t2), (s3, t3)] = uv.map(|p| (p[0], p[1]));
     let a2 = (s2 - s1) * (t3 - t1) - (s3 - s1) * (t2 - t1);

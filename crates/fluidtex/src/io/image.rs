@@ -2,19 +2,19 @@
 //!
 //! **PNG.** 8- or 16-bit gray, gray-alpha, RGB or RGBA from a 1–4 channel
 //! [`Texture`]: values are clamped to [0, 1] and rounded (NaN becomes 0).
-//! Large atlases must not cost more to write than to compute (DESIGN §6), and
-//! a single deflate stream is sequential, so the default encoder
-//! ([`PngEncoder::Parallel`]) splits the filtered image into fixed strips of
-//! rows and deflates them on the rayon pool, each strip as raw deflate blocks
-//! ending in a sync flush (byte aligned, not final), the last one final; the
-//! strips concatenate into one valid zlib stream whose Adler-32 is combined
-//! from the strips' (zlib's `adler32_combine`). The technique is mtpng's; we
-//! do not use the mtpng crate because it links the C zlib (libz-sys), and no
-//! pure-Rust crate encodes PNG in parallel. Strip boundaries depend only on
-//! the image size, never on the thread count, so the bytes are identical
-//! however many threads run. [`PngEncoder::Image`] (the image crate,
-//! single-threaded, fast deflate) is kept as a reference and for comparison
-//! in `io_bench`.
+//! Large atlases must not cost more to write than to compute
+//! (docs/design.md, *Scale and speed*), and a single deflate stream is
+//! sequential, so the default encoder ([`PngEncoder::Parallel`]) splits the
+//! filtered image into fixed strips of rows and deflates them on the rayon
+//! pool, each strip as raw deflate blocks ending in a sync flush (byte
+//! aligned, not final), the last one final; the strips concatenate into one
+//! valid zlib stream whose Adler-32 is combined from the strips' (zlib's
+//! `adler32_combine`). The technique is mtpng's; we do not use the mtpng
+//! crate because it links the C zlib (libz-sys), and no pure-Rust crate
+//! encodes PNG in parallel. Strip boundaries depend only on the image size,
+//! never on the thread count, so the bytes are identical however many
+//! threads run. [`PngEncoder::Image`] (the image crate, single-threaded,
+//! fast deflate) is kept as a reference and for comparison in `io_bench`.
 //!
 //! **Strip compression.** By default ([`PngCompression::Fastest`]) each
 //! strip is coded by the fdeflate crate: one deflate block with a fixed

@@ -1,9 +1,10 @@
-//! The `dual-rest` baseline (DESIGN §4): the production habit of two rest
-//! parameterizations, each advected with the flow and reset to a fresh one
-//! every `period` frames, half a period apart, and cross-faded so that each
-//! is invisible at the moment it resets. Stretch stays bounded by one
-//! period of advection, at the price of ghosts (two textures visible at
-//! once, contrast down to ≈ 0.71 at the 50% point) and a pulse per period.
+//! The `dual-rest` baseline (docs/design.md, *Baselines*): the production
+//! habit of two rest parameterizations, each advected with the flow and
+//! reset to a fresh one every `period` frames, half a period apart, and
+//! cross-faded so that each is invisible at the moment it resets. Stretch
+//! stays bounded by one period of advection, at the price of ghosts (two
+//! textures visible at once, contrast down to ≈ 0.71 at the 50% point) and a
+//! pulse per period.
 //!
 //! Each parameterization is an [`Variant::Advect`] instance of the patch
 //! machinery (a lapped texture placed on the frame where it resets).

@@ -75,8 +75,10 @@ impl std::str::FromStr for MethodKind {
 }
 
 /// The parameters of every method, one section each (config keys
-/// `\[erosion]`, `\[dual_rest]`, `\[atlas_check]`); a method reads its own
-/// section and, for the baselines built from erosion's patches, erosion's.
+/// `\[erosion]`, `\[dual_rest]`, `\[atlas_check]`, `\[optimization]`,
+/// `\[lapped_rigid]`); a method reads its own section and, for the baselines
+/// built from erosion's patches (`advect`, `blend-deformable`, `dual-rest`),
+/// erosion's.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct MethodParams {

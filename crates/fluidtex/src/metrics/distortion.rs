@@ -13,7 +13,8 @@
 //! anti-conformal parts of J), and its weight is the surface area it
 //! covers, |dp/dx × dp/dy|.
 //!
-//! **The metric** is the distortion the primary method bounds (DESIGN §1):
+//! **The metric** is the distortion the primary method bounds
+//! (docs/design.md, *Triangle distortion*):
 //! Sorkine et al. 2002's δ = max(σ₁/s₀, s₀/σ₂), where s₀ is the texel
 //! scale at the patch's creation (exemplar texels per world unit: the
 //! exemplar's width over the world size S it covers), so a patch is

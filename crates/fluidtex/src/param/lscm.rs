@@ -31,11 +31,11 @@
 //! pins, so Cholesky applies: faer's sparse Cholesky with AMD ordering for
 //! large systems, faer's dense Cholesky for small ones (below ~64 free
 //! vertices the symbolic analysis of the sparse path costs more than the
-//! whole dense factorization). DESIGN §7 measured sparse QR on the
-//! rectangular system 6× slower than the normal equations. Both paths run
-//! sequentially (`Par::Seq`): callers parallelize over patches and charts,
-//! and a fixed operation order keeps results bit-identical whatever the
-//! thread count.
+//! whole dense factorization). Sparse QR on the rectangular system measured
+//! 6× slower than the normal equations (docs/design.md, *Crates and
+//! measurements*). Both paths run sequentially (`Par::Seq`): callers
+//! parallelize over patches and charts, and a fixed operation order keeps
+//! results bit-identical whatever the thread count.
 //!
 //! **Pins.** The two vertices extreme along the longest axis of the bounding
 //! box (lowest vertex index on ties), placed at (0, 0) and (d, 0) with d their

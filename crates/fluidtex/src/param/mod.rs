@@ -1,8 +1,8 @@
 //! Surface parameterization: flattening triangle meshes to the plane.
 //!
 //! - [`mod@lscm`] — least-squares conformal maps (Lévy et al. 2002), the one
-//!   solver used both for patch flattening (DESIGN §1 "Flattening") and for
-//!   atlas charts.
+//!   solver used both for patch flattening (docs/design.md, *Flattening*)
+//!   and for atlas charts.
 //! - [`charts`] — segmentation of a mesh into disc-like charts.
 //! - [`flatten`] — LSCM per chart, injectivity check, splitting of folds.
 //! - [`pack`] — packing flattened charts into a texel rectangle.

@@ -4,11 +4,12 @@
 //!
 //! * Simulation: salva3d 0.11, DFSPH pressure solver (Bender & Koschier 2015)
 //!   with XSPH viscosity. salva's adaptive time step is disabled in its code
-//!   (DESIGN §7), so each frame is cut into equal substeps no longer than the
-//!   CFL bound 0.4·2r/v, with v the larger of the fastest particle and the
-//!   free-fall speed √(2gH) of the column — without that, particles leak
-//!   through the walls. Walls and floor are two layers of boundary particles
-//!   (open top). Particles that still escape the tank are deleted.
+//!   (docs/design.md, *Crates and measurements*), so each frame is cut into
+//!   equal substeps no longer than the CFL bound 0.4·2r/v, with v the larger
+//!   of the fastest particle and the free-fall speed √(2gH) of the column —
+//!   without that, particles leak through the walls. Walls and floor are
+//!   two layers of boundary particles (open top). Particles that still
+//!   escape the tank are deleted.
 //! * Surface: splashsurf_lib 0.14 marching cubes on the SPH density
 //!   (threshold 0.6 of the rest density), followed by its marching-cubes
 //!   cleanup (Moore & Warren 1991 vertex snapping) for triangle quality.

@@ -27,7 +27,7 @@
 //!   frames are bit-identical ([`lava`], ≈ 270k triangles).
 //!
 //! Time: frame F is at t = (F − first)/fps seconds; velocities are world
-//! units per second (DESIGN §1).
+//! units per second (docs/design.md, *Time*).
 //!
 //! Entry points: [`by_name`], [`catalogue`], [`default_params`], the
 //! [`Scene`] trait and [`triangle_quality`] (min-angle statistics, used to

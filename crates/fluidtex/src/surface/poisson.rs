@@ -1,5 +1,5 @@
-//! Poisson-disk sampling on surfaces (initial patch distribution, DESIGN §1;
-//! global placement of new patches).
+//! Poisson-disk sampling on surfaces (the initial patch distribution and the
+//! global placement of new patches; docs/design.md, *Initial distribution*).
 //!
 //! Dart throwing over a dense pool of candidates (the surface variant of
 //! Bridson 2007 / Cook 1986): candidates are drawn uniformly by area with a

@@ -1,5 +1,5 @@
 //! The flow between two frames, sampled at arbitrary points, and RK4
-//! advection through it (DESIGN §1 "Time").
+//! advection through it (docs/design.md, *Time*).
 //!
 //! Velocity at a point x near M_t is the barycentric interpolation of the
 //! per-vertex velocity at the closest point of M_t. Advection from frame t to

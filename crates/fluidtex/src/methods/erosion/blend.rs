@@ -1,10 +1,11 @@
-//! The blended fill of the `blend-deformable` baseline (DESIGN §4): the
-//! deformable patches of the erosion method, but every patch covering a
-//! texel contributes, alpha-blended by its interpolated weight w_V (Eqs.
-//! 1–3), instead of the topmost surviving one alone. This is the look of
-//! the 2019 deformable-patch predecessor: no hard seams, but ghosts and a
-//! loss of contrast wherever patches overlap (docs/evaluation.md: blending n layers
-//! with weights w_i leaves ρ² = Σ w_i² of the exemplar's contrast).
+//! The blended fill of the `blend-deformable` baseline (docs/design.md,
+//! *Baselines*): the deformable patches of the erosion method, but every
+//! patch covering a texel contributes, alpha-blended by its interpolated
+//! weight w_V (Eqs. 1–3), instead of the topmost surviving one alone. This
+//! is the look of the 2019 deformable-patch predecessor: no hard seams, but
+//! ghosts and a loss of contrast wherever patches overlap
+//! (docs/evaluation.md: blending n layers with weights w_i leaves
+//! ρ² = Σ w_i² of the exemplar's contrast).
 //!
 //! Patches are located exactly as in [`super::fill`] (same candidates, same
 //! tolerance), so the two fills differ only in how the located layers are

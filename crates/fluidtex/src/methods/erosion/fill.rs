@@ -3,7 +3,7 @@
 //! texel there survives erosion — and never from a blend.
 //!
 //! This is the hot loop of the method, organised for the speed target of
-//! DESIGN §6:
+//! docs/design.md, *Scale and speed*:
 //! - Locating a surface point in a patch needs the patch triangle whose
 //!   footprint contains it. Per frame, every patch triangle is matched with
 //!   the fluid triangles its (slightly enlarged) bounding box meets, through

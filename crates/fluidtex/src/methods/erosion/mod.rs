@@ -78,7 +78,7 @@ impl ErosionState {
 }
 
 /// What the patch machinery does with its patches: the 2021 method, or one
-/// of the DESIGN §4 baselines built from the same parts.
+/// of the baselines built from the same parts (docs/design.md, *Baselines*).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Variant {
     /// The 2021 method: erosion, lapped fill, new patches, deletion.
@@ -1059,11 +1059,12 @@ impl Erosion {
     }
 }
 
-/// The default patch radius (DESIGN §1, refined): `radius_fraction` × the
-/// first frame's bounding-box diagonal, but never below `radius_edges`
-/// median edge lengths, so that a patch spans enough fluid triangles for
-/// its shape and its far-vertex test (r/4) to stand above the re-meshing
-/// noise of the surface. Returns r and a sentence saying which rule won.
+/// The default patch radius (docs/design.md, *Patch radius and exemplar
+/// size*): `radius_fraction` × the first frame's bounding-box diagonal, but
+/// never below `radius_edges` median edge lengths, so that a patch spans
+/// enough fluid triangles for its shape and its far-vertex test (r/4) to
+/// stand above the re-meshing noise of the surface. Returns r and a sentence
+/// saying which rule won.
 pub fn default_radius(mesh: &crate::mesh::TriMesh, params: &ErosionParams) -> (f32, String) {
     let (lo, hi) = mesh.bounding_box().unwrap_or_default();
     let diagonal = lo.distance(hi);

@@ -9,7 +9,7 @@ use super::update::Placement;
 use crate::methods::tone::Tone;
 use crate::methods::{MethodError, check_range};
 
-/// Parameters of the erosion method. Defaults follow DESIGN §1 and the
+/// Parameters of the erosion method. Defaults follow docs/design.md and the
 /// 2021 paper; every field is also a config key and a CLI flag.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]

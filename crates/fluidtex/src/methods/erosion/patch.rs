@@ -19,7 +19,8 @@ use crate::methods::FrameContext;
 use crate::surface::velocity::FlowInterval;
 use crate::surface::{SurfaceIndex, SurfacePoint, closest_point_on_triangle, map_in_query_order};
 
-/// Geometric constants every patch shares (DESIGN §1), world units.
+/// Geometric constants every patch shares (docs/design.md, *Patch radius
+/// and exemplar size*), world units.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PatchShape {
     /// Patch radius r.

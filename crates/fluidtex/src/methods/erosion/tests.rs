@@ -768,7 +768,7 @@ fn missing_velocity_and_bad_parameters_are_errors() {
 }
 
 // ---------------------------------------------------------------------------
-// The baselines built from the same patches (DESIGN §4).
+// The baselines built from the same patches (docs/design.md, *Baselines*).
 
 #[test]
 fn blend_fill_is_the_weight_normalised_mix_of_every_covering_patch() {

@@ -55,9 +55,11 @@ pub enum PatchMask {
         /// uv distance from the centre where the radial profile reaches 0:
         /// r / S, the patch's own footprint.
         reach: f32,
-        /// How much the features move the border \[0.5].
+        /// How much the features move the border \[0.2, the default of
+        /// `lapped_rigid.mask_feature_weight`].
         feature_weight: f32,
-        /// Width of the soft border in profile units \[0.25].
+        /// Width of the soft border in profile units \[0.2, the default of
+        /// `lapped_rigid.mask_softness`].
         softness: f32,
     },
 }

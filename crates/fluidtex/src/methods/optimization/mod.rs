@@ -1,6 +1,7 @@
 //! Texturing fluids by surface texture optimisation with texture
 //! transport (Kwatra, Adalsteinsson, Kim, Kwatra, Carlson, Lin 2007;
-//! DESIGN §3): the optimisation-family baseline. Per frame:
+//! docs/design.md, *The 2007 optimization method*): the optimisation-family
+//! baseline. Per frame:
 //!
 //! 1. [`lattice`]: points over the whole surface at a constant density per
 //!    unit area, connected into a triangle mesh, at `levels` nested
