@@ -97,10 +97,13 @@
 //! [`provenance`] (which patch a texel came from), [`seed`] (seeded random
 //! streams),
 //! [`named`](mod@named) (settings with names on the command line).
-//! [`fuzz`] is the seeded mutation fuzzer the reader tests use.
+//! [`fuzz`] is the seeded mutation fuzzer the reader tests use;
+//! [`departures`] is the ledger of where each method departs from its
+//! paper, from which `docs/departures.md` is generated.
 
 pub mod atlas;
 pub mod coherence;
+pub mod departures;
 pub mod driver;
 pub mod eval;
 pub mod exemplar;

@@ -1,0 +1,833 @@
+//! The departures ledger: every place where fluidtex does something other
+//! than the paper it implements, in one table.
+//!
+//! Three papers are implemented: Gagnon et al. 2021 (patch erosion, the
+//! `erosion` method and the baselines built on its patches), Gagnon,
+//! Dagenais, Paquette 2016 (dynamic lapped textures, `lapped-rigid`) and
+//! Kwatra et al. 2007 (surface texture optimisation, `optimization`).
+//! [`DEPARTURES`] lists each departure with the paper's section, our
+//! default, the paper's setting, the key or flag that selects it and what
+//! it was measured to change; [`AS_PUBLISHED`] lists every other method
+//! parameter, with why its default is what it is (the paper's value, or a
+//! choice the paper leaves open).
+//!
+//! `docs/departures.md` is generated from these tables by [`render`], and
+//! the test `crates/fluidtex/tests/departures_ledger.rs` checks that the
+//! file is current and that every parameter of
+//! [`crate::methods::registry::MethodParams`] has exactly one place here:
+//! a new parameter that is not in the ledger fails CI. Regenerate the file
+//! with `FLUIDTEX_BLESS=1 cargo test -p fluidtex --test departures_ledger`.
+//!
+//! Measured numbers come from the README and the code comments, with the
+//! command that measures them; "not measured" says that nobody has.
+
+/// One way fluidtex departs from a paper it implements.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Departure {
+    /// The methods it applies to (`--method` names).
+    pub method: &'static str,
+    /// The paper and where in it, e.g. "2021 Sec. 5.2, Eq. 1"; the year
+    /// picks the table ([`FAMILIES`]).
+    pub paper: &'static str,
+    /// What the departure is about.
+    pub what: &'static str,
+    /// What fluidtex does by default.
+    pub ours: &'static str,
+    /// What the paper does, and how to get it (or "no paper setting yet").
+    pub paper_setting: &'static str,
+    /// The method parameter (`section.key`, as in the config file) this
+    /// entry is the ledger's place for; `None` where the departure has no
+    /// parameter of its own (no switch yet, or one owned by another entry
+    /// or a run setting, which `flag` then names).
+    pub key: Option<&'static str>,
+    /// The command-line setting that restores the paper's behaviour, if any.
+    pub flag: Option<&'static str>,
+    /// The measured effect, with numbers where they were measured.
+    pub effect: &'static str,
+    /// The command that measures it.
+    pub measure: &'static str,
+}
+
+/// The method families, one table each: (year prefix of
+/// [`Departure::paper`], heading).
+pub const FAMILIES: &[(&str, &str)] = &[
+    (
+        "2021",
+        "Patch erosion (Gagnon et al. 2021): `erosion`, and `advect`, `blend-deformable`, \
+         `dual-rest` built on its patches",
+    ),
+    (
+        "2016",
+        "Dynamic lapped textures (Gagnon, Dagenais, Paquette 2016): `lapped-rigid`",
+    ),
+    (
+        "2007",
+        "Texturing fluids by surface texture optimisation (Kwatra et al. 2007): `optimization`",
+    ),
+];
+
+/// Every departure from the papers, grouped by paper.
+pub const DEPARTURES: &[Departure] = &[
+    // ---- 2021: patch erosion ----------------------------------------
+    Departure {
+        method: "erosion",
+        paper: "2021 Sec. 5.2, Eq. 3",
+        what: "How the vertex weights w_V evolve from frame to frame.",
+        ours: "`weights = progressive`: w_V never rises and falls by at most `erosion_rate` per \
+               second towards Q_V·B_V; a patch that did not move keeps its weights.",
+        paper_setting: "w_V = Q_V·B_V recomputed from scratch every frame (`weights = paper`).",
+        key: Some("erosion.weights"),
+        flag: Some("--weights paper"),
+        effect: "Not measured. With the paper's weights re-meshing jitter and new boundary \
+                 vertices make texels erode, come back and erode again (the texture boils).",
+        measure: "`fluidtex compare --scenes vortex,dam-break --frames 0-47 --methods erosion \
+                  --out cmp`, without and with `--config P`, P: `erosion.weights = \"paper\"`",
+    },
+    Departure {
+        method: "erosion, blend-deformable",
+        paper: "2021 Sec. 5.2, Eq. 1",
+        what: "Where the triangle quality Q_T starts to fall.",
+        ours: "`delta_onset = 1.5` with `erosion_rate = 4.8`: Q_T stays 1 up to δ = 1.5, then \
+               falls linearly to 0 at δ_max; the faster rate still removes a patch before δ_max.",
+        paper_setting: "Q_T falls from δ = 1 on (`delta_onset = 1`, with the rate it came with, \
+                        `erosion_rate = 2.4`).",
+        key: Some("erosion.delta_onset"),
+        flag: Some("--delta-onset 1 --erosion-rate 2.4"),
+        effect: "Paper → ours: switch share median (worst) on `vortex` 17.2 % (20.1) → 14.5 % \
+                 (17.7), on `dam-break` 27.7 % (40.5) → 25.3 % (39.1); colour follow ratio \
+                 0.223 → 0.206 (dam-break); distortion p95 3.47 → 2.71 (enright).",
+        measure: "`fluidtex compare --scenes vortex --frames 0-47 --atlas 512 --methods erosion \
+                  --out cmp` (and `--scenes dam-break --frames 0-30 --atlas 1024`, \
+                  `--scenes enright`), without and with `--config P`, P: \
+                  `erosion.delta_onset = 1.0` and `erosion.erosion_rate = 2.4`",
+    },
+    Departure {
+        method: "erosion",
+        paper: "2021 Sec. 5.2, Eqs. 2–3",
+        what: "The first weights of a new patch.",
+        ours: "With progressive weights a new patch starts at w = 1 on its pinned vertices \
+               (within r/4 of p, and the corners of p's triangle), whatever Q_V; they then fall \
+               towards Q_V·B_V at the erosion rate.",
+        paper_setting: "w_V = Q_V·B_V from the first frame (`weights = paper`, owned by the \
+                        progressive-weights entry).",
+        key: None,
+        flag: Some("--weights paper"),
+        effect: "Not measured on a scene. A unit test builds a curved creation site (δ_max = \
+                 1.2) where the pinned vertices' paper weights fall below 0.5: such a patch \
+                 erodes its own seed texel and is deleted and recreated every frame, even at \
+                 rest.",
+        measure: "`cargo test -p fluidtex --lib \
+                  a_new_patch_keeps_its_centre_whole_however_curved_the_surface`",
+    },
+    Departure {
+        method: "erosion",
+        paper: "2021 Sec. 5.2 (D(u, v))",
+        what: "Where the centre falloff D of the erosion test reaches 0.",
+        ours: "`falloff = footprint`: at the patch's own footprint, uv distance r/S (≈ 0.385 \
+               with S = 2.6 r).",
+        paper_setting: "At uv distance 0.5, the edge of the exemplar square (`falloff = paper`).",
+        key: Some("erosion.falloff"),
+        flag: Some("--falloff paper"),
+        effect: "Not measured. With the paper's reach D stays ≥ 0.23 on a patch, so an \
+                 undistorted patch keeps its polygonal border instead of one along the features.",
+        measure: "`fluidtex compare --scenes vortex,dam-break --methods erosion --out cmp`, \
+                  without and with `--config P`, P: `erosion.falloff = \"paper\"`",
+    },
+    Departure {
+        method: "erosion, advect, blend-deformable, dual-rest",
+        paper: "2021 Sec. 4",
+        what: "Refining patch triangles stretched by the flow.",
+        ours: "`split_edges = 2`: after advection, patch edges longer than 2 median edge lengths \
+               of the frame are split at their midpoint, projected onto the surface; erosion \
+               leaves edges stretched past δ_max whole.",
+        paper_setting: "A patch keeps the triangles it was made with (`split_edges = 0`).",
+        key: Some("erosion.split_edges"),
+        flag: Some("--split-edges 0"),
+        effect: "On the dam break with erosion off, the per-frame source switches fell from \
+                 about 10 % to 7 %.",
+        measure: "`fluidtex compare --scenes dam-break --methods erosion --out cmp --config P` \
+                  with P: `erosion.delta_max = 1000`, then with `erosion.split_edges = 0` added",
+    },
+    Departure {
+        method: "erosion",
+        paper: "2021 Sec. 5.1",
+        what: "The tone of the composite.",
+        ours: "`tone = mean`: each frame every channel is shifted so that its mean over the \
+               covered texels is the exemplar's.",
+        paper_setting: "The composite as the fill makes it (`tone = off`).",
+        key: Some("erosion.tone"),
+        flag: Some("--tone off"),
+        effect: "Dam break, frames 0–30, atlas 1024, luminance against advect: up to 15.8 % \
+                 brighter with the paper's composite, at most 2.9 % with `mean`; popping median \
+                 0.113 against 0.114 without it.",
+        measure: "`fluidtex compare --scenes dam-break --frames 0-30 --atlas 1024 --methods \
+                  erosion,advect --out cmp`, without and with `--config P`, P: \
+                  `erosion.tone = \"off\"`",
+    },
+    Departure {
+        method: "erosion, advect, dual-rest",
+        paper: "2021 Sec. 5.1",
+        what: "How a minified exemplar is read.",
+        ours: "Every channel is read from the exemplar's mip pyramid at the atlas texel's \
+               footprint (run setting `exemplar_filter = trilinear`).",
+        paper_setting: "The patch texel's colour at full resolution (`exemplar_filter = none`).",
+        key: None,
+        flag: Some("--exemplar-filter none"),
+        effect: "Not measured. Point samples of a minified exemplar alias and flicker from frame \
+                 to frame.",
+        measure: "`fluidtex compare --scenes vortex,dam-break --methods erosion --out cmp`, \
+                  without and with `--config P`, P: `exemplar_filter = \"none\"`",
+    },
+    Departure {
+        method: "erosion",
+        paper: "2021 Sec. 5.2 (F_m)",
+        what: "How the erosion test reads the feature map.",
+        ours: "Always at the mip level matching one atlas texel on the patch triangle, also with \
+               `--exemplar-filter none`.",
+        paper_setting: "F_m at the texel's uv, full resolution. No paper setting yet.",
+        key: None,
+        flag: None,
+        effect: "Not measured. The erosion border stays a smooth curve that moves with the patch \
+                 instead of texel-sized speckle that changes every frame.",
+        measure: "None yet: needs a switch.",
+    },
+    Departure {
+        method: "erosion, advect, blend-deformable, dual-rest",
+        paper: "2021 Sec. 4",
+        what: "Which fluid triangles a new patch copies.",
+        ours: "The triangles within r of p that face the side of p's normal and are \
+               edge-connected, through such triangles, to p's triangle.",
+        paper_setting: "Every triangle within r of p that does not face away from the normal at \
+                        p, connected or not. No paper setting yet.",
+        key: None,
+        flag: None,
+        effect: "Not measured. A nearby but separate sheet or droplet is not copied into the \
+                 patch.",
+        measure: "None yet: needs a switch.",
+    },
+    Departure {
+        method: "erosion, blend-deformable",
+        paper: "2021 Sec. 5.2, Eq. 2",
+        what: "Which vertices hold B_V = 1.",
+        ours: "Interior vertices, those within r/4 of p and also the three corners of p's \
+               triangle, in every weights mode (`--weights paper` included).",
+        paper_setting: "Interior vertices and those within r/4 of p only. No paper setting yet.",
+        key: None,
+        flag: None,
+        effect: "Not measured. B_V can no longer erode the texel that created the patch, the \
+                 case the paper's r/4 rule is there to prevent.",
+        measure: "None yet: needs a switch.",
+    },
+    Departure {
+        method: "erosion",
+        paper: "2021 Sec. 5.1",
+        what: "A new patch that erodes the texel it was created for.",
+        ours: "The texel is assigned to that patch anyway (uv 0.5, 0.5) and counted as forced.",
+        paper_setting: "The texel stays uncovered and asks for another patch (Eq. 2 is meant to \
+                        prevent the case). No paper setting yet.",
+        key: None,
+        flag: None,
+        effect: "Not measured. Every new patch covers at least one texel, so the update loop \
+                 ends.",
+        measure: "`forced_texels` in each frame's `stats.F.json` of `fluidtex run` counts the \
+                  texels concerned.",
+    },
+    Departure {
+        method: "erosion",
+        paper: "2021 Sec. 4",
+        what: "Dropping patch triangles that can never show again.",
+        ours: "Each frame, triangles the erosion test erodes whole for good are removed (with \
+               `--weights paper` only once also past δ_max); a vertex left on the new rim keeps \
+               B_V = 1.",
+        paper_setting: "A patch keeps every triangle but those of vertices far from the surface. \
+                        No paper setting yet.",
+        key: None,
+        flag: None,
+        effect: "Mantaflow splash at `--radius 0.4`, frames 1–16, atlas 1024 (with edges past \
+                 δ_max no longer split): 560 s and 22.9 GB before, 13.5 s and 194 MB after.",
+        measure: "`fluidtex run --mesh 'splash/mesh/fluid.####.ply' --frames 1-16 --radius 0.4 \
+                  --atlas 1024 --out o` on `tools/mantaflow_splash.py`'s bake; \
+                  `patch_triangles` and `triangles_pruned` in `stats.F.json`",
+    },
+    // ---- 2016: dynamic lapped textures --------------------------------
+    Departure {
+        method: "lapped-rigid",
+        paper: "2016 Sec. 3.1.3",
+        what: "Where new trackers go.",
+        ours: "One at a time, at the first uncovered texel in texel order (the 2021 rule); its \
+               patch is composited before the next seed is picked.",
+        paper_setting: "A random distribution of trackers over the uncovered areas. No paper \
+                        setting yet.",
+        key: None,
+        flag: None,
+        effect: "Not measured. Placement is deterministic, so a fluid at rest gives identical \
+                 frames.",
+        measure: "None yet: needs a switch.",
+    },
+    Departure {
+        method: "lapped-rigid",
+        paper: "2016 Sec. 3.1.1–3.1.3",
+        what: "Deleting a tracker that left the surface.",
+        ours: "`far_fraction = 0.25`: a tracker farther than r/4 from the next surface after \
+               advection is deleted (the 2021 rule for patch vertices).",
+        paper_setting: "No rule for it: the tracker is projected onto the closest surface \
+                        point, and a patch goes only once unused. No paper setting yet \
+                        (`far_fraction` is at most 10).",
+        key: Some("lapped_rigid.far_fraction"),
+        flag: None,
+        effect: "Not measured.",
+        measure: "None yet: needs a setting that never deletes.",
+    },
+    Departure {
+        method: "lapped-rigid",
+        paper: "2016 Sec. 3.3",
+        what: "When a texel counts as uncovered.",
+        ours: "`coverage = 0.99`: composite α below 0.99 seeds a new tracker.",
+        paper_setting: "A texel that no opaque patch covers (`coverage = 1`).",
+        key: Some("lapped_rigid.coverage"),
+        flag: Some("--rigid-coverage 1"),
+        effect: "Not measured. At 1 soft masks would have to reach exact opacity.",
+        measure: "`fluidtex compare --scenes vortex --methods lapped-rigid --out cmp`, without \
+                  and with `--config P`, P: `lapped_rigid.coverage = 1.0`",
+    },
+    Departure {
+        method: "lapped-rigid",
+        paper: "2016 Sec. 3.1.3, Alg. 1",
+        what: "Faint contributions and unused patches.",
+        ours: "`keep_weight = 0.003921569` (1/255): smaller contributions are dropped, and a \
+               patch left with none is deleted as unused.",
+        paper_setting: "Every contribution counts; a patch is deleted when it is not used at all \
+                        (`keep_weight = 0`).",
+        key: Some("lapped_rigid.keep_weight"),
+        flag: Some("--rigid-keep-weight 0"),
+        effect: "Not measured. Invisible in 8 bits, and deleting an unused patch then changes \
+                 no texel.",
+        measure: "`fluidtex compare --scenes vortex --methods lapped-rigid --out cmp`, without \
+                  and with `--config P`, P: `lapped_rigid.keep_weight = 0.0`",
+    },
+    Departure {
+        method: "lapped-rigid",
+        paper: "2016 Sec. 3, Alg. 1",
+        what: "The patch mask.",
+        ours: "Without a `mask` image, one derived from the feature map: a radial profile moved \
+               by the features, with a soft border, so borders follow the exemplar's features.",
+        paper_setting: "A mask the user supplies (`mask = IMG`).",
+        key: Some("lapped_rigid.mask"),
+        flag: Some("--mask IMG"),
+        effect: "Not measured.",
+        measure: "`fluidtex compare --scenes vortex --methods lapped-rigid --out cmp`, without \
+                  and with `--config P`, P: `lapped_rigid.mask = \"IMG\"`",
+    },
+    Departure {
+        method: "lapped-rigid",
+        paper: "2016 Sec. 3.1.3",
+        what: "When a patch is a sink.",
+        ours: "`sink_speed = 0.25`: all four frame corners move towards the centre faster than \
+               r/4 per second.",
+        paper_setting: "All four corner velocities point towards the centre \
+                        (`sink_speed = 0`).",
+        key: Some("lapped_rigid.sink_speed"),
+        flag: Some("--rigid-sink-speed 0"),
+        effect: "Not measured.",
+        measure: "`fluidtex compare --scenes vortex --methods lapped-rigid --out cmp`, without \
+                  and with `--config P`, P: `lapped_rigid.sink_speed = 0.0`",
+    },
+    Departure {
+        method: "lapped-rigid",
+        paper: "2016 Sec. 3.2.1",
+        what: "Where the alpha falloff is evaluated.",
+        ours: "Per texel, from the angle of the interpolated vertex normal, so a patch is opaque \
+               at its own tracker.",
+        paper_setting: "Per receiver vertex, the alphas interpolated linearly. No paper setting \
+                        yet.",
+        key: None,
+        flag: None,
+        effect: "Not measured. With per-vertex alphas on meshes coarse for ψ, new patches missed \
+                 their seed texel and vanished and came back every frame.",
+        measure: "None yet: needs a switch.",
+    },
+    Departure {
+        method: "lapped-rigid",
+        paper: "2016 Sec. 3.3, Alg. 1",
+        what: "The compositing formula.",
+        ours: "The over operator, oldest patch on top, with α = falloff × mask × fade both for \
+               the patch's colour and for what it hides.",
+        paper_setting: "Algorithm 1 as printed scales what lies beneath by 1 − falloff only. No \
+                        paper setting yet.",
+        key: None,
+        flag: None,
+        effect: "Not measured. As printed, a clear part of the mask where the falloff is 1 would \
+                 erase the patches beneath.",
+        measure: "None yet: needs a switch.",
+    },
+    Departure {
+        method: "lapped-rigid",
+        paper: "2016 Sec. 3.3",
+        what: "A new patch that leaves its own seed texel short.",
+        ours: "The texel is closed with what it has (the patch centre, opaque, if nothing showed) \
+               and counted as forced.",
+        paper_setting: "The insertion repeats until every texel is covered. No paper setting yet.",
+        key: None,
+        flag: None,
+        effect: "Not measured. Every new tracker closes at least one texel, so the loop ends.",
+        measure: "None yet: needs a switch.",
+    },
+    Departure {
+        method: "lapped-rigid",
+        paper: "2016 Sec. 3.3, Alg. 1",
+        what: "How a minified exemplar is read.",
+        ours: "Every channel from the exemplar's mip pyramid at the texel's footprint (run \
+               setting `exemplar_filter = trilinear`).",
+        paper_setting: "The exemplar at full resolution (`exemplar_filter = none`).",
+        key: None,
+        flag: Some("--exemplar-filter none"),
+        effect: "Not measured.",
+        measure: "`fluidtex compare --scenes vortex --methods lapped-rigid --out cmp`, without \
+                  and with `--config P`, P: `exemplar_filter = \"none\"`",
+    },
+    // ---- 2007: surface texture optimisation ---------------------------
+    Departure {
+        method: "optimization",
+        paper: "2007 Sec. V-B, Eqs. 1–2",
+        what: "What the point values become after each averaging step.",
+        ours: "`histogram = matched`: each channel is remapped rank by rank onto the exemplar's \
+               values.",
+        paper_setting: "The weighted average as it is (`histogram = paper`).",
+        key: Some("optimization.histogram"),
+        flag: Some("--histogram paper"),
+        effect: "`vortex`: contrast kept 0.64 → 1.01 of the exemplar's, SWD fidelity ratio \
+                 3.8 → 1.5 (paper → ours), same flow and popping cells.",
+        measure: "`fluidtex compare --scenes vortex --atlas 512 --methods optimization --out \
+                  cmp`, without and with `--config P`, P: \
+                  `optimization.histogram = \"paper\"`",
+    },
+    Departure {
+        method: "optimization",
+        paper: "2007 Sec. V-B",
+        what: "Passes on frames that start from the transported texture.",
+        ours: "`passes_after_first = 2`: the 17² and 9² passes only.",
+        paper_setting: "Every pass, 33², 17², 9² (`passes_after_first = 3`).",
+        key: Some("optimization.passes_after_first"),
+        flag: Some("--passes-after-first 3"),
+        effect: "A carried `dam-break` frame takes 7–8 s instead of 11 s; the `vortex` report \
+                 cells stay as they were.",
+        measure: "`fluidtex scene dam-break --out dam`, then `fluidtex run --mesh \
+                  'dam/fluid.####.ply' --method optimization --out o`, without and with \
+                  `--passes-after-first 3` (seconds in `stats.F.json`)",
+    },
+    Departure {
+        method: "optimization",
+        paper: "2007 Sec. V-B",
+        what: "When a pass stops.",
+        ours: "`iterations = 3`: at most 3 search + average rounds, fewer when no match changes.",
+        paper_setting: "Until convergence (`iterations = 100`; a pass still stops when no match \
+                        changes).",
+        key: Some("optimization.iterations"),
+        flag: Some("--iterations 100"),
+        effect: "With the matched histogram 3 keep every `vortex` report cell of 5 (contrast \
+                 1.01, SWD ratio 1.50 against 1.52).",
+        measure: "`fluidtex compare --scenes vortex --atlas 512 --methods optimization --out \
+                  cmp`, without and with `--config P`, P: `optimization.iterations = 5`",
+    },
+    Departure {
+        method: "optimization",
+        paper: "2007 Sec. V-B, Eq. 1",
+        what: "The norm of the texture energy.",
+        ours: "`robust = 0.8`: each neighbourhood's term is weighted by its error to the power \
+               (0.8 − 2)/2, the robust optimisation of Kwatra et al. 2005.",
+        paper_setting: "Sum of squared differences (`robust = 2`).",
+        key: Some("optimization.robust"),
+        flag: Some("--robust 2"),
+        effect: "Not measured. Least squares averages mismatched neighbourhoods into blur.",
+        measure: "`fluidtex compare --scenes vortex --atlas 512 --methods optimization --out \
+                  cmp`, without and with `--config P`, P: `optimization.robust = 2.0`",
+    },
+    Departure {
+        method: "optimization",
+        paper: "2007 Sec. V-B, Sec. VII",
+        what: "The nearest-neighbour search in the exemplar.",
+        ours: "`search_grid = 9`: PCA to 8 dimensions and a k-d tree over a 9 × 9 subsample of \
+               each w × w neighbourhood, colour channels only, `rerank` candidates re-ranked by \
+               full distance.",
+        paper_setting: "The full w × w neighbourhood, accelerated by hierarchical clustering. \
+                        Not selectable: `search_grid` is at most 15.",
+        key: Some("optimization.search_grid"),
+        flag: None,
+        effect: "Against a brute-force scan (pebbles, 9 × 9 window): exact in the reduced \
+                 space; re-ranked matches within 5 % of the full-space optimum (measured \
+                 1.000).",
+        measure: "`cargo test -p fluidtex --lib accelerated_search_matches_brute_force`",
+    },
+    Departure {
+        method: "optimization",
+        paper: "2007 Sec. V-A.2",
+        what: "Laying out a vertex neighbourhood.",
+        ours: "Ring by ring, each vertex at the average of the positions its placed neighbours \
+               predict; no relaxation afterwards.",
+        paper_setting: "The same average followed by a relaxation step. No paper setting yet.",
+        key: None,
+        flag: None,
+        effect: "Not measured.",
+        measure: "None yet: needs a switch.",
+    },
+    Departure {
+        method: "optimization",
+        paper: "2007 Sec. V-B",
+        what: "Up-sampling from a coarser level.",
+        ours: "Shared points keep their values, new points take the linear interpolation of the \
+               coarser cell; no diffusion.",
+        paper_setting: "Copy from the coarser level, then diffusion at the finer level. No paper \
+                        setting yet.",
+        key: None,
+        flag: None,
+        effect: "Not measured.",
+        measure: "None yet: needs a switch.",
+    },
+    Departure {
+        method: "optimization",
+        paper: "2007 Sec. IV-A",
+        what: "Placing the points and their hierarchy.",
+        ours: "A regular barycentric lattice subdividing every fluid triangle, nested across \
+               levels; its steps are chosen per frame to keep the first frame's spacing.",
+        paper_setting: "Random points spread by Turk's repulsion, then re-tiled into a mesh. No \
+                        paper setting yet.",
+        key: None,
+        flag: None,
+        effect: "Not measured. Spacing follows the fluid triangles' shapes, within about a \
+                 factor of two of the target.",
+        measure: "None yet: needs a switch.",
+    },
+    Departure {
+        method: "optimization",
+        paper: "2007 Sec. IV-B",
+        what: "Smoothing the orientation field.",
+        ours: "Each neighbour's vector projected into the point's tangent plane and averaged; \
+               on a fresh surface the field starts from world X projected on the tangent plane.",
+        paper_setting: "Diffusion of polar-map angles (Zhang et al.) from a zero polar angle. No \
+                        paper setting yet.",
+        key: None,
+        flag: None,
+        effect: "Not measured. Skips the polar map's angle-defect rescaling, which matters only \
+                 at strongly curved vertices.",
+        measure: "None yet: needs a switch.",
+    },
+    Departure {
+        method: "optimization",
+        paper: "2007 Sec. VI-A, Eq. 3",
+        what: "Transporting the colour.",
+        ours: "Each new point back-tracked by RK4 through the mesh's vertex velocities, then the \
+               previous values read at the closest point of the previous surface.",
+        paper_setting: "The coordinate field advected on the simulation grid by a first-order \
+                        upwind scheme. No paper setting yet.",
+        key: None,
+        flag: None,
+        effect: "Not measured.",
+        measure: "None yet: needs a switch.",
+    },
+    Departure {
+        method: "optimization",
+        paper: "2007 Sec. VI-B, Eq. 4",
+        what: "Transporting the orientation.",
+        ours: "The head and tail of a short vector (a quarter of the point spacing) advected \
+               through the flow, then normalised and projected on the new tangent plane.",
+        paper_setting: "Eq. 4 solved by upwind differencing on the grid, after extending the \
+                        field off the surface. No paper setting yet.",
+        key: None,
+        flag: None,
+        effect: "Not measured.",
+        measure: "None yet: needs a switch.",
+    },
+    Departure {
+        method: "optimization",
+        paper: "2007 Sec. III, Sec. VI-A",
+        what: "The velocity the transport reads.",
+        ours: "Per-vertex mesh velocities of the two frames, blended linearly in time; \
+               fluidtex reads no simulation grid.",
+        paper_setting: "The simulation's grid velocities at every intermediate time step. No \
+                        paper setting yet.",
+        key: None,
+        flag: None,
+        effect: "Not measured.",
+        measure: "None yet: needs grid input.",
+    },
+];
+
+/// Every method parameter that is not a departure: (config key, why its
+/// default is what it is).
+pub const AS_PUBLISHED: &[(&str, &str)] = &[
+    // erosion (2021)
+    (
+        "erosion.radius",
+        "The paper leaves r to the user; unset, r comes from `radius_fraction` and \
+         `radius_edges`.",
+    ),
+    (
+        "erosion.radius_fraction",
+        "The paper leaves r to the user: 1/25 of the first frame's bounding-box diagonal, a \
+         default that follows the scene's size.",
+    ),
+    (
+        "erosion.radius_edges",
+        "Not in the paper: r is at least 4 median edge lengths of the first frame, so a patch \
+         spans enough triangles that re-meshing noise does not set its shape.",
+    ),
+    (
+        "erosion.exemplar_size",
+        "The paper leaves the exemplar's world size open; unset, `exemplar_scale` × r.",
+    ),
+    (
+        "erosion.exemplar_scale",
+        "The paper gives no value: 2.6 r, the (2 + β) r with β = 0.6 of the authors' code.",
+    ),
+    (
+        "erosion.delta_max",
+        "The paper's value, δ_max = 3 (Sec. 5.2).",
+    ),
+    ("erosion.epsilon", "The paper's value, ε = 0.1 (Sec. 5.2)."),
+    (
+        "erosion.far_fraction",
+        "The paper's value: vertices farther than r/4 from the surface are removed (Sec. 4).",
+    ),
+    (
+        "erosion.centre_fraction",
+        "The paper's value: B_V = 1 within r/4 of p (Eq. 2).",
+    ),
+    (
+        "erosion.normal_dot",
+        "Left open (the paper uses the Poisson distribution of Gagnon et al. 2019): disks whose \
+         normals' dot product is below 0.9 do not block each other, so both faces of a thin \
+         sheet get patches.",
+    ),
+    (
+        "erosion.substeps",
+        "The paper names no integrator: one RK4 step per frame, as the 2016 paper advects its \
+         trackers.",
+    ),
+    (
+        "erosion.random_rotation",
+        "Left open: a seeded random angle per patch, which hides repetition in stochastic \
+         exemplars.",
+    ),
+    (
+        "erosion.placement",
+        "The paper's rule, `local` (Sec. 5.1); `global` is the strategy its Sec. 7 leaves to \
+         future work.",
+    ),
+    (
+        "erosion.erosion_rate",
+        "Not in the paper: the rate of the progressive weights (see `erosion.weights`), 4.8 per \
+         second (0.2 per frame at 24 fps), set with `delta_onset` so a patch is gone by δ_max.",
+    ),
+    (
+        "erosion.orientation",
+        "Left open: `random`; `aligned` turns the exemplar's up towards `up_axis` for oriented \
+         exemplars.",
+    ),
+    (
+        "erosion.up_axis",
+        "Only with `orientation = aligned`: world +Y.",
+    ),
+    (
+        "erosion.transition",
+        "The paper's at its default 0 (one source per texel); N > 0 is an opt-in cross-fade, \
+         measured in the README (*Choosing a transition*).",
+    ),
+    // dual-rest and atlas-check: no paper
+    (
+        "dual_rest.period",
+        "Not from a paper: the production baseline's reset period, 24 frames.",
+    ),
+    (
+        "atlas_check.cell",
+        "Not from a paper: the diagnostic checker's cell size; unset, from \
+         `cells_per_diagonal`.",
+    ),
+    (
+        "atlas_check.cells_per_diagonal",
+        "Not from a paper: 24 checker cells along the first frame's bounding-box diagonal.",
+    ),
+    // optimization (2007)
+    (
+        "optimization.points",
+        "Within the paper's 100k–500k (Sec. VII): 200000 on the first frame, then the spacing \
+         is kept so the count follows the area (Sec. IV-A).",
+    ),
+    (
+        "optimization.exemplar_texels",
+        "Left open: one point per exemplar texel (the points are the texture's resolution, \
+         Sec. IV-A), so the exemplar spans 128 point spacings.",
+    ),
+    (
+        "optimization.exemplar_size",
+        "Left open: a world size for the exemplar instead of `exemplar_texels`.",
+    ),
+    (
+        "optimization.levels",
+        "The paper's: three levels on the first frame (Sec. VII, footnote 5).",
+    ),
+    (
+        "optimization.levels_after_first",
+        "The paper's: one level on later frames (Sec. VII, footnote 5).",
+    ),
+    (
+        "optimization.sizes",
+        "The paper's passes, 33², 17², 9² (Sec. V-B).",
+    ),
+    (
+        "optimization.rerank",
+        "No paper counterpart: candidates of the search that stands in for the paper's (see \
+         `optimization.search_grid`); 16 costs twice the k-d tree time for the same `vortex` \
+         report cells.",
+    ),
+    (
+        "optimization.centre_spacing",
+        "Left open (the paper asks for significant overlap, Sec. V-B): centres every quarter \
+         width, the overlap of Kwatra et al. 2005.",
+    ),
+    (
+        "optimization.coherence",
+        "Left open: λ_k of Eq. 2 is gradient-weighted as the paper suggests, coherence × \
+         (neighbourhoods covering k) × min(g_k/ḡ, 3), with coherence = 1.",
+    ),
+    (
+        "optimization.orientation_iterations",
+        "Left open (several smoothing iterations, Sec. IV-B): 10 per level.",
+    ),
+    (
+        "optimization.substeps",
+        "No paper counterpart: RK4 steps per frame of the back-tracking that replaces the \
+         paper's grid advection (see the colour-transport departure).",
+    ),
+    // lapped-rigid (2016)
+    (
+        "lapped_rigid.radius",
+        "The paper leaves the patch size to the user; unset, as erosion's rule.",
+    ),
+    (
+        "lapped_rigid.radius_fraction",
+        "Left open: erosion's 1/25 of the diagonal, so both methods compare at one patch size.",
+    ),
+    (
+        "lapped_rigid.radius_edges",
+        "Not in the paper: erosion's rule, at least 4 median edge lengths.",
+    ),
+    (
+        "lapped_rigid.exemplar_size",
+        "Left open; unset, `exemplar_scale` × r.",
+    ),
+    (
+        "lapped_rigid.exemplar_scale",
+        "The paper sizes the exemplar from the patch size without a value: erosion's 2.6 r, so \
+         both methods show the exemplar at one scale.",
+    ),
+    (
+        "lapped_rigid.phi_max",
+        "The paper's value, φ_max = 130° (Sec. 3.2.1).",
+    ),
+    (
+        "lapped_rigid.alpha_opaque",
+        "The paper gives no value: 30°, where the orthographic stretch 1/cos θ is at most 1.15.",
+    ),
+    (
+        "lapped_rigid.alpha_transparent",
+        "The paper gives no value: 60° (stretch 2), keeping ψ_{α=1} < ψ_{α=0} < φ_max.",
+    ),
+    (
+        "lapped_rigid.substeps",
+        "The paper's RK4 (Sec. 3.1.1), one step per frame (the paper gives no count).",
+    ),
+    (
+        "lapped_rigid.normal_dot",
+        "Left open (first-frame Poisson disks, Sec. 3.1.3): erosion's 0.9, so both faces of a \
+         thin sheet get trackers.",
+    ),
+    (
+        "lapped_rigid.random_rotation",
+        "Left open: a seeded random tangent direction per new tracker.",
+    ),
+    (
+        "lapped_rigid.mask_feature_weight",
+        "No paper counterpart: how far the features move the derived mask's border (see \
+         `lapped_rigid.mask`), 0.2.",
+    ),
+    (
+        "lapped_rigid.mask_softness",
+        "No paper counterpart: width of the derived mask's soft border (see \
+         `lapped_rigid.mask`), 0.2.",
+    ),
+    (
+        "lapped_rigid.sink_fade_rate",
+        "Left open (a fade rate proportional to the inward speed, Sec. 3.1.3): 1 fades a sink \
+         out in the time the flow takes to carry its corners to its centre.",
+    ),
+];
+
+/// A table cell: `|` escaped, no line breaks.
+fn cell(text: &str) -> String {
+    text.replace('|', "\\|").replace('\n', " ")
+}
+
+/// A key or flag as code, or a dash.
+fn code_or_dash(text: Option<&str>) -> String {
+    match text {
+        Some(t) => format!("`{}`", cell(t)),
+        None => "—".to_string(),
+    }
+}
+
+/// The markdown of `docs/departures.md`.
+pub fn render() -> String {
+    let mut out = String::new();
+    out.push_str(
+        "# Where fluidtex departs from the papers\n\
+         \n\
+         <!-- Generated from crates/fluidtex/src/departures.rs by \
+         fluidtex::departures::render(); do not edit by hand. Regenerate with \
+         FLUIDTEX_BLESS=1 cargo test -p fluidtex --test departures_ledger -->\n\
+         \n\
+         fluidtex implements three papers: Gagnon et al. 2021 (patch erosion), Gagnon, \
+         Dagenais, Paquette 2016 (dynamic lapped textures) and Kwatra et al. 2007 (surface \
+         texture optimisation). This ledger lists every place where it does something else, \
+         one row each: the paper's section, what fluidtex does by default, what the paper \
+         does, the method parameter (config key, `section.key`) the row is the place for and \
+         the flag that restores the paper, and what the departure was measured to change, with \
+         the command that measures it (\"not measured\" where nobody has). A command run \
+         \"without and with `--config P`\" is run twice, the second time with P, a TOML file \
+         holding the lines given. Every method parameter appears exactly once in this ledger, \
+         as a departure or in the last table (the paper's value, or a choice the paper leaves \
+         open); a test holds the ledger against the parameters, so a new parameter must be \
+         entered here. The README explains the larger departures at length.\n",
+    );
+    for (year, heading) in FAMILIES {
+        out.push_str(&format!("\n## {heading}\n\n"));
+        out.push_str(
+            "| method | paper | what | ours (default) | the paper's | key | flag | measured \
+             effect | measured by |\n",
+        );
+        out.push_str("|---|---|---|---|---|---|---|---|---|\n");
+        for d in DEPARTURES.iter().filter(|d| d.paper.starts_with(year)) {
+            out.push_str(&format!(
+                "| {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
+                cell(d.method),
+                cell(d.paper),
+                cell(d.what),
+                cell(d.ours),
+                cell(d.paper_setting),
+                code_or_dash(d.key),
+                code_or_dash(d.flag),
+                cell(d.effect),
+                cell(d.measure),
+            ));
+        }
+    }
+    out.push_str(
+        "\n## Parameters as published, or left open by the paper\n\n\
+         Every other method parameter: the paper's value, a choice the paper leaves open, or a \
+         setting of a departure above or of a method that is not from a paper.\n\n\
+         | key | why |\n|---|---|\n",
+    );
+    for (key, why) in AS_PUBLISHED {
+        out.push_str(&format!("| `{}` | {} |\n", cell(key), cell(why)));
+    }
+    out
+}

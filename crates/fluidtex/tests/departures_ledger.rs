@@ -1,0 +1,318 @@
+//! The departures ledger (`fluidtex::departures`) against the parameters
+//! and against `docs/departures.md`:
+//!
+//! - the file is exactly what `render()` writes (regenerate it with
+//!   `FLUIDTEX_BLESS=1 cargo test -p fluidtex --test departures_ledger`);
+//! - every parameter of every method's section of `MethodParams`
+//!   (`section.key`, as in the config file) has exactly one place in the
+//!   ledger, a departure or an `AS_PUBLISHED` row, and the ledger names no
+//!   parameter that does not exist: a new parameter fails here until it is
+//!   entered;
+//! - a departure's default, as it states it, is the parameter's default,
+//!   and its flag is the parameter's flag.
+//!
+//! The keys are read from serde, not listed by hand: the field names each
+//! `Deserialize` struct asks for (so also those it leaves out when
+//! serialising), cross-checked against a serialisation of the defaults.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::PathBuf;
+
+use fluidtex::departures::{AS_PUBLISHED, DEPARTURES, FAMILIES, render};
+use fluidtex::methods::atlas_check::AtlasCheckParams;
+use fluidtex::methods::dual_rest::DualRestParams;
+use fluidtex::methods::erosion::ErosionParams;
+use fluidtex::methods::lapped_rigid::LappedRigidParams;
+use fluidtex::methods::optimization::OptimizationParams;
+use fluidtex::methods::registry::MethodParams;
+use serde::Deserialize;
+
+const BLESS: &str = "FLUIDTEX_BLESS=1 cargo test -p fluidtex --test departures_ledger";
+
+fn ledger_file() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../docs/departures.md")
+}
+
+/// The field names a `Deserialize` struct asks for (serde hands them to
+/// `deserialize_struct`).
+fn fields_of<'de, T: Deserialize<'de>>() -> &'static [&'static str] {
+    use serde::de::{Error as _, Visitor, value::Error};
+    struct Fields(&'static [&'static str]);
+    impl<'de> serde::Deserializer<'de> for &mut Fields {
+        type Error = Error;
+        fn deserialize_any<V: Visitor<'de>>(self, _: V) -> Result<V::Value, Error> {
+            Err(Error::custom("field names only"))
+        }
+        fn deserialize_struct<V: Visitor<'de>>(
+            self,
+            _: &'static str,
+            fields: &'static [&'static str],
+            _: V,
+        ) -> Result<V::Value, Error> {
+            self.0 = fields;
+            Err(Error::custom("field names only"))
+        }
+        serde::forward_to_deserialize_any! {
+            bool i8 i16 i32 i64 i128 u8 u16 u32 u64 u128 f32 f64 char str string bytes
+            byte_buf option unit unit_struct newtype_struct seq tuple tuple_struct map
+            enum identifier ignored_any
+        }
+    }
+    let mut f = Fields(&[]);
+    let _ = T::deserialize(&mut f);
+    f.0
+}
+
+/// The fields of the parameter section `section` of `MethodParams`.
+fn section_fields(section: &str) -> &'static [&'static str] {
+    match section {
+        "erosion" => fields_of::<ErosionParams>(),
+        "atlas_check" => fields_of::<AtlasCheckParams>(),
+        "dual_rest" => fields_of::<DualRestParams>(),
+        "optimization" => fields_of::<OptimizationParams>(),
+        "lapped_rigid" => fields_of::<LappedRigidParams>(),
+        other => panic!(
+            "MethodParams has a section `{other}` this test does not know: add it to \
+             section_fields, and its parameters to crates/fluidtex/src/departures.rs"
+        ),
+    }
+}
+
+/// Every parameter key of every method, `section.key`.
+fn parameter_keys() -> BTreeSet<String> {
+    let sections = fields_of::<MethodParams>();
+    assert!(sections.contains(&"erosion"), "introspection read nothing");
+    let mut keys = BTreeSet::new();
+    for section in sections {
+        for field in section_fields(section) {
+            keys.insert(format!("{section}.{field}"));
+        }
+    }
+    keys
+}
+
+/// The defaults, `section.key` → value, read back from their JSON text
+/// (so f32 values print as written, 0.04 and not 0.03999999910593033).
+fn default_values() -> BTreeMap<String, serde_json::Value> {
+    let text = serde_json::to_string(&MethodParams::default()).expect("defaults serialise");
+    let value: serde_json::Value = serde_json::from_str(&text).expect("json");
+    let mut out = BTreeMap::new();
+    for (section, fields) in value.as_object().expect("an object") {
+        for (field, v) in fields.as_object().expect("a section is an object") {
+            out.insert(format!("{section}.{field}"), v.clone());
+        }
+    }
+    out
+}
+
+/// Where the ledger and the parameters `keys` disagree, one line each.
+fn disagreements(
+    keys: &BTreeSet<String>,
+    departures: &[Option<&str>],
+    as_published: &[&str],
+) -> Vec<String> {
+    let mut count: BTreeMap<&str, usize> = BTreeMap::new();
+    for k in departures.iter().flatten().chain(as_published) {
+        *count.entry(k).or_default() += 1;
+    }
+    let mut problems = Vec::new();
+    for k in keys {
+        match count.get(k.as_str()) {
+            None => problems.push(format!(
+                "parameter {k} is not in the ledger: add it to DEPARTURES or AS_PUBLISHED in \
+                 crates/fluidtex/src/departures.rs, then run {BLESS}"
+            )),
+            Some(&n) if n > 1 => problems.push(format!(
+                "parameter {k} is in the ledger {n} times, not once"
+            )),
+            Some(_) => {}
+        }
+    }
+    for k in count.keys().filter(|k| !keys.contains(**k)) {
+        problems.push(format!(
+            "the ledger names {k}, which is no method parameter"
+        ));
+    }
+    problems
+}
+
+fn ledger_departure_keys() -> Vec<Option<&'static str>> {
+    DEPARTURES.iter().map(|d| d.key).collect()
+}
+
+fn ledger_published_keys() -> Vec<&'static str> {
+    AS_PUBLISHED.iter().map(|(k, _)| *k).collect()
+}
+
+#[test]
+fn docs_departures_md_is_generated_from_the_ledger() {
+    let file = ledger_file();
+    let text = render();
+    if std::env::var_os("FLUIDTEX_BLESS").is_some_and(|v| v == "1") {
+        std::fs::write(&file, &text).unwrap_or_else(|e| panic!("{}: {e}", file.display()));
+        return;
+    }
+    let on_disk = std::fs::read_to_string(&file)
+        .unwrap_or_else(|e| panic!("{}: {e}; write it with: {BLESS}", file.display()));
+    if on_disk != text {
+        let line = on_disk
+            .lines()
+            .zip(text.lines())
+            .position(|(a, b)| a != b)
+            .map_or(on_disk.lines().count().min(text.lines().count()), |i| i)
+            + 1;
+        panic!(
+            "{} is not what fluidtex::departures::render() writes (first difference on line \
+             {line}). Edit crates/fluidtex/src/departures.rs, not the file, then run\n  {BLESS}",
+            file.display()
+        );
+    }
+}
+
+#[test]
+fn every_parameter_has_exactly_one_place_in_the_ledger() {
+    let keys = parameter_keys();
+    // Both sides were really read: a known key of each section.
+    for k in [
+        "erosion.delta_onset",
+        "erosion.transition",
+        "optimization.histogram",
+        "lapped_rigid.sink_fade_rate",
+        "dual_rest.period",
+        "atlas_check.cell",
+    ] {
+        assert!(keys.contains(k), "{k} not found by introspection");
+    }
+    // What serde writes of the defaults is a subset of what it reads (a
+    // field left out at its default, such as erosion.transition, is not).
+    for k in default_values().keys() {
+        assert!(keys.contains(k), "{k} serialised but not introspected");
+    }
+    let problems = disagreements(&keys, &ledger_departure_keys(), &ledger_published_keys());
+    assert!(problems.is_empty(), "{problems:#?}");
+}
+
+/// Known-bad controls: a parameter missing from the ledger, one entered
+/// twice and a ledger key naming no parameter are each reported.
+#[test]
+fn a_missing_doubled_or_unknown_key_is_caught() {
+    let keys = parameter_keys();
+    let departures = ledger_departure_keys();
+    let published = ledger_published_keys();
+
+    let fewer: Vec<&str> = published
+        .iter()
+        .copied()
+        .filter(|k| *k != "erosion.epsilon")
+        .collect();
+    let p = disagreements(&keys, &departures, &fewer);
+    assert!(
+        p.iter()
+            .any(|l| l.contains("parameter erosion.epsilon is not in the ledger")),
+        "{p:#?}"
+    );
+
+    let mut more_keys = keys.clone();
+    more_keys.insert("erosion.invented".into());
+    let p = disagreements(&more_keys, &departures, &published);
+    assert!(
+        p.iter()
+            .any(|l| l.contains("parameter erosion.invented is not in the ledger")),
+        "{p:#?}"
+    );
+
+    let mut doubled = published.clone();
+    doubled.push("erosion.weights");
+    let p = disagreements(&keys, &departures, &doubled);
+    assert!(
+        p.iter()
+            .any(|l| l.contains("erosion.weights is in the ledger 2 times")),
+        "{p:#?}"
+    );
+
+    let mut unknown = published.clone();
+    unknown.push("erosion.no_such_key");
+    let p = disagreements(&keys, &departures, &unknown);
+    assert!(
+        p.iter()
+            .any(|l| l.contains("names erosion.no_such_key, which is no method parameter")),
+        "{p:#?}"
+    );
+}
+
+/// The flag of a parameter, by the CLI's naming rule (`--key-with-dashes`,
+/// `--rigid-...` for lapped_rigid), with its exceptions; `None` for keys
+/// set in the file only.
+fn flag_of(key: &str) -> Option<String> {
+    let (section, leaf) = key.split_once('.').expect("section.key");
+    let dashed = leaf.replace('_', "-");
+    match key {
+        "erosion.random_rotation" => Some("--no-rotation".into()),
+        "lapped_rigid.random_rotation" => Some("--rigid-no-rotation".into()),
+        "lapped_rigid.mask" => Some("--mask".into()),
+        "erosion.radius_fraction" | "erosion.exemplar_scale" | "erosion.normal_dot" => None,
+        _ => match section {
+            "lapped_rigid" => Some(format!("--rigid-{dashed}")),
+            "atlas_check" => None,
+            _ => Some(format!("--{dashed}")),
+        },
+    }
+}
+
+#[test]
+fn each_departure_states_its_parameters_default_and_flag() {
+    let defaults = default_values();
+    let mut problems = Vec::new();
+    for d in DEPARTURES {
+        for (name, text) in [
+            ("method", d.method),
+            ("paper", d.paper),
+            ("what", d.what),
+            ("ours", d.ours),
+            ("paper_setting", d.paper_setting),
+            ("effect", d.effect),
+            ("measure", d.measure),
+        ] {
+            if text.trim().is_empty() {
+                problems.push(format!("{}: {name} is empty", d.what));
+            }
+        }
+        if !FAMILIES.iter().any(|(year, _)| d.paper.starts_with(year)) {
+            problems.push(format!(
+                "{}: paper {:?} starts with no year of FAMILIES, so no table shows it",
+                d.what, d.paper
+            ));
+        }
+        let Some(key) = d.key else { continue };
+        let leaf = key.split_once('.').map_or(key, |(_, l)| l);
+        let stated = match defaults.get(key) {
+            Some(serde_json::Value::String(s)) => Some(s.clone()),
+            Some(serde_json::Value::Bool(b)) => Some(b.to_string()),
+            Some(serde_json::Value::Number(n)) => Some(match n.as_f64() {
+                Some(x) if x.fract() == 0.0 && x.abs() < 1e15 => format!("{}", x as i64),
+                _ => n.to_string(),
+            }),
+            // No default value (an unset option) or a list: nothing to state.
+            _ => None,
+        };
+        if let Some(value) = stated {
+            let needle = format!("`{leaf} = {value}`");
+            if !d.ours.contains(&needle) {
+                problems.push(format!(
+                    "{key}: `ours` should state the default as {needle}: {:?}",
+                    d.ours
+                ));
+            }
+        }
+        if let Some(flag) = d.flag {
+            let first = flag.split_whitespace().next().unwrap_or("");
+            match flag_of(key) {
+                Some(expected) if expected == first => {}
+                expected => problems.push(format!(
+                    "{key}: flag {flag:?} is not the parameter's flag ({expected:?})"
+                )),
+            }
+        }
+    }
+    assert!(problems.is_empty(), "{problems:#?}");
+}
