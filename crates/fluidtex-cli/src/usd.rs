@@ -105,8 +105,8 @@ impl FrameSource for UsdSource {
         vec![self.file.clone()]
     }
 
-    fn largest_triangles(&mut self) -> Result<Option<u64>, PipelineError> {
-        self.inner.largest_triangles()
+    fn largest_frame(&mut self) -> Result<Option<fluidtex::mesh::TriMesh>, PipelineError> {
+        self.inner.largest_frame()
     }
 }
 

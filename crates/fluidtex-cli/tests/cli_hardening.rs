@@ -351,7 +351,15 @@ fn estimates_bound_the_measured_peak() {
             found.unwrap_or_else(|| panic!("no {start:?} line: {stderr}"))
         };
         let said = format!("{method} at {atlas}²");
-        assert_estimate_bounds_peak(&stderr, &said);
+        if method == "blend-deformable" {
+            // Its patches keep every triangle they gathered, so its model
+            // is sized for a run of about two seconds, not four frames:
+            // here only the bound holds.
+            let (peak, estimate) = peak_and_estimate(&stderr, &said);
+            assert!(estimate >= peak, "{said}: {peak} > {estimate}");
+        } else {
+            assert_estimate_bounds_peak(&stderr, &said);
+        }
         // The triangles named are those of the largest frame.
         let largest = (0..4)
             .map(|f| {

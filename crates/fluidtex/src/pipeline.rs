@@ -58,11 +58,10 @@ pub trait FrameSource {
     fn input_paths(&self) -> Vec<PathBuf> {
         Vec::new()
     }
-    /// The triangle count of the largest frame, for the memory estimate
-    /// made before the first frame; `None` where the source cannot tell
-    /// without reading every frame (the estimate then assumes
-    /// [`UNKNOWN_TRIANGLES`]).
-    fn largest_triangles(&mut self) -> Result<Option<u64>, PipelineError> {
+    /// The largest frame's mesh, for the memory estimate made before the
+    /// first frame; `None` where the source cannot tell without reading
+    /// every frame (the estimate then assumes [`UNKNOWN_TRIANGLES`]).
+    fn largest_frame(&mut self) -> Result<Option<TriMesh>, PipelineError> {
         Ok(None)
     }
 }
@@ -177,19 +176,22 @@ fn fitting_estimate(
     method: &dyn Method,
 ) -> Result<MemoryEstimate, PipelineError> {
     let available = job.hooks.available_memory.or_else(available_memory);
-    let estimate = |triangles: u64| {
+    let estimate = |triangles: u64, largest: Option<&TriMesh>| {
         estimate_memory(
             &job.atlas,
             &method.channel_specs(),
             &job.outputs,
-            method.memory_model(&job.atlas),
+            method.memory_model(&job.atlas, largest),
             triangles,
         )
         .with_available(available)
     };
-    estimate(0).check()?;
-    let triangles = source.largest_triangles()?.unwrap_or(UNKNOWN_TRIANGLES);
-    let estimate = estimate(triangles);
+    estimate(0, None).check()?;
+    let largest = source.largest_frame()?;
+    let triangles = largest
+        .as_ref()
+        .map_or(UNKNOWN_TRIANGLES, |m| m.triangles.len() as u64);
+    let estimate = estimate(triangles, largest.as_ref());
     estimate.check()?;
     Ok(estimate)
 }
@@ -468,14 +470,13 @@ impl FrameSource for SequenceSource {
     /// Reads the frame with the largest file: the frames of a simulation
     /// share one format and one set of properties, so the file size
     /// follows the element counts.
-    fn largest_triangles(&mut self) -> Result<Option<u64>, PipelineError> {
+    fn largest_frame(&mut self) -> Result<Option<TriMesh>, PipelineError> {
         let size =
             |f: i32| std::fs::metadata(self.sequence.pattern().path(f)).map_or(0, |m| m.len());
         let Some(largest) = self.frames.iter().copied().max_by_key(|&f| (size(f), -f)) else {
             return Ok(None);
         };
-        let frame = self.sequence.read_frame(largest)?;
-        Ok(Some(frame.mesh.triangles.len() as u64))
+        Ok(Some(self.sequence.read_frame(largest)?.mesh))
     }
 
     fn input_paths(&self) -> Vec<PathBuf> {
@@ -586,11 +587,11 @@ impl FrameSource for SceneSource {
 
     /// The first frame's count: a scene's surface changes little in size
     /// over its frames, and generating every one would double the run.
-    fn largest_triangles(&mut self) -> Result<Option<u64>, PipelineError> {
+    fn largest_frame(&mut self) -> Result<Option<TriMesh>, PipelineError> {
         let Some(&first) = self.frames.first() else {
             return Ok(None);
         };
-        Ok(Some(self.read(first)?.0.triangles.len() as u64))
+        Ok(Some(self.read(first)?.0))
     }
 }
 

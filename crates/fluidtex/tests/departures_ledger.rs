@@ -24,8 +24,7 @@ use fluidtex::methods::dual_rest::DualRestParams;
 use fluidtex::methods::erosion::ErosionParams;
 use fluidtex::methods::lapped_rigid::LappedRigidParams;
 use fluidtex::methods::optimization::OptimizationParams;
-use fluidtex::methods::registry::MethodParams;
-use serde::Deserialize;
+use fluidtex::methods::registry::{MethodParams, field_names};
 
 const BLESS: &str = "FLUIDTEX_BLESS=1 cargo test -p fluidtex --test departures_ledger";
 
@@ -33,44 +32,14 @@ fn ledger_file() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../docs/departures.md")
 }
 
-/// The field names a `Deserialize` struct asks for (serde hands them to
-/// `deserialize_struct`).
-fn fields_of<'de, T: Deserialize<'de>>() -> &'static [&'static str] {
-    use serde::de::{Error as _, Visitor, value::Error};
-    struct Fields(&'static [&'static str]);
-    impl<'de> serde::Deserializer<'de> for &mut Fields {
-        type Error = Error;
-        fn deserialize_any<V: Visitor<'de>>(self, _: V) -> Result<V::Value, Error> {
-            Err(Error::custom("field names only"))
-        }
-        fn deserialize_struct<V: Visitor<'de>>(
-            self,
-            _: &'static str,
-            fields: &'static [&'static str],
-            _: V,
-        ) -> Result<V::Value, Error> {
-            self.0 = fields;
-            Err(Error::custom("field names only"))
-        }
-        serde::forward_to_deserialize_any! {
-            bool i8 i16 i32 i64 i128 u8 u16 u32 u64 u128 f32 f64 char str string bytes
-            byte_buf option unit unit_struct newtype_struct seq tuple tuple_struct map
-            enum identifier ignored_any
-        }
-    }
-    let mut f = Fields(&[]);
-    let _ = T::deserialize(&mut f);
-    f.0
-}
-
 /// The fields of the parameter section `section` of `MethodParams`.
 fn section_fields(section: &str) -> &'static [&'static str] {
     match section {
-        "erosion" => fields_of::<ErosionParams>(),
-        "atlas_check" => fields_of::<AtlasCheckParams>(),
-        "dual_rest" => fields_of::<DualRestParams>(),
-        "optimization" => fields_of::<OptimizationParams>(),
-        "lapped_rigid" => fields_of::<LappedRigidParams>(),
+        "erosion" => field_names::<ErosionParams>(),
+        "atlas_check" => field_names::<AtlasCheckParams>(),
+        "dual_rest" => field_names::<DualRestParams>(),
+        "optimization" => field_names::<OptimizationParams>(),
+        "lapped_rigid" => field_names::<LappedRigidParams>(),
         other => panic!(
             "MethodParams has a section `{other}` this test does not know: add it to \
              section_fields, and its parameters to crates/fluidtex/src/departures.rs"
@@ -80,7 +49,7 @@ fn section_fields(section: &str) -> &'static [&'static str] {
 
 /// Every parameter key of every method, `section.key`.
 fn parameter_keys() -> BTreeSet<String> {
-    let sections = fields_of::<MethodParams>();
+    let sections = field_names::<MethodParams>();
     assert!(sections.contains(&"erosion"), "introspection read nothing");
     let mut keys = BTreeSet::new();
     for section in sections {

@@ -92,9 +92,9 @@ impl FrameSource for Memory {
             .ok_or_else(|| PipelineError::Source(format!("frame {f} was not generated")))
     }
 
-    fn largest_triangles(&mut self) -> Result<Option<u64>, PipelineError> {
-        let most = self.frames.iter().map(|(_, m)| m.triangles.len()).max();
-        Ok(most.map(|n| n as u64))
+    fn largest_frame(&mut self) -> Result<Option<TriMesh>, PipelineError> {
+        let most = self.frames.iter().max_by_key(|(_, m)| m.triangles.len());
+        Ok(most.map(|(_, m)| m.clone()))
     }
 }
 

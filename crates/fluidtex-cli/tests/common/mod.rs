@@ -407,14 +407,24 @@ pub fn between<'a>(line: &'a str, start: &str, end: &str) -> &'a str {
 /// E)`: the estimate made before the first frame bounds the peak it then
 /// reached, by no more than twice. Returns (peak, estimate) in bytes.
 pub fn assert_estimate_bounds_peak(stderr: &str, what: &str) -> (f64, f64) {
+    let (measured, estimated) = peak_and_estimate(stderr, what);
+    assert!(estimated >= measured, "{what}: {measured} > {estimated}");
+    assert!(
+        estimated <= 2.0 * measured,
+        "{what}: {estimated} > 2 × {measured}"
+    );
+    (measured, estimated)
+}
+
+/// The (peak, estimate) in bytes of a run's `peak memory P (estimated E)`
+/// line.
+pub fn peak_and_estimate(stderr: &str, what: &str) -> (f64, f64) {
     let line = stderr
         .lines()
         .find(|l| l.starts_with("peak memory "))
         .unwrap_or_else(|| panic!("{what}: no peak memory line: {stderr}"));
+    eprintln!("{what}: {line}");
     let measured = size(between(line, "peak memory ", " ("));
     let estimated = size(between(line, "(estimated ", ")"));
-    eprintln!("{what}: {line}");
-    assert!(estimated >= measured, "{what}: {line}");
-    assert!(estimated <= 2.0 * measured, "{what}: {line}");
     (measured, estimated)
 }

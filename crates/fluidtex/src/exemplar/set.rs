@@ -261,6 +261,11 @@ impl ExemplarSet {
         &self.exemplars
     }
 
+    /// Bytes the exemplars hold ([`Exemplar::memory_bytes`]).
+    pub fn memory_bytes(&self) -> u64 {
+        self.exemplars.iter().map(|e| e.memory_bytes()).sum()
+    }
+
     pub fn names(&self) -> &[String] {
         &self.names
     }

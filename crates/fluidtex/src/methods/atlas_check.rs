@@ -90,7 +90,11 @@ impl Method for AtlasCheck {
         false
     }
 
-    fn memory_model(&self, _: &crate::atlas::AtlasParams) -> super::MemoryModel {
+    fn memory_model(
+        &self,
+        _: &crate::atlas::AtlasParams,
+        _: Option<&crate::mesh::TriMesh>,
+    ) -> super::MemoryModel {
         // A colour per chart and nothing kept between frames; its charts'
         // colours and the uv of each texel are all it adds.
         super::MemoryModel {

@@ -113,11 +113,15 @@ impl Method for DualRest {
         "dual-rest"
     }
 
-    fn memory_model(&self, atlas: &crate::atlas::AtlasParams) -> super::MemoryModel {
+    fn memory_model(
+        &self,
+        atlas: &crate::atlas::AtlasParams,
+        largest: Option<&crate::mesh::TriMesh>,
+    ) -> super::MemoryModel {
         // Two advected layers (measured: 4.5 kB per triangle with a run
         // starting at a splash's largest frame, against one layer's 3.7)
         // and, per texel, the second layer's result besides the first.
-        let layer = self.layers[0].memory_model(atlas);
+        let layer = self.layers[0].memory_model(atlas, largest);
         super::MemoryModel {
             fixed: layer.fixed,
             per_triangle: layer.per_triangle + 800,

@@ -355,9 +355,14 @@ pub trait Method: Send {
     fn load_state(&mut self, bytes: &[u8]) -> Result<(), MethodError>;
 
     /// What the method holds in memory at the peak of a frame with an atlas
-    /// of `atlas`, for the estimate made before the first frame.
-    fn memory_model(&self, atlas: &crate::atlas::AtlasParams) -> MemoryModel {
-        let _ = atlas;
+    /// of `atlas`, for the estimate made before the first frame; `largest`
+    /// is the largest frame's mesh where the source could tell.
+    fn memory_model(
+        &self,
+        atlas: &crate::atlas::AtlasParams,
+        largest: Option<&crate::mesh::TriMesh>,
+    ) -> MemoryModel {
+        let _ = (atlas, largest);
         MemoryModel::default()
     }
 

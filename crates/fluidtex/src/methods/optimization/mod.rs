@@ -827,7 +827,11 @@ impl Method for Optimization {
         "optimization"
     }
 
-    fn memory_model(&self, atlas: &crate::atlas::AtlasParams) -> super::MemoryModel {
+    fn memory_model(
+        &self,
+        atlas: &crate::atlas::AtlasParams,
+        _: Option<&crate::mesh::TriMesh>,
+    ) -> super::MemoryModel {
         // The points: the target count, exceeded up to 9/4 by the lattice's
         // power-of-two steps, and never much denser than the atlas texels.
         // Each holds its neighbourhood vectors over the hierarchy and the
