@@ -91,6 +91,10 @@ pub struct Config {
     /// index, projected from above over the first frame's x-z extent).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub exemplar_region: Option<PathBuf>,
+    /// `paper`: every departure from the papers that has a paper setting
+    /// set to it (`docs/departures.md`); the file's keys and the flags win.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub preset: Option<String>,
 }
 
 /// One of several exemplars (`exemplars = [{ path = ..., weight = ... }]`).
@@ -118,6 +122,21 @@ fn is_default_rigid(p: &LappedRigidParams) -> bool {
     *p == LappedRigidParams::default()
 }
 
+/// Inserts every key of `from` that `into` does not have, table by table.
+fn fill_missing(into: &mut toml::Table, from: toml::Table) {
+    for (key, value) in from {
+        match (into.get_mut(&key), value) {
+            (Some(toml::Value::Table(mine)), toml::Value::Table(theirs)) => {
+                fill_missing(mine, theirs)
+            }
+            (Some(_), _) => {}
+            (None, value) => {
+                into.insert(key, value);
+            }
+        }
+    }
+}
+
 impl Config {
     /// Reads a TOML config; relative paths become relative to its folder.
     pub fn load(path: &Path) -> Result<Config> {
@@ -126,9 +145,70 @@ impl Config {
         Config::parse(&text, path)
     }
 
+    /// Reads the config at `path` (none: the defaults) under `preset` (a
+    /// `--preset` flag, which wins over the file's `preset` key).
+    pub fn load_with_preset(path: Option<&Path>, preset: Option<&str>) -> Result<Config> {
+        match path {
+            Some(path) => {
+                let text = std::fs::read_to_string(path)
+                    .with_context(|| format!("{}: cannot read the config", path.display()))?;
+                Config::parse_with_preset(&text, path, preset)
+            }
+            None => Config::parse_with_preset("", Path::new(""), preset),
+        }
+    }
+
     /// Parses a config's text; `path` names it in messages and anchors its
     /// relative paths.
     pub fn parse(text: &str, path: &Path) -> Result<Config> {
+        Config::parse_with_preset(text, path, None)
+    }
+
+    /// [`Config::parse`] under `preset` (or the text's own `preset` key):
+    /// the preset's keys fill in what the text does not set.
+    pub fn parse_with_preset(text: &str, path: &Path, preset: Option<&str>) -> Result<Config> {
+        let config = Config::parse_text(text, path)?;
+        let Some(preset) = preset.map(str::to_owned).or(config.preset.clone()) else {
+            return Ok(config);
+        };
+        if preset != "paper" {
+            bail!(
+                "{}: preset = {preset:?}: the one preset is \"paper\"",
+                path.display()
+            );
+        }
+        let mut table: toml::Table = toml::from_str(text)
+            .with_context(|| format!("{}: not a TOML table", path.display()))?;
+        let paper: toml::Table = toml::from_str(&fluidtex::departures::paper_preset())
+            .context("the paper preset of the departures ledger is not valid TOML")?;
+        fill_missing(&mut table, paper);
+        table.insert("preset".into(), toml::Value::String(preset));
+        let text = toml::to_string(&table).context("cannot write the preset's config")?;
+        Config::parse_text(&text, path)
+    }
+
+    /// Every resolved parameter as TOML (`--print-config`): the sections
+    /// left out of the fingerprint when at their defaults are written too.
+    pub fn resolved_toml(&self) -> Result<String> {
+        let mut table = toml::Table::try_from(self).context("cannot write the config")?;
+        let sections = [
+            ("optimization", toml::Value::try_from(&self.optimization)?),
+            ("lapped_rigid", toml::Value::try_from(&self.lapped_rigid)?),
+        ];
+        for (name, value) in sections {
+            table.entry(name).or_insert(value);
+        }
+        if let Some(toml::Value::Table(erosion)) = table.get_mut("erosion") {
+            erosion
+                .entry("transition")
+                .or_insert(toml::Value::Integer(i64::from(self.erosion.transition)));
+        }
+        Ok(toml::to_string(&table)?)
+    }
+
+    /// Parses a config's text and makes its paths relative to `path`'s
+    /// folder.
+    fn parse_text(text: &str, path: &Path) -> Result<Config> {
         let mut config: Config = toml::from_str(text).map_err(|e| {
             let msg = e.message().to_string();
             // Count bytes, not chars: a span need not fall on a char boundary.
@@ -415,6 +495,10 @@ pub struct RunFlags {
     /// optimization: after each average, values take the exemplar's histogram (matched) or stay as averaged (paper) [matched]
     #[arg(long, value_parser = named::<Histogram>())]
     pub histogram: Option<Histogram>,
+    /// Every departure from the papers that has a paper setting set to it
+    /// (docs/departures.md); the config file's keys and other flags win
+    #[arg(long, value_parser = ["paper"])]
+    pub preset: Option<String>,
     #[command(flatten)]
     pub rigid: RigidFlags,
 }
@@ -469,6 +553,7 @@ flag_keys! {
     exemplar_region => exemplar_region: some,
     preview_video => preview_video: on,
     prim => prim: some,
+    preset => preset: some,
     radius => erosion.radius: some,
     exemplar_size => erosion.exemplar_size: some,
     delta_max => erosion.delta_max: value,
@@ -997,5 +1082,71 @@ mod tests {
             });
             assert!(changed, "{long} does not change {key}");
         }
+    }
+
+    /// The value at dotted `key` of a resolved config's TOML (`None`: the
+    /// key is unset, e.g. an optional setting left to its default).
+    fn at<'a>(table: &'a toml::Table, key: &str) -> Option<&'a toml::Value> {
+        let mut parts = key.split('.');
+        let mut value = table.get(parts.next().unwrap_or_default());
+        for part in parts {
+            value = value.and_then(|v| v.get(part));
+        }
+        value
+    }
+
+    /// `--preset paper` resolves every key the ledger's paper column names
+    /// to that value, and each of them differs from the default (it is a
+    /// departure); a key the file sets wins over the preset, a `--preset`
+    /// flag works without a file, and an unknown preset is refused.
+    #[test]
+    fn the_paper_preset_resolves_to_the_ledgers_paper_column() {
+        let preset: toml::Table =
+            toml::from_str(&fluidtex::departures::paper_preset()).expect("ledger TOML");
+        let mut keys = Vec::new();
+        for (section, value) in &preset {
+            match value {
+                toml::Value::Table(t) => keys.extend(t.keys().map(|k| format!("{section}.{k}"))),
+                _ => keys.push(section.clone()),
+            }
+        }
+        assert!(keys.len() >= 12, "{keys:?}");
+        let resolve = |config: &Config| -> toml::Table {
+            toml::from_str(&config.resolved_toml().expect("toml")).expect("parse")
+        };
+        let paper = resolve(&Config::parse("preset = \"paper\"", Path::new("c.toml")).unwrap());
+        let flag = resolve(&Config::load_with_preset(None, Some("paper")).unwrap());
+        let default = resolve(&Config::default());
+        assert_eq!(paper, flag);
+        // Parameters are f32: the ledger's 2.4 reads back as 2.4000000953674316.
+        let same = |a: Option<&toml::Value>, b: Option<&toml::Value>| match (
+            a.and_then(|v| v.as_float()),
+            b.and_then(|v| v.as_float()),
+        ) {
+            (Some(x), Some(y)) => x as f32 == y as f32,
+            _ => a == b,
+        };
+        for key in &keys {
+            assert!(same(at(&paper, key), at(&preset, key)), "{key}");
+            assert!(
+                !same(at(&default, key), at(&preset, key)),
+                "{key} is no departure"
+            );
+        }
+        let own = "preset = \"paper\"\n[erosion]\ntone = \"mean\"\n";
+        let own = resolve(&Config::parse(own, Path::new("c.toml")).unwrap());
+        assert_eq!(
+            at(&own, "erosion.tone").and_then(|v| v.as_str()),
+            Some("mean")
+        );
+        assert_eq!(
+            at(&own, "erosion.weights").and_then(|v| v.as_str()),
+            Some("paper")
+        );
+        let err = Config::parse("preset = \"papr\"", Path::new("c.toml")).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "c.toml: preset = \"papr\": the one preset is \"paper\""
+        );
     }
 }

@@ -42,6 +42,11 @@ pub struct Departure {
     pub key: Option<&'static str>,
     /// The command-line setting that restores the paper's behaviour, if any.
     pub flag: Option<&'static str>,
+    /// What `--preset paper` sets for this entry: TOML lines with dotted
+    /// keys as in the config file (e.g. `erosion.weights = "paper"`);
+    /// empty where the paper's behaviour has no setting yet, or another
+    /// entry's lines set it.
+    pub preset: &'static str,
     /// The measured effect, with numbers where they were measured.
     pub effect: &'static str,
     /// The command that measures it.
@@ -78,6 +83,7 @@ pub const DEPARTURES: &[Departure] = &[
         paper_setting: "w_V = Q_V·B_V recomputed from scratch every frame (`weights = paper`).",
         key: Some("erosion.weights"),
         flag: Some("--weights paper"),
+        preset: "erosion.weights = \"paper\"",
         effect: "Not measured. With the paper's weights re-meshing jitter and new boundary \
                  vertices make texels erode, come back and erode again (the texture boils).",
         measure: "`fluidtex compare --scenes vortex,dam-break --frames 0-47 --methods erosion \
@@ -93,6 +99,7 @@ pub const DEPARTURES: &[Departure] = &[
                         `erosion_rate = 2.4`).",
         key: Some("erosion.delta_onset"),
         flag: Some("--delta-onset 1 --erosion-rate 2.4"),
+        preset: "erosion.delta_onset = 1.0\nerosion.erosion_rate = 2.4",
         effect: "Paper → ours: switch share median (worst) on `vortex` 17.2 % (20.1) → 14.5 % \
                  (17.7), on `dam-break` 27.7 % (40.5) → 25.3 % (39.1); colour follow ratio \
                  0.223 → 0.206 (dam-break); distortion p95 3.47 → 2.71 (enright).",
@@ -112,6 +119,7 @@ pub const DEPARTURES: &[Departure] = &[
                         progressive-weights entry).",
         key: None,
         flag: Some("--weights paper"),
+        preset: "",
         effect: "Not measured on a scene. A unit test builds a curved creation site (δ_max = \
                  1.2) where the pinned vertices' paper weights fall below 0.5: such a patch \
                  erodes its own seed texel and is deleted and recreated every frame, even at \
@@ -128,6 +136,7 @@ pub const DEPARTURES: &[Departure] = &[
         paper_setting: "At uv distance 0.5, the edge of the exemplar square (`falloff = paper`).",
         key: Some("erosion.falloff"),
         flag: Some("--falloff paper"),
+        preset: "erosion.falloff = \"paper\"",
         effect: "Not measured. With the paper's reach D stays ≥ 0.23 on a patch, so an \
                  undistorted patch keeps its polygonal border instead of one along the features.",
         measure: "`fluidtex compare --scenes vortex,dam-break --methods erosion --out cmp`, \
@@ -143,6 +152,7 @@ pub const DEPARTURES: &[Departure] = &[
         paper_setting: "A patch keeps the triangles it was made with (`split_edges = 0`).",
         key: Some("erosion.split_edges"),
         flag: Some("--split-edges 0"),
+        preset: "erosion.split_edges = 0.0",
         effect: "On the dam break with erosion off, the per-frame source switches fell from \
                  about 10 % to 7 %.",
         measure: "`fluidtex compare --scenes dam-break --methods erosion --out cmp --config P` \
@@ -157,6 +167,7 @@ pub const DEPARTURES: &[Departure] = &[
         paper_setting: "The composite as the fill makes it (`tone = off`).",
         key: Some("erosion.tone"),
         flag: Some("--tone off"),
+        preset: "erosion.tone = \"off\"",
         effect: "Dam break, frames 0–30, atlas 1024, luminance against advect: up to 15.8 % \
                  brighter with the paper's composite, at most 2.9 % with `mean`; popping median \
                  0.113 against 0.114 without it.",
@@ -173,6 +184,7 @@ pub const DEPARTURES: &[Departure] = &[
         paper_setting: "The patch texel's colour at full resolution (`exemplar_filter = none`).",
         key: None,
         flag: Some("--exemplar-filter none"),
+        preset: "exemplar_filter = \"none\"",
         effect: "Not measured. Point samples of a minified exemplar alias and flicker from frame \
                  to frame.",
         measure: "`fluidtex compare --scenes vortex,dam-break --methods erosion --out cmp`, \
@@ -187,6 +199,7 @@ pub const DEPARTURES: &[Departure] = &[
         paper_setting: "F_m at the texel's uv, full resolution. No paper setting yet.",
         key: None,
         flag: None,
+        preset: "",
         effect: "Not measured. The erosion border stays a smooth curve that moves with the patch \
                  instead of texel-sized speckle that changes every frame.",
         measure: "None yet: needs a switch.",
@@ -201,6 +214,7 @@ pub const DEPARTURES: &[Departure] = &[
                         p, connected or not. No paper setting yet.",
         key: None,
         flag: None,
+        preset: "",
         effect: "Not measured. A nearby but separate sheet or droplet is not copied into the \
                  patch.",
         measure: "None yet: needs a switch.",
@@ -214,6 +228,7 @@ pub const DEPARTURES: &[Departure] = &[
         paper_setting: "Interior vertices and those within r/4 of p only. No paper setting yet.",
         key: None,
         flag: None,
+        preset: "",
         effect: "Not measured. B_V can no longer erode the texel that created the patch, the \
                  case the paper's r/4 rule is there to prevent.",
         measure: "None yet: needs a switch.",
@@ -227,6 +242,7 @@ pub const DEPARTURES: &[Departure] = &[
                         prevent the case). No paper setting yet.",
         key: None,
         flag: None,
+        preset: "",
         effect: "Not measured. Every new patch covers at least one texel, so the update loop \
                  ends.",
         measure: "`forced_texels` in each frame's `stats.F.json` of `fluidtex run` counts the \
@@ -243,6 +259,7 @@ pub const DEPARTURES: &[Departure] = &[
                         No paper setting yet.",
         key: None,
         flag: None,
+        preset: "",
         effect: "Mantaflow splash at `--radius 0.4`, frames 1–16, atlas 1024 (with edges past \
                  δ_max no longer split): 560 s and 22.9 GB before, 13.5 s and 194 MB after.",
         measure: "`fluidtex run --mesh 'splash/mesh/fluid.####.ply' --frames 1-16 --radius 0.4 \
@@ -260,6 +277,7 @@ pub const DEPARTURES: &[Departure] = &[
                         setting yet.",
         key: None,
         flag: None,
+        preset: "",
         effect: "Not measured. Placement is deterministic, so a fluid at rest gives identical \
                  frames.",
         measure: "None yet: needs a switch.",
@@ -275,6 +293,7 @@ pub const DEPARTURES: &[Departure] = &[
                         (`far_fraction` is at most 10).",
         key: Some("lapped_rigid.far_fraction"),
         flag: None,
+        preset: "",
         effect: "Not measured.",
         measure: "None yet: needs a setting that never deletes.",
     },
@@ -286,6 +305,7 @@ pub const DEPARTURES: &[Departure] = &[
         paper_setting: "A texel that no opaque patch covers (`coverage = 1`).",
         key: Some("lapped_rigid.coverage"),
         flag: Some("--rigid-coverage 1"),
+        preset: "lapped_rigid.coverage = 1.0",
         effect: "Not measured. At 1 soft masks would have to reach exact opacity.",
         measure: "`fluidtex compare --scenes vortex --methods lapped-rigid --out cmp`, without \
                   and with `--config P`, P: `lapped_rigid.coverage = 1.0`",
@@ -300,6 +320,7 @@ pub const DEPARTURES: &[Departure] = &[
                         (`keep_weight = 0`).",
         key: Some("lapped_rigid.keep_weight"),
         flag: Some("--rigid-keep-weight 0"),
+        preset: "lapped_rigid.keep_weight = 0.0",
         effect: "Not measured. Invisible in 8 bits, and deleting an unused patch then changes \
                  no texel.",
         measure: "`fluidtex compare --scenes vortex --methods lapped-rigid --out cmp`, without \
@@ -314,6 +335,7 @@ pub const DEPARTURES: &[Departure] = &[
         paper_setting: "A mask the user supplies (`mask = IMG`).",
         key: Some("lapped_rigid.mask"),
         flag: Some("--mask IMG"),
+        preset: "",
         effect: "Not measured.",
         measure: "`fluidtex compare --scenes vortex --methods lapped-rigid --out cmp`, without \
                   and with `--config P`, P: `lapped_rigid.mask = \"IMG\"`",
@@ -328,6 +350,7 @@ pub const DEPARTURES: &[Departure] = &[
                         (`sink_speed = 0`).",
         key: Some("lapped_rigid.sink_speed"),
         flag: Some("--rigid-sink-speed 0"),
+        preset: "lapped_rigid.sink_speed = 0.0",
         effect: "Not measured.",
         measure: "`fluidtex compare --scenes vortex --methods lapped-rigid --out cmp`, without \
                   and with `--config P`, P: `lapped_rigid.sink_speed = 0.0`",
@@ -342,6 +365,7 @@ pub const DEPARTURES: &[Departure] = &[
                         yet.",
         key: None,
         flag: None,
+        preset: "",
         effect: "Not measured. With per-vertex alphas on meshes coarse for ψ, new patches missed \
                  their seed texel and vanished and came back every frame.",
         measure: "None yet: needs a switch.",
@@ -356,6 +380,7 @@ pub const DEPARTURES: &[Departure] = &[
                         paper setting yet.",
         key: None,
         flag: None,
+        preset: "",
         effect: "Not measured. As printed, a clear part of the mask where the falloff is 1 would \
                  erase the patches beneath.",
         measure: "None yet: needs a switch.",
@@ -369,6 +394,7 @@ pub const DEPARTURES: &[Departure] = &[
         paper_setting: "The insertion repeats until every texel is covered. No paper setting yet.",
         key: None,
         flag: None,
+        preset: "",
         effect: "Not measured. Every new tracker closes at least one texel, so the loop ends.",
         measure: "None yet: needs a switch.",
     },
@@ -381,6 +407,7 @@ pub const DEPARTURES: &[Departure] = &[
         paper_setting: "The exemplar at full resolution (`exemplar_filter = none`).",
         key: None,
         flag: Some("--exemplar-filter none"),
+        preset: "exemplar_filter = \"none\"",
         effect: "Not measured.",
         measure: "`fluidtex compare --scenes vortex --methods lapped-rigid --out cmp`, without \
                   and with `--config P`, P: `exemplar_filter = \"none\"`",
@@ -395,6 +422,7 @@ pub const DEPARTURES: &[Departure] = &[
         paper_setting: "The weighted average as it is (`histogram = paper`).",
         key: Some("optimization.histogram"),
         flag: Some("--histogram paper"),
+        preset: "optimization.histogram = \"paper\"",
         effect: "`vortex`: contrast kept 0.64 → 1.01 of the exemplar's, SWD fidelity ratio \
                  3.8 → 1.5 (paper → ours), same flow and popping cells.",
         measure: "`fluidtex compare --scenes vortex --atlas 512 --methods optimization --out \
@@ -409,6 +437,7 @@ pub const DEPARTURES: &[Departure] = &[
         paper_setting: "Every pass, 33², 17², 9² (`passes_after_first = 3`).",
         key: Some("optimization.passes_after_first"),
         flag: Some("--passes-after-first 3"),
+        preset: "optimization.passes_after_first = 3",
         effect: "A carried `dam-break` frame takes 7–8 s instead of 11 s; the `vortex` report \
                  cells stay as they were.",
         measure: "`fluidtex scene dam-break --out dam`, then `fluidtex run --mesh \
@@ -424,6 +453,7 @@ pub const DEPARTURES: &[Departure] = &[
                         changes).",
         key: Some("optimization.iterations"),
         flag: Some("--iterations 100"),
+        preset: "optimization.iterations = 100",
         effect: "With the matched histogram 3 keep every `vortex` report cell of 5 (contrast \
                  1.01, SWD ratio 1.50 against 1.52).",
         measure: "`fluidtex compare --scenes vortex --atlas 512 --methods optimization --out \
@@ -438,6 +468,7 @@ pub const DEPARTURES: &[Departure] = &[
         paper_setting: "Sum of squared differences (`robust = 2`).",
         key: Some("optimization.robust"),
         flag: Some("--robust 2"),
+        preset: "optimization.robust = 2.0",
         effect: "Not measured. Least squares averages mismatched neighbourhoods into blur.",
         measure: "`fluidtex compare --scenes vortex --atlas 512 --methods optimization --out \
                   cmp`, without and with `--config P`, P: `optimization.robust = 2.0`",
@@ -453,6 +484,7 @@ pub const DEPARTURES: &[Departure] = &[
                         Not selectable: `search_grid` is at most 15.",
         key: Some("optimization.search_grid"),
         flag: None,
+        preset: "",
         effect: "Against a brute-force scan (pebbles, 9 × 9 window): exact in the reduced \
                  space; re-ranked matches within 5 % of the full-space optimum (measured \
                  1.000).",
@@ -467,6 +499,7 @@ pub const DEPARTURES: &[Departure] = &[
         paper_setting: "The same average followed by a relaxation step. No paper setting yet.",
         key: None,
         flag: None,
+        preset: "",
         effect: "Not measured.",
         measure: "None yet: needs a switch.",
     },
@@ -480,6 +513,7 @@ pub const DEPARTURES: &[Departure] = &[
                         setting yet.",
         key: None,
         flag: None,
+        preset: "",
         effect: "Not measured.",
         measure: "None yet: needs a switch.",
     },
@@ -493,6 +527,7 @@ pub const DEPARTURES: &[Departure] = &[
                         paper setting yet.",
         key: None,
         flag: None,
+        preset: "",
         effect: "Not measured. Spacing follows the fluid triangles' shapes, within about a \
                  factor of two of the target.",
         measure: "None yet: needs a switch.",
@@ -507,6 +542,7 @@ pub const DEPARTURES: &[Departure] = &[
                         paper setting yet.",
         key: None,
         flag: None,
+        preset: "",
         effect: "Not measured. Skips the polar map's angle-defect rescaling, which matters only \
                  at strongly curved vertices.",
         measure: "None yet: needs a switch.",
@@ -521,6 +557,7 @@ pub const DEPARTURES: &[Departure] = &[
                         upwind scheme. No paper setting yet.",
         key: None,
         flag: None,
+        preset: "",
         effect: "Not measured.",
         measure: "None yet: needs a switch.",
     },
@@ -534,6 +571,7 @@ pub const DEPARTURES: &[Departure] = &[
                         field off the surface. No paper setting yet.",
         key: None,
         flag: None,
+        preset: "",
         effect: "Not measured.",
         measure: "None yet: needs a switch.",
     },
@@ -547,6 +585,7 @@ pub const DEPARTURES: &[Departure] = &[
                         paper setting yet.",
         key: None,
         flag: None,
+        preset: "",
         effect: "Not measured.",
         measure: "None yet: needs grid input.",
     },
@@ -829,5 +868,31 @@ pub fn render() -> String {
     for (key, why) in AS_PUBLISHED {
         out.push_str(&format!("| `{}` | {} |\n", cell(key), cell(why)));
     }
+    out.push_str(
+        "\n## `--preset paper`\n\n\
+         `fluidtex run --preset paper` (or `preset = \"paper\"` in the config) sets every \
+         departure above that has a paper setting to it, for every method; the keys the \
+         config file or a flag sets still win. Rows that say \"no paper setting yet\" keep \
+         fluidtex's behaviour under the preset, and `lapped_rigid.mask` keeps the mask derived \
+         from the feature map (the paper's masks are painted by hand: give one with \
+         `--mask`). `--print-config` prints every resolved parameter. The preset is:\n\n\
+         ```toml\n",
+    );
+    out.push_str(&paper_preset());
+    out.push_str("```\n");
     out
+}
+
+/// The TOML lines `--preset paper` sets ([`Departure::preset`] of every
+/// entry, each line once, in ledger order).
+pub fn paper_preset() -> String {
+    let mut lines: Vec<&str> = Vec::new();
+    for d in DEPARTURES {
+        for line in d.preset.lines() {
+            if !lines.contains(&line) {
+                lines.push(line);
+            }
+        }
+    }
+    lines.iter().map(|l| format!("{l}\n")).collect()
 }

@@ -28,6 +28,10 @@ pub struct RunArgs {
     /// Continue a killed run from the last finished frame in --out
     #[arg(long)]
     pub resume: bool,
+    /// Print every resolved parameter (defaults, --preset, --config, flags)
+    /// as TOML and exit
+    #[arg(long)]
+    pub print_config: bool,
     /// No progress bar and no summary
     #[arg(long)]
     pub quiet: bool,
@@ -48,11 +52,12 @@ pub struct RunArgs {
 pub const BUILTIN_EXEMPLAR_SIZE: u32 = 512;
 
 pub fn run(a: &RunArgs) -> Result<()> {
-    let mut config = match &a.config {
-        Some(p) => Config::load(p)?,
-        None => Config::default(),
-    };
+    let mut config = Config::load_with_preset(a.config.as_deref(), a.flags.preset.as_deref())?;
     a.flags.apply(&mut config)?;
+    if a.print_config {
+        print!("{}", config.resolved_toml()?);
+        return Ok(());
+    }
     let limit = memory_limit(a.max_memory.as_deref())?;
     let pattern = config
         .mesh

@@ -1,0 +1,128 @@
+//! `--preset paper`: each method runs the papers' settings where the
+//! departures ledger has them, and nothing else changes.
+
+#![allow(clippy::unwrap_used)]
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use common::*;
+
+fn scene(dir: &Path) -> PathBuf {
+    let scene = dir.join("scene");
+    ok(&[
+        "scene".as_ref(),
+        "differential-rotation".as_ref(),
+        "--resolution".as_ref(),
+        "12".as_ref(),
+        "--frames".as_ref(),
+        "0-2".as_ref(),
+        "--out".as_ref(),
+        scene.as_os_str(),
+        "--quiet".as_ref(),
+    ]);
+    scene.join("fluid.####.ply")
+}
+
+fn run(pattern: &Path, out: &Path, method: &str, extra: &[&str]) {
+    let mut a: Vec<std::ffi::OsString> = vec![
+        "run".into(),
+        "--mesh".into(),
+        pattern.into(),
+        "--out".into(),
+        out.into(),
+        "--method".into(),
+        method.into(),
+        "--atlas".into(),
+        "64".into(),
+        "--no-glb".into(),
+        "--quiet".into(),
+    ];
+    a.extend(extra.iter().map(Into::into));
+    ok(&a);
+}
+
+/// For each paper's method the preset run's colour atlases differ from the
+/// default run's; for erosion, the preset plus the flags that restore each
+/// default it changes gives the default run's files byte for byte, so the
+/// preset changes only what the ledger lists.
+#[test]
+fn the_paper_preset_changes_each_method_and_only_what_the_ledger_lists() {
+    let dir = tempfile::tempdir().unwrap();
+    let pattern = scene(dir.path());
+    for method in ["erosion", "lapped-rigid", "optimization"] {
+        let default = dir.path().join(format!("{method}-default"));
+        let paper = dir.path().join(format!("{method}-paper"));
+        run(&pattern, &default, method, &[]);
+        run(&pattern, &paper, method, &["--preset", "paper"]);
+        let (a, b) = (files(&default), files(&paper));
+        assert_eq!(
+            a.keys().collect::<Vec<_>>(),
+            b.keys().collect::<Vec<_>>(),
+            "{method}"
+        );
+        for f in 0..3 {
+            let name = format!("color.{f:04}.png");
+            assert_ne!(a[&name], b[&name], "{method}: {name} is the default's");
+        }
+    }
+    let restored = dir.path().join("erosion-restored");
+    let defaults = [
+        "--preset",
+        "paper",
+        "--weights",
+        "progressive",
+        "--delta-onset",
+        "1.5",
+        "--erosion-rate",
+        "4.8",
+        "--falloff",
+        "footprint",
+        "--split-edges",
+        "2",
+        "--tone",
+        "mean",
+        "--exemplar-filter",
+        "trilinear",
+    ];
+    run(&pattern, &restored, "erosion", &defaults);
+    let (a, b) = (files(&dir.path().join("erosion-default")), files(&restored));
+    for (name, bytes) in &a {
+        // The stats name the preset in the run's settings only where the
+        // config is written; the images and meshes must be the same.
+        if name.ends_with(".png") || name.ends_with(".obj") || name.ends_with(".exr") {
+            assert!(b.get(name) == Some(bytes), "{name} differs");
+        }
+    }
+}
+
+/// `--print-config` prints every resolved parameter and exits without a
+/// mesh; with the preset the ledger's settings are in it, and a flag wins
+/// over the preset.
+#[test]
+fn print_config_shows_the_resolved_preset() {
+    let out = ok(&[
+        "run",
+        "--preset",
+        "paper",
+        "--weights",
+        "progressive",
+        "--print-config",
+    ]);
+    let table: toml::Table = toml::from_str(&out).unwrap();
+    assert_eq!(table["preset"].as_str(), Some("paper"));
+    assert_eq!(table["erosion"]["weights"].as_str(), Some("progressive"));
+    assert_eq!(table["erosion"]["tone"].as_str(), Some("off"));
+    assert_eq!(table["optimization"]["histogram"].as_str(), Some("paper"));
+    assert_eq!(table["lapped_rigid"]["coverage"].as_float(), Some(1.0));
+    let plain = ok(&["run", "--print-config"]);
+    let plain: toml::Table = toml::from_str(&plain).unwrap();
+    assert!(plain.get("preset").is_none());
+    assert_eq!(plain["erosion"]["tone"].as_str(), Some("mean"));
+    let line = user_error(&["run", "--preset", "papr", "--print-config"]);
+    assert!(
+        line.starts_with("error: invalid value 'papr' for '--preset"),
+        "{line}"
+    );
+}
