@@ -7,9 +7,9 @@
 //! The paper places points by Turk's repulsion and re-tiles the surface
 //! with them (3–15 minutes per frame by its own account). A subdivision
 //! lattice gives the same three things the synthesis needs: (1) points at
-//! a chosen, constant density per unit area (the fluid mesh of a grid
-//! simulation has a constant density, and `m` is chosen per frame from the
-//! target spacing), (2) a triangle mesh connecting them for free, and
+//! about a chosen density per unit area (the fluid mesh of a grid
+//! simulation has a nearly constant density, and `m` is chosen per frame
+//! from the target spacing; see the price below), (2) a triangle mesh connecting them for free, and
 //! (3) exactly nested levels: level ℓ is the lattice of stride 2^ℓ, a
 //! subset of the finest points, so coarse-to-fine copying is exact. It
 //! also makes the atlas output exact and cheap: an atlas texel knows its

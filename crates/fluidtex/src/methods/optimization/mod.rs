@@ -3,9 +3,10 @@
 //! docs/design.md, *The 2007 optimization method*): the optimisation-family
 //! baseline. Per frame:
 //!
-//! 1. [`lattice`]: points over the whole surface at a constant density per
-//!    unit area, connected into a triangle mesh, at `levels` nested
-//!    levels (Sec. IV-A).
+//! 1. [`lattice`]: points over the whole surface at about the target
+//!    spacing (the density follows the fluid mesh's triangles within about
+//!    a factor of two), connected into a triangle mesh, at `levels` nested
+//!    levels (Sec. IV-A; a departure, see `docs/departures.md`).
 //! 2. [`transport`]: the previous frame's colours (all channels) and
 //!    orientations carried to the new points through the flow (Sec. VI,
 //!    Eqs. 3–4).
