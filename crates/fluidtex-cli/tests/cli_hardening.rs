@@ -34,19 +34,7 @@ fn args(pattern: &Path, out: &Path, extra: &[&str]) -> Vec<std::ffi::OsString> {
 }
 
 fn scene(dir: &Path, frames: &str) -> PathBuf {
-    let scene = dir.join("scene");
-    ok(&[
-        "scene".as_ref(),
-        "rigid-rotation".as_ref(),
-        "--resolution".as_ref(),
-        "12".as_ref(),
-        "--frames".as_ref(),
-        frames.as_ref(),
-        "--out".as_ref(),
-        scene.as_os_str(),
-        "--quiet".as_ref(),
-    ]);
-    scene.join("fluid.####.ply")
+    common::scene(dir, "rigid-rotation", Some("12"), frames)
 }
 
 fn hostname() -> String {
@@ -325,12 +313,7 @@ fn a_run_past_its_memory_limit_stops_with_the_cause_and_resumes_identically() {
 #[test]
 fn estimates_bound_the_measured_peak() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = dir.path().join("scene");
-    let scene_args = ["scene", "dam-break", "--frames", "0-3", "--quiet", "--out"];
-    let mut a: Vec<std::ffi::OsString> = scene_args.iter().map(Into::into).collect();
-    a.push(scene.clone().into());
-    ok(&a);
-    let pattern = scene.join("fluid.####.ply");
+    let pattern = common::scene(dir.path(), "dam-break", None, "0-3");
     for (method, atlas, extra) in [
         ("erosion", "512", None),
         // With previews: a preview frame's float patch colours count too.

@@ -5,25 +5,9 @@
 
 mod common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use common::*;
-
-fn scene(dir: &Path) -> PathBuf {
-    let scene = dir.join("scene");
-    ok(&[
-        "scene".as_ref(),
-        "differential-rotation".as_ref(),
-        "--resolution".as_ref(),
-        "12".as_ref(),
-        "--frames".as_ref(),
-        "0-2".as_ref(),
-        "--out".as_ref(),
-        scene.as_os_str(),
-        "--quiet".as_ref(),
-    ]);
-    scene.join("fluid.####.ply")
-}
 
 fn run(pattern: &Path, out: &Path, method: &str, extra: &[&str]) {
     let mut a: Vec<std::ffi::OsString> = vec![
@@ -50,7 +34,7 @@ fn run(pattern: &Path, out: &Path, method: &str, extra: &[&str]) {
 #[test]
 fn the_paper_preset_changes_each_method_and_only_what_the_ledger_lists() {
     let dir = tempfile::tempdir().unwrap();
-    let pattern = scene(dir.path());
+    let pattern = scene(dir.path(), "differential-rotation", Some("12"), "0-2");
     for method in ["erosion", "lapped-rigid", "optimization"] {
         let default = dir.path().join(format!("{method}-default"));
         let paper = dir.path().join(format!("{method}-paper"));

@@ -160,18 +160,20 @@ pub fn assert_two_phase_matches(one_pass: &Path, two_phase: &Path) -> BTreeMap<S
 /// a small sheared flow whose patches renew between frames. Returns the
 /// frames' pattern.
 pub fn small_vortex(dir: &Path) -> PathBuf {
+    scene(dir, "vortex", Some("14"), "0-5")
+}
+
+/// `fluidtex scene NAME` (at `resolution`, or the scene's own) over
+/// `frames` into `dir/scene`. Returns the frames' pattern.
+pub fn scene(dir: &Path, name: &str, resolution: Option<&str>, frames: &str) -> PathBuf {
     let scene = dir.join("scene");
-    ok(&[
-        "scene".as_ref(),
-        "vortex".as_ref(),
-        "--resolution".as_ref(),
-        "14".as_ref(),
-        "--frames".as_ref(),
-        "0-5".as_ref(),
-        "--out".as_ref(),
-        scene.as_os_str(),
-        "--quiet".as_ref(),
-    ]);
+    let mut args: Vec<std::ffi::OsString> = vec!["scene".into(), name.into()];
+    if let Some(r) = resolution {
+        args.extend(["--resolution".into(), r.into()]);
+    }
+    args.extend(["--frames".into(), frames.into(), "--quiet".into()]);
+    args.extend(["--out".into(), scene.clone().into()]);
+    ok(&args);
     scene.join("fluid.####.ply")
 }
 

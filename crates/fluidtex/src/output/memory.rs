@@ -108,7 +108,8 @@ fn encode_bytes(channels: &[ChannelSpec]) -> u64 {
 ///   the switch map the frame before's ids and the map (8).
 ///
 /// Per triangle of the largest frame: the geometry of the frames alive at
-/// once (700 bytes, a third more with the switch map) and the method's state ([`MemoryModel::per_triangle`]).
+/// once (700 bytes, a third more with the switch map) and the method's
+/// state ([`MemoryModel::per_triangle`]).
 /// Besides: the program (28 MiB), 4 MiB per worker thread and what the
 /// method adds per thread ([`MemoryModel::per_thread`]), and the method's
 /// fixed part ([`MemoryModel::fixed`]).
