@@ -12,7 +12,10 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use fluidtex::methods::atlas_check::AtlasCheckParams;
 use fluidtex::methods::dual_rest::DualRestParams;
-use fluidtex::methods::erosion::{ErosionParams, Falloff, Orientation, Placement, WeightMode};
+use fluidtex::methods::erosion::{
+    ErosionParams, Falloff, FeatureFilter, Orientation, PatchRegion, Placement, SeedCorners,
+    SeedTexel, WeightMode,
+};
 use fluidtex::methods::lapped_rigid::LappedRigidParams;
 use fluidtex::methods::optimization::{Histogram, OptimizationParams};
 use fluidtex::methods::registry::{MethodKind, MethodParams};
@@ -198,10 +201,19 @@ impl Config {
         for (name, value) in sections {
             table.entry(name).or_insert(value);
         }
+        // The keys left out of the fingerprint at their defaults.
+        let e = &self.erosion;
+        let skipped = [
+            ("transition", toml::Value::Integer(i64::from(e.transition))),
+            ("patch_region", toml::Value::try_from(e.patch_region)?),
+            ("seed_corners", toml::Value::try_from(e.seed_corners)?),
+            ("seed_texel", toml::Value::try_from(e.seed_texel)?),
+            ("feature_filter", toml::Value::try_from(e.feature_filter)?),
+        ];
         if let Some(toml::Value::Table(erosion)) = table.get_mut("erosion") {
-            erosion
-                .entry("transition")
-                .or_insert(toml::Value::Integer(i64::from(self.erosion.transition)));
+            for (key, value) in skipped {
+                erosion.entry(key).or_insert(value);
+            }
         }
         Ok(toml::to_string(&table)?)
     }
@@ -429,6 +441,18 @@ pub struct RunFlags {
     /// Erosion: frames over which a texel whose source changes shows the old and the new source, blended preserving contrast (0: one source per texel, the paper) [0]
     #[arg(long)]
     pub transition: Option<u32>,
+    /// Which triangles within r a new patch copies: connected (to p's triangle) or paper (every one facing p's side) [connected]
+    #[arg(long, value_parser = named::<PatchRegion>())]
+    pub patch_region: Option<PatchRegion>,
+    /// B_V = 1 at the corners of p's triangle too (pinned) or only within r/4 of p (paper, Eq. 2) [pinned]
+    #[arg(long, value_parser = named::<SeedCorners>())]
+    pub seed_corners: Option<SeedCorners>,
+    /// A new patch that erodes its own seed texel: it gets it anyway (forced) or the texel stays uncovered (paper) [forced]
+    #[arg(long, value_parser = named::<SeedTexel>())]
+    pub seed_texel: Option<SeedTexel>,
+    /// The erosion test reads the feature map at the atlas texel's mip level (mip) or at full resolution (full, the paper) [mip]
+    #[arg(long, value_parser = named::<FeatureFilter>())]
+    pub feature_filter: Option<FeatureFilter>,
     /// dual-rest: frames between two resets of a layer [24]
     #[arg(long)]
     pub period: Option<u32>,
@@ -572,6 +596,10 @@ flag_keys! {
     split_edges => erosion.split_edges: value,
     tone => erosion.tone: value,
     transition => erosion.transition: value,
+    patch_region => erosion.patch_region: value,
+    seed_corners => erosion.seed_corners: value,
+    seed_texel => erosion.seed_texel: value,
+    feature_filter => erosion.feature_filter: value,
     period => dual_rest.period: value,
     no_obj => outputs.obj: off,
     no_glb => outputs.glb: off,
@@ -1059,6 +1087,7 @@ mod tests {
                 "a",
                 "global",
                 "paper",
+                "full",
                 "aligned",
                 "advect",
                 "none",

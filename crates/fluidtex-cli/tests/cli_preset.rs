@@ -69,6 +69,14 @@ fn the_paper_preset_changes_each_method_and_only_what_the_ledger_lists() {
         "mean",
         "--exemplar-filter",
         "trilinear",
+        "--patch-region",
+        "connected",
+        "--seed-corners",
+        "pinned",
+        "--seed-texel",
+        "forced",
+        "--feature-filter",
+        "mip",
     ];
     run(&pattern, &restored, "erosion", &defaults);
     let (a, b) = (files(&dir.path().join("erosion-default")), files(&restored));

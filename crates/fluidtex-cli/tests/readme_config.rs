@@ -25,6 +25,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
 use clap::{CommandFactory, Parser};
+use fluidtex::methods::erosion;
 use fluidtex_cli::config::Config;
 use fluidtex_cli::{Cli, Command};
 use serde_json::Value;
@@ -216,6 +217,7 @@ fn keys_set_by(flag: &str, takes_value: bool, keys: &BTreeSet<String>) -> BTreeS
             "7 7 7",
             "global",
             "paper",
+            "full",
             "aligned",
             "a b c",
             "a=b.png",
@@ -369,12 +371,18 @@ fn disagreements(section: &str) -> Vec<String> {
     // are skipped when unset).
     let mut all = leaves(&Config::default());
     all.extend(leaves(&example));
-    // outputs.switch_map and erosion.transition are left out of the
-    // serialized config while off (so older runs keep their settings
-    // fingerprint): ask for them on.
+    // outputs.switch_map, erosion.transition and the erosion keys of the
+    // paper's steps are left out of the serialized config at their
+    // defaults (so older runs keep their settings fingerprint): ask for
+    // them set.
     let mut switch_on = Config::default();
     switch_on.outputs.switch_map = true;
-    switch_on.erosion.transition = 1;
+    let e = &mut switch_on.erosion;
+    e.transition = 1;
+    e.patch_region = erosion::PatchRegion::Paper;
+    e.seed_corners = erosion::SeedCorners::Paper;
+    e.seed_texel = erosion::SeedTexel::Paper;
+    e.feature_filter = erosion::FeatureFilter::Full;
     all.extend(leaves(&switch_on));
     let mut keys: BTreeSet<String> = BTreeSet::new();
     for k in all.keys() {

@@ -196,13 +196,17 @@ pub const DEPARTURES: &[Departure] = &[
         what: "How the erosion test reads the feature map.",
         ours: "Always at the mip level matching one atlas texel on the patch triangle, also with \
                `--exemplar-filter none`.",
-        paper_setting: "F_m at the texel's uv, full resolution. No paper setting yet.",
-        key: None,
-        flag: None,
-        preset: "",
-        effect: "Not measured. The erosion border stays a smooth curve that moves with the patch \
-                 instead of texel-sized speckle that changes every frame.",
-        measure: "None yet: needs a switch.",
+        paper_setting: "F_m at the texel's uv, bilinear at full resolution \
+                        (`feature_filter = full`).",
+        key: Some("erosion.feature_filter"),
+        flag: Some("--feature-filter full"),
+        preset: "erosion.feature_filter = \"full\"",
+        effect: "Dam break, frames 0–23, atlas 512: unforced switches 19.1 % → 22.8 % per frame \
+                 (median), flow-aligned share 0.674 → 0.612, popping 0.113 → 0.106; vortex: \
+                 popping 0.117 → 0.109, aligned 0.797 → 0.783. The filtered border is a smooth \
+                 curve that moves with the patch instead of texel-sized speckle.",
+        measure: "`fluidtex compare --scenes vortex,dam-break --frames 0-23 --methods erosion --out cmp`, \
+                  without and with `--config P`, P: `erosion.feature_filter = \"full\"`",
     },
     Departure {
         method: "erosion, advect, blend-deformable, dual-rest",
@@ -211,13 +215,17 @@ pub const DEPARTURES: &[Departure] = &[
         ours: "The triangles within r of p that face the side of p's normal and are \
                edge-connected, through such triangles, to p's triangle.",
         paper_setting: "Every triangle within r of p that does not face away from the normal at \
-                        p, connected or not. No paper setting yet.",
-        key: None,
-        flag: None,
-        preset: "",
-        effect: "Not measured. A nearby but separate sheet or droplet is not copied into the \
-                 patch.",
-        measure: "None yet: needs a switch.",
+                        p, connected or not (`patch_region = paper`; the pieces LSCM cannot \
+                        reach continue the flattening of p's piece by a least-squares affine \
+                        map of their tangent-plane projection).",
+        key: Some("erosion.patch_region"),
+        flag: Some("--patch-region paper"),
+        preset: "erosion.patch_region = \"paper\"",
+        effect: "Vortex and dam break, frames 0–23, atlas 512: no report cell moved by more \
+                 than 0.015 (vortex worst popping 0.144 → 0.159). A nearby but separate sheet or \
+                 droplet is not copied into the patch.",
+        measure: "`fluidtex compare --scenes vortex,dam-break --frames 0-23 --methods erosion --out cmp`, \
+                  without and with `--config P`, P: `erosion.patch_region = \"paper\"`",
     },
     Departure {
         method: "erosion, blend-deformable",
@@ -225,13 +233,16 @@ pub const DEPARTURES: &[Departure] = &[
         what: "Which vertices hold B_V = 1.",
         ours: "Interior vertices, those within r/4 of p and also the three corners of p's \
                triangle, in every weights mode (`--weights paper` included).",
-        paper_setting: "Interior vertices and those within r/4 of p only. No paper setting yet.",
-        key: None,
-        flag: None,
-        preset: "",
-        effect: "Not measured. B_V can no longer erode the texel that created the patch, the \
-                 case the paper's r/4 rule is there to prevent.",
-        measure: "None yet: needs a switch.",
+        paper_setting: "Interior vertices and those within r/4 of p only \
+                        (`seed_corners = paper`).",
+        key: Some("erosion.seed_corners"),
+        flag: Some("--seed-corners paper"),
+        preset: "erosion.seed_corners = \"paper\"",
+        effect: "Vortex and dam break, frames 0–23, atlas 512: every cell within 0.002 (dam \
+                 break: 881 patches alive against 867). B_V can no longer erode the texel that \
+                 created the patch, the case the paper's r/4 rule is there to prevent.",
+        measure: "`fluidtex compare --scenes vortex,dam-break --frames 0-23 --methods erosion --out cmp`, \
+                  without and with `--config P`, P: `erosion.seed_corners = \"paper\"`",
     },
     Departure {
         method: "erosion",
@@ -239,12 +250,17 @@ pub const DEPARTURES: &[Departure] = &[
         what: "A new patch that erodes the texel it was created for.",
         ours: "The texel is assigned to that patch anyway (uv 0.5, 0.5) and counted as forced.",
         paper_setting: "The texel stays uncovered and asks for another patch (Eq. 2 is meant to \
-                        prevent the case). No paper setting yet.",
-        key: None,
-        flag: None,
-        preset: "",
-        effect: "Not measured. Every new patch covers at least one texel, so the update loop \
-                 ends.",
+                        prevent the case): `seed_texel = paper`. Our patches are made \
+                        deterministically from the point, so another patch there would be the \
+                        same one; the texel stays uncovered until the next frame.",
+        key: Some("erosion.seed_texel"),
+        flag: Some("--seed-texel paper"),
+        preset: "erosion.seed_texel = \"paper\"",
+        effect: "With the default weights no patch erodes its seed texel on our scenes, so \
+                 `seed_texel = paper` changes nothing there; under the paper's weights, \
+                 pinned-corner rule and a small δ_max it does (the unit test \
+                 `the_papers_seed_texel_stays_uncovered_where_ours_is_forced`). Every new \
+                 patch covers at least one texel, so the update loop ends.",
         measure: "`forced_texels` in each frame's `stats.F.json` of `fluidtex run` counts the \
                   texels concerned.",
     },

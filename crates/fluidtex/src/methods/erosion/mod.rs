@@ -38,7 +38,10 @@ use serde::{Deserialize, Serialize};
 
 use self::erode::ErosionTest;
 use self::fill::{Candidates, FillBuffers, FillContext, LocateTolerance};
-pub use self::params::{ErosionParams, Falloff, Orientation, WeightMode};
+pub use self::params::{
+    ErosionParams, Falloff, FeatureFilter, Orientation, PatchRegion, SeedCorners, SeedTexel,
+    WeightMode,
+};
 use self::patch::{CarryTable, FrameSurface, Patch, PatchShape};
 use self::stats::{Blended, StepCounts};
 pub use self::update::Placement;
@@ -293,7 +296,8 @@ impl Erosion {
             } else {
                 f32::INFINITY
             },
-            texel_size: if atlas.scale > 0.0 {
+            // The paper's F_m is read at full resolution: no footprint.
+            texel_size: if atlas.scale > 0.0 && self.params.feature_filter == FeatureFilter::Mip {
                 (1.0 / atlas.scale) as f32
             } else {
                 0.0
@@ -308,6 +312,8 @@ impl Erosion {
             // Only where progressive weights carry it over the next frames.
             whole_centre: self.variant == Variant::Erode
                 && self.params.weights == WeightMode::Progressive,
+            whole_region: self.params.patch_region == PatchRegion::Paper,
+            pin_seed_corners: self.params.seed_corners == SeedCorners::Pinned,
         }
     }
 }
@@ -817,6 +823,7 @@ impl Erosion {
             normal_dot: self.params.normal_dot,
             rotation: &rotation,
             align,
+            force_seed: self.params.seed_texel == SeedTexel::Forced,
         };
         if !carried {
             let mut chooser = self

@@ -85,10 +85,91 @@ pub struct ErosionParams {
     /// the settings (and so of a run's fingerprint) at 0.
     #[serde(skip_serializing_if = "is_zero")]
     pub transition: u32,
+    /// Which fluid triangles a new patch copies (Sec. 4) \[connected] (see
+    /// [`PatchRegion`]). Left out of the settings at its default.
+    #[serde(skip_serializing_if = "is_default")]
+    pub patch_region: PatchRegion,
+    /// Whether the corners of the triangle that holds p keep B_V = 1 (Eq. 2)
+    /// \[pinned] (see [`SeedCorners`]). Left out of the settings at its
+    /// default.
+    #[serde(skip_serializing_if = "is_default")]
+    pub seed_corners: SeedCorners,
+    /// What becomes of the texel a new patch was made for when the patch
+    /// erodes it (Sec. 5.1) \[forced] (see [`SeedTexel`]). Left out of the
+    /// settings at its default.
+    #[serde(skip_serializing_if = "is_default")]
+    pub seed_texel: SeedTexel,
+    /// How the erosion test reads the feature map F_m (Sec. 5.2) \[mip]
+    /// (see [`FeatureFilter`]). Left out of the settings at its default.
+    #[serde(skip_serializing_if = "is_default")]
+    pub feature_filter: FeatureFilter,
 }
 
 fn is_zero(n: &u32) -> bool {
     *n == 0
+}
+
+fn is_default<T: Default + PartialEq>(value: &T) -> bool {
+    *value == T::default()
+}
+
+/// Which fluid triangles a new patch copies. Both keep only the triangles
+/// within r of p that do not face away from the normal at p (Sec. 4).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PatchRegion {
+    /// Only those edge-connected, through such triangles, to p's triangle:
+    /// a piece of liquid within r that the surface does not join to p (a
+    /// droplet, the far wall of a thin gap) gets no texture from a patch
+    /// whose flattening cannot place it.
+    #[default]
+    Connected,
+    /// The paper's: every such triangle, connected or not. The piece that
+    /// holds p is flattened by LSCM; the others continue its flattening
+    /// (the affine map that best takes their projections on p's tangent
+    /// plane to the flattened piece's uv), since no surface path ties them
+    /// to p.
+    Paper,
+}
+
+/// Which vertices of a new patch hold B_V = 1 besides Eq. 2's.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SeedCorners {
+    /// Also the three corners of the triangle that holds p: B_V interpolates
+    /// to 1 at p, so a patch never erodes the texel it was made for (Eq. 2's
+    /// guard made exact where the triangle is larger than r/4).
+    #[default]
+    Pinned,
+    /// The paper's Eq. 2: interior vertices and those within r/4 of p only.
+    Paper,
+}
+
+/// A new patch that erodes the texel it was created for.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SeedTexel {
+    /// The texel is assigned to the patch anyway, at its centre, and counted
+    /// in `forced_texels`: every texel is covered.
+    #[default]
+    Forced,
+    /// The paper's: the texel stays uncovered (counted in
+    /// `uncovered_texels`). The paper would ask for another patch there;
+    /// ours are made deterministically from the point, so the same patch
+    /// would come back, and the texel waits for the next frame instead.
+    Paper,
+}
+
+/// How the erosion test reads F_m.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FeatureFilter {
+    /// From the feature map's mip level matching one atlas texel on the
+    /// patch triangle ([`super::feature_levels`]).
+    #[default]
+    Mip,
+    /// The paper's: bilinear at full resolution, whatever the atlas.
+    Full,
 }
 
 /// How the vertex weights w_V of Eq. 3 evolve from frame to frame.
@@ -159,6 +240,10 @@ impl Default for ErosionParams {
             split_edges: 2.0,
             tone: Tone::Mean,
             transition: 0,
+            patch_region: PatchRegion::Connected,
+            seed_corners: SeedCorners::Pinned,
+            seed_texel: SeedTexel::Forced,
+            feature_filter: FeatureFilter::Mip,
         }
     }
 }
@@ -242,6 +327,22 @@ crate::named!(WeightMode {
 crate::named!(Falloff {
     Footprint => "footprint",
     Paper => "paper",
+});
+crate::named!(PatchRegion {
+    Connected => "connected",
+    Paper => "paper",
+});
+crate::named!(SeedCorners {
+    Pinned => "pinned",
+    Paper => "paper",
+});
+crate::named!(SeedTexel {
+    Forced => "forced",
+    Paper => "paper",
+});
+crate::named!(FeatureFilter {
+    Mip => "mip",
+    Full => "full",
 });
 crate::named!(Orientation {
     Random => "random",

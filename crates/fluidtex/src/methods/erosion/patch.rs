@@ -59,6 +59,12 @@ pub struct PatchShape {
     /// Progressive weights then lower the centre towards Q_V at the erosion
     /// rate, like any other vertex.
     pub whole_centre: bool,
+    /// A new patch copies every triangle within r facing p's side, connected
+    /// to p's triangle or not (the paper's Sec. 4; [`super::PatchRegion`]).
+    pub whole_region: bool,
+    /// The corners of the triangle that holds p keep B_V = 1
+    /// ([`super::SeedCorners`]).
+    pub pin_seed_corners: bool,
 }
 
 /// Rounds of [`Patch::refine`] per call: each round halves the longest
@@ -245,6 +251,9 @@ pub struct FrameSurface<'a> {
     pub mesh: &'a TriMesh,
     pub topology: &'a Topology,
     pub vertex_normals: &'a [Vec3],
+    /// The mesh's BVH, for the triangles near p that the surface does not
+    /// join to it (`whole_region`); without it every triangle is tested.
+    pub index: Option<&'a SurfaceIndex>,
 }
 
 impl<'a> FrameSurface<'a> {
@@ -254,6 +263,7 @@ impl<'a> FrameSurface<'a> {
             mesh: ctx.mesh,
             topology: ctx.topology,
             vertex_normals: ctx.normals,
+            index: Some(ctx.index),
         }
     }
 }
@@ -262,10 +272,11 @@ impl Patch {
     /// Creates the patch centred at `at` on the current fluid surface
     /// (Sec. 4): the triangles within distance r of p that face the side of
     /// the normal at p, restricted to the edge-connected component of p's
-    /// triangle, copied with their own topology and flattened by LSCM
-    /// (Lévy et al. 2002) followed by a similarity transform so that uv area
-    /// equals 3-D area / S², p maps to (0.5, 0.5) and the patch is turned by
-    /// `rotation` radians. Returns `None` only if `at` names no triangle.
+    /// triangle (unless `shape.whole_region`), copied with their own
+    /// topology and flattened by LSCM (Lévy et al. 2002) followed by a
+    /// similarity transform so that uv area equals 3-D area / S², p maps to
+    /// (0.5, 0.5) and the patch is turned by `rotation` radians. Returns
+    /// `None` only if `at` names no triangle.
     pub fn create(
         id: u32,
         surface: &FrameSurface<'_>,
@@ -289,26 +300,44 @@ impl Patch {
                 n
             }
         };
+        let r2 = shape.radius * shape.radius;
+        let near = |t: u32| {
+            let [a, b, c] = mesh.corners(t as usize);
+            closest_point_on_triangle(p, a, b, c).distance_squared(p) <= r2
+                && mesh.triangle_cross(t as usize).dot(n_p) > 0.0
+        };
         // Flood fill over edge neighbours: this is the connected component of
         // the seed among the triangles within r that face n_p.
-        let r2 = shape.radius * shape.radius;
-        let mut taken = surface.topology.grow_region(seed, |nb| {
-            let [a, b, c] = mesh.corners(nb as usize);
-            closest_point_on_triangle(p, a, b, c).distance_squared(p) <= r2
-                && mesh.triangle_cross(nb as usize).dot(n_p) > 0.0
-        });
-        taken.sort_unstable();
-        let (sub, _) = mesh.submesh(&taken);
-        let seed_local = taken.binary_search(&seed).unwrap_or(0);
+        let mut connected = surface.topology.grow_region(seed, near);
+        connected.sort_unstable();
+        let (connected_mesh, connected_source) = mesh.submesh(&connected);
+        let connected_flat = flatten(&connected_mesh.positions, &connected_mesh.triangles, n_p);
+        let (sub, flat, seed_local) = if shape.whole_region {
+            let others = triangles_near(surface, p, shape.radius, &near, &connected);
+            let piece = Piece {
+                triangles: &connected,
+                mesh: connected_mesh,
+                source: &connected_source,
+                flat: connected_flat,
+            };
+            join_pieces(mesh, piece, &others, n_p, seed)
+        } else {
+            let seed_local = connected.binary_search(&seed).unwrap_or(0);
+            (connected_mesh, connected_flat, seed_local)
+        };
         let [ia, ib, ic] = sub.triangles[seed_local];
-        let rest = rest_coordinates(&sub, seed_local, at.bary, n_p, shape, rotation, align);
+        let rest = rest_coordinates(
+            &sub, &flat, seed_local, at.bary, n_p, shape, rotation, align,
+        );
         let centre = Vec2::splat(0.5);
         let mut pinned: Vec<bool> = rest
             .iter()
             .map(|q| q.distance(centre) * shape.exemplar_size <= shape.centre_radius)
             .collect();
-        for v in [ia, ib, ic] {
-            pinned[v as usize] = true;
+        if shape.pin_seed_corners {
+            for v in [ia, ib, ic] {
+                pinned[v as usize] = true;
+            }
         }
         let mut patch = Patch {
             id,
@@ -783,12 +812,160 @@ fn keep_alive<T: Copy>(values: &mut Vec<T>, dead: &[bool]) {
     }
 }
 
+/// The fluid triangles within r of `p` for which `near` holds, outside
+/// `connected` (sorted), in increasing order: through the BVH's box query
+/// when the surface has one, else by testing every triangle.
+fn triangles_near(
+    surface: &FrameSurface<'_>,
+    p: Vec3,
+    radius: f32,
+    near: &impl Fn(u32) -> bool,
+    connected: &[u32],
+) -> Vec<u32> {
+    let mut found = Vec::new();
+    let consider = |t: u32| {
+        if connected.binary_search(&t).is_err() && near(t) {
+            found.push(t);
+        }
+    };
+    match surface.index {
+        Some(index) => {
+            index.triangles_in_box(p - Vec3::splat(radius), p + Vec3::splat(radius), consider)
+        }
+        None => (0..surface.mesh.triangles.len() as u32).for_each(consider),
+    }
+    found.sort_unstable();
+    found.dedup();
+    found
+}
+
+/// The piece of a new patch that holds p, flattened.
+struct Piece<'a> {
+    /// Its fluid triangles, sorted.
+    triangles: &'a [u32],
+    mesh: TriMesh,
+    /// The fluid vertex of each of its vertices.
+    source: &'a [u32],
+    flat: Vec<Vec2>,
+}
+
+/// The patch mesh of `piece` and the triangles `others` (sorted, disjoint
+/// from it), with its flat coordinates and the local index of `seed`. The
+/// other triangles have no surface path to p, so LSCM cannot place them:
+/// they take the affine map that best (least squares) sends the piece's
+/// vertices, projected on the tangent plane of `n_p`, to their flat
+/// coordinates, which is the piece's own flattening where the surface is
+/// flat and a projection along `n_p` elsewhere.
+fn join_pieces(
+    mesh: &TriMesh,
+    piece: Piece<'_>,
+    others: &[u32],
+    n_p: Vec3,
+    seed: u32,
+) -> (TriMesh, Vec<Vec2>, usize) {
+    if others.is_empty() {
+        let seed_local = piece.triangles.binary_search(&seed).unwrap_or(0);
+        return (piece.mesh, piece.flat, seed_local);
+    }
+    let (a, b) = n_p.normalize_or(Vec3::Z).any_orthonormal_pair();
+    let project = |x: Vec3| [f64::from(x.dot(a)), f64::from(x.dot(b))];
+    let map = TangentMap::fit(
+        piece.mesh.positions.iter().map(|&x| project(x)),
+        piece.flat.iter().map(|q| [f64::from(q.x), f64::from(q.y)]),
+    );
+    let flat_of: std::collections::HashMap<u32, Vec2> = piece
+        .source
+        .iter()
+        .copied()
+        .zip(piece.flat.iter().copied())
+        .collect();
+    let mut all: Vec<u32> = piece.triangles.iter().chain(others).copied().collect();
+    all.sort_unstable();
+    let (sub, source) = mesh.submesh(&all);
+    let flat = source
+        .iter()
+        .zip(&sub.positions)
+        .map(|(v, &x)| match flat_of.get(v) {
+            Some(&q) => q,
+            None => map.apply(project(x)),
+        })
+        .collect();
+    let seed_local = all.binary_search(&seed).unwrap_or(0);
+    (sub, flat, seed_local)
+}
+
+/// An affine map of the plane, q ↦ A q + t.
+struct TangentMap {
+    a: [[f64; 2]; 2],
+    t: [f64; 2],
+}
+
+impl TangentMap {
+    /// The least-squares affine map from the points `from` to `to`; where
+    /// `from` spans no area (collinear), the translation of the centroids.
+    fn fit(from: impl Iterator<Item = [f64; 2]>, to: impl Iterator<Item = [f64; 2]>) -> TangentMap {
+        let (from, to): (Vec<[f64; 2]>, Vec<[f64; 2]>) = from.zip(to).unzip();
+        let centroid = |points: &[[f64; 2]]| {
+            let n = points.len().max(1) as f64;
+            let sum = points
+                .iter()
+                .fold([0.0, 0.0], |s, q| [s[0] + q[0], s[1] + q[1]]);
+            [sum[0] / n, sum[1] / n]
+        };
+        let (qm, fm) = (centroid(&from), centroid(&to));
+        // Normal equations: A = (Σ f̃ q̃ᵀ)(Σ q̃ q̃ᵀ)⁻¹.
+        let (mut qq, mut fq) = ([[0.0f64; 2]; 2], [[0.0f64; 2]; 2]);
+        for (q, f) in from.iter().zip(&to) {
+            let dq = [q[0] - qm[0], q[1] - qm[1]];
+            let df = [f[0] - fm[0], f[1] - fm[1]];
+            for i in 0..2 {
+                for j in 0..2 {
+                    qq[i][j] += dq[i] * dq[j];
+                    fq[i][j] += df[i] * dq[j];
+                }
+            }
+        }
+        let det = qq[0][0] * qq[1][1] - qq[0][1] * qq[1][0];
+        let scale = qq[0][0] * qq[1][1];
+        let a = if det > 1e-12 * scale && det.is_finite() {
+            let inv = [
+                [qq[1][1] / det, -qq[0][1] / det],
+                [-qq[1][0] / det, qq[0][0] / det],
+            ];
+            let mut a = [[0.0f64; 2]; 2];
+            for i in 0..2 {
+                for j in 0..2 {
+                    a[i][j] = fq[i][0] * inv[0][j] + fq[i][1] * inv[1][j];
+                }
+            }
+            a
+        } else {
+            [[1.0, 0.0], [0.0, 1.0]]
+        };
+        let t = [
+            fm[0] - (a[0][0] * qm[0] + a[0][1] * qm[1]),
+            fm[1] - (a[1][0] * qm[0] + a[1][1] * qm[1]),
+        ];
+        TangentMap { a, t }
+    }
+
+    fn apply(&self, q: [f64; 2]) -> Vec2 {
+        let a = &self.a;
+        Vec2::new(
+            (a[0][0] * q[0] + a[0][1] * q[1] + self.t[0]) as f32,
+            (a[1][0] * q[0] + a[1][1] * q[1] + self.t[1]) as f32,
+        )
+    }
+}
+
 /// The rest coordinates (exemplar uv) of a new patch's vertices: `sub`
-/// flattened by LSCM, unmirrored seen from `n_p`, scaled so that uv area
+/// flattened (`flat`, by [`flatten`]), unmirrored seen from `n_p`, scaled so that uv area
 /// equals 3-D area / S², the point at `bary` of triangle `seed_local` at
 /// (0.5, 0.5), turned by `rotation` (or aligned to `align`).
+#[allow(clippy::too_many_arguments)]
 fn rest_coordinates(
     sub: &TriMesh,
+    flat: &[Vec2],
     seed_local: usize,
     bary: [f32; 3],
     n_p: Vec3,
@@ -796,7 +973,6 @@ fn rest_coordinates(
     rotation: f32,
     align: Option<Vec3>,
 ) -> Vec<Vec2> {
-    let flat = flatten(&sub.positions, &sub.triangles, n_p);
     // Orientation: seen from the side the normal points to, the exemplar
     // must not be mirrored. Our uv has v pointing down (texture.rs), so an
     // unmirrored map has negative signed uv area for CCW triangles.

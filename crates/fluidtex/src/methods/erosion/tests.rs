@@ -44,6 +44,8 @@ pub(super) fn shape(radius: f32) -> PatchShape {
         split_length: 0.0,
         split_stretch: f32::INFINITY,
         whole_centre: false,
+        whole_region: false,
+        pin_seed_corners: true,
     }
 }
 
@@ -54,6 +56,7 @@ fn create_on(mesh: &TriMesh, at: SurfacePoint, shape: &PatchShape, rotation: f32
         mesh,
         topology: &topology,
         vertex_normals: &normals,
+        index: None,
     };
     Patch::create(0, &surface, at, shape, rotation, None).expect("valid triangle")
 }
@@ -111,18 +114,7 @@ fn patch_takes_the_connected_facing_triangles_within_r() {
     // Sheet A (z = 0, up), sheet B (z = 0.05, up, disconnected), sheet C
     // (z = -0.05, facing down). A patch created on A holds A's triangles
     // within r and nothing of B or C.
-    let a = grid(10, 0.1);
-    let mut mesh = a.clone();
-    for (dz, flip) in [(0.05f32, false), (-0.05, true)] {
-        let off = mesh.positions.len() as u32;
-        mesh.positions
-            .extend(a.positions.iter().map(|p| *p + Vec3::Z * dz));
-        mesh.triangles.extend(a.triangles.iter().map(|t| {
-            let t = t.map(|v| v + off);
-            if flip { [t[0], t[2], t[1]] } else { t }
-        }));
-    }
-    mesh = mesh.with_velocity(vec![Vec3::ZERO; 3 * a.positions.len()]);
+    let (mesh, a) = three_sheets();
     let r = 0.25;
     let at = SurfacePoint::new(110, [1.0 / 3.0; 3]);
     let p = at.position(&mesh);
@@ -135,6 +127,122 @@ fn patch_takes_the_connected_facing_triangles_within_r() {
         })
         .count();
     assert_eq!(patch.triangles.len(), within);
+}
+
+/// Sheets A and B of the test above, and C facing away.
+fn three_sheets() -> (TriMesh, TriMesh) {
+    let a = grid(10, 0.1);
+    let mut mesh = a.clone();
+    for (dz, flip) in [(0.05f32, false), (-0.05, true)] {
+        let off = mesh.positions.len() as u32;
+        mesh.positions
+            .extend(a.positions.iter().map(|p| *p + Vec3::Z * dz));
+        mesh.triangles.extend(a.triangles.iter().map(|t| {
+            let t = t.map(|v| v + off);
+            if flip { [t[0], t[2], t[1]] } else { t }
+        }));
+    }
+    let n = mesh.positions.len();
+    (mesh.with_velocity(vec![Vec3::ZERO; n]), a)
+}
+
+#[test]
+fn the_papers_patch_region_also_takes_the_facing_triangles_it_cannot_reach() {
+    // `patch_region = paper`: every triangle within r facing p's side,
+    // connected or not: A's and B's within r, none of C's. B lies over A,
+    // so its vertices continue A's flattening: each B vertex has the rest
+    // coordinates of the A vertex below it.
+    let (mesh, a) = three_sheets();
+    let r = 0.25;
+    let at = SurfacePoint::new(110, [1.0 / 3.0; 3]);
+    let p = at.position(&mesh);
+    let paper = PatchShape {
+        whole_region: true,
+        ..shape(r)
+    };
+    let patch = create_on(&mesh, at, &paper, 0.7);
+    let within_a: usize = (0..a.triangles.len())
+        .filter(|&t| {
+            let [x, y, z] = a.corners(t);
+            crate::surface::closest_point_on_triangle(p, x, y, z).distance(p) <= r
+        })
+        .count();
+    let within_b: usize = (0..a.triangles.len())
+        .filter(|&t| {
+            let [x, y, z] = a.corners(t).map(|q| q + Vec3::Z * 0.05);
+            crate::surface::closest_point_on_triangle(p, x, y, z).distance(p) <= r
+        })
+        .count();
+    assert!(
+        within_b > 0 && within_b <= within_a,
+        "{within_b} {within_a}"
+    );
+    assert_eq!(patch.triangles.len(), within_a + within_b);
+    assert!(patch.positions.iter().all(|q| q.z == 0.0 || q.z == 0.05));
+    let connected = create_on(&mesh, at, &shape(r), 0.7);
+    let mut matched = 0;
+    for (v, q) in patch.positions.iter().enumerate() {
+        if q.z == 0.0 {
+            // A's piece is flattened as without the other pieces.
+            let same = connected
+                .positions
+                .iter()
+                .position(|c| c == q)
+                .expect("A's vertex");
+            assert!(patch.rest[v].distance(connected.rest[same]) < 1e-5);
+        } else if let Some(below) = patch
+            .positions
+            .iter()
+            .position(|c| c.z == 0.0 && c.truncate() == q.truncate())
+        {
+            let d = patch.rest[v].distance(patch.rest[below]);
+            assert!(d < 1e-4, "vertex {v}: {d}");
+            matched += 1;
+        }
+    }
+    assert!(matched > 3, "{matched} B vertices over A vertices");
+    // The BVH's box query finds exactly what testing every triangle finds.
+    let topology = Topology::new(mesh.vertex_count(), &mesh.triangles);
+    let normals = mesh.vertex_normals();
+    let index = SurfaceIndex::new(&mesh);
+    let surface = FrameSurface {
+        mesh: &mesh,
+        topology: &topology,
+        vertex_normals: &normals,
+        index: Some(&index),
+    };
+    let indexed = Patch::create(0, &surface, at, &paper, 0.7, None).expect("patch");
+    assert_eq!(indexed.triangles, patch.triangles);
+    assert_eq!(indexed.rest, patch.rest);
+}
+
+#[test]
+fn the_papers_seed_corners_hold_only_what_eq_2_holds() {
+    // With r/4 smaller than the seed triangle, Eq. 2 alone pins no corner
+    // of it; the default pins all three.
+    let mesh = grid(20, 0.1);
+    let at = SurfacePoint::new(421, [0.2, 0.3, 0.5]);
+    let small = PatchShape {
+        centre_radius: 0.02,
+        ..shape(0.5)
+    };
+    let paper = PatchShape {
+        pin_seed_corners: false,
+        ..small
+    };
+    let (ours, theirs) = (
+        create_on(&mesh, at, &small, 0.4),
+        create_on(&mesh, at, &paper, 0.4),
+    );
+    assert_eq!(ours.rest, theirs.rest);
+    let by_eq_2: Vec<bool> = theirs
+        .rest
+        .iter()
+        .map(|q| q.distance(Vec2::splat(0.5)) * paper.exemplar_size <= paper.centre_radius)
+        .collect();
+    assert_eq!(theirs.pinned, by_eq_2);
+    assert_eq!(by_eq_2.iter().filter(|&&b| b).count(), 0);
+    assert_eq!(ours.pinned.iter().filter(|&&b| b).count(), 3);
 }
 
 #[test]
@@ -154,6 +262,8 @@ fn weights_follow_eqs_1_to_3_on_a_hand_built_patch() {
         split_length: 0.0,
         split_stretch: f32::INFINITY,
         whole_centre: false,
+        whole_region: false,
+        pin_seed_corners: true,
     };
     let rest: Vec<Vec2> = mesh.positions.iter().map(|p| p.truncate()).collect();
     // Stretch vertex 8 (corner) along x by 1: only triangles using it deform.
@@ -292,6 +402,69 @@ fn step_all(method: &mut Erosion, clip: &Clip) -> Vec<FrameResult> {
 
 fn sources(r: &FrameResult) -> &[u32] {
     r.source.as_deref().expect("erosion records sources")
+}
+
+/// Large patches on a curved surface with a δ_max just above 1 and the
+/// paper's weights: flattening alone erodes some patches' own seed texels.
+fn eroding_seeds(seed_texel: SeedTexel) -> Vec<FrameResult> {
+    let c = scene("differential-rotation", 12, 2, 64);
+    let params = ErosionParams {
+        radius_fraction: 0.3,
+        delta_max: 1.2,
+        delta_onset: 1.0,
+        weights: WeightMode::Paper,
+        seed_corners: SeedCorners::Paper,
+        seed_texel,
+        ..ErosionParams::default()
+    };
+    let mut method = Erosion::new(params, exemplar(), 7).expect("params");
+    step_all(&mut method, &c)
+}
+
+#[test]
+fn the_papers_seed_texel_stays_uncovered_where_ours_is_forced() {
+    let forced = eroding_seeds(SeedTexel::Forced);
+    let paper = eroding_seeds(SeedTexel::Paper);
+    for (ours, theirs) in forced.iter().zip(&paper) {
+        let n = ours.stats["forced_texels"].as_u64().expect("count");
+        assert!(n > 0, "the case arises");
+        assert_eq!(ours.stats["uncovered_texels"], 0);
+        assert_eq!(theirs.stats["forced_texels"], 0);
+        let left = theirs.stats["uncovered_texels"].as_u64().expect("count");
+        assert!(left > 0);
+        let holes = sources(theirs)
+            .iter()
+            .filter(|&&s| s == SOURCE_UNCOVERED)
+            .count();
+        assert_eq!(holes as u64, left);
+    }
+}
+
+#[test]
+fn the_papers_feature_filter_reads_f_m_at_full_resolution() {
+    // At a 32² atlas one atlas texel spans many feature texels: the mip
+    // reading picks coarser levels, the paper's reads level 0 everywhere.
+    let c = scene("differential-rotation", 12, 2, 32);
+    let run = |feature_filter| {
+        let params = ErosionParams {
+            feature_filter,
+            ..ErosionParams::default()
+        };
+        let mut method = Erosion::new(params, exemplar(), 7).expect("params");
+        let results = step_all(&mut method, &c);
+        let lods: Vec<f32> = method
+            .state()
+            .patches
+            .iter()
+            .flat_map(|p| p.lod.iter().copied())
+            .collect();
+        (results, lods)
+    };
+    let (mip, mip_lods) = run(FeatureFilter::Mip);
+    let (full, full_lods) = run(FeatureFilter::Full);
+    assert!(mip_lods.iter().any(|&l| l > 1.0));
+    assert!(!full_lods.is_empty() && full_lods.iter().all(|&l| l == 0.0));
+    assert_ne!(sources(&mip[1]), sources(&full[1]));
 }
 
 #[test]
@@ -1034,6 +1207,7 @@ fn aligned_orientation_follows_the_axis_and_rides_a_rigid_rotation() {
         mesh: &mesh,
         topology: &topology,
         vertex_normals: &normals,
+        index: None,
     };
     let field = |n: Vec3| (axis - n * axis.dot(n)).normalize();
     let angle = |a: Vec3, b: Vec3| a.dot(b).clamp(-1.0, 1.0).acos().to_degrees();

@@ -19,7 +19,9 @@
 //! should a wildly distorted creation still erode it, it is assigned to its
 //! own patch anyway and counted as `forced`, so every new patch covers at
 //! least one texel and the loop ends after at most as many patches as there
-//! were uncovered texels.
+//! were uncovered texels. With the paper's rule ([`super::SeedTexel::Paper`])
+//! such a texel is left uncovered instead, and the same bound holds: every
+//! new patch settles its seed texel one way or the other.
 
 use std::collections::HashMap;
 
@@ -73,6 +75,10 @@ pub struct UpdateInputs<'a> {
     pub rotation: &'a (dyn Fn(crate::surface::SurfacePoint) -> f32 + Sync),
     /// The world axis the exemplar's up follows (aligned orientation).
     pub align: Option<glam::Vec3>,
+    /// A new patch that erodes its own seed texel gets it anyway (see the
+    /// module doc); false: the texel stays uncovered this frame (the
+    /// paper's [`super::SeedTexel::Paper`]).
+    pub force_seed: bool,
 }
 
 /// Covers every texel in `uncovered`, appending new patches to `patches`.
@@ -242,8 +248,13 @@ impl<'u> Holes<'u> {
                 }
             }
         }
-        let forced = !self.covered[seed];
-        if forced {
+        let forced = !self.covered[seed] && inputs.force_seed;
+        if !self.covered[seed] && !inputs.force_seed {
+            // The paper's: the texel stays uncovered. Another patch made
+            // here would be this one again, so it is not asked for again
+            // this frame; marking it done moves the placement on.
+            self.covered[seed] = true;
+        } else if forced {
             // See the module doc: the creating texel is the patch centre.
             let hit = Hit {
                 patch: 0,
@@ -327,6 +338,7 @@ mod tests {
             mesh,
             topology: &c.topologies[0],
             vertex_normals: &c.normals[0],
+            index: Some(index),
         };
         let (lo, hi) = mesh.bounding_box().expect("surface");
         let radius = (hi - lo).length() / 8.0;
