@@ -17,6 +17,7 @@ use fluidtex::methods::erosion::{
     SeedTexel, WeightMode,
 };
 use fluidtex::methods::lapped_rigid::LappedRigidParams;
+use fluidtex::methods::lapped_rigid::distribution::Placement as RigidPlacement;
 use fluidtex::methods::optimization::{Histogram, OptimizationParams};
 use fluidtex::methods::registry::{MethodKind, MethodParams};
 use fluidtex::methods::tone::Tone;
@@ -213,6 +214,16 @@ impl Config {
         if let Some(toml::Value::Table(erosion)) = table.get_mut("erosion") {
             for (key, value) in skipped {
                 erosion.entry(key).or_insert(value);
+            }
+        }
+        let r = &self.lapped_rigid;
+        let skipped = [
+            ("placement", toml::Value::try_from(r.placement)?),
+            ("seed_texel", toml::Value::try_from(r.seed_texel)?),
+        ];
+        if let Some(toml::Value::Table(rigid)) = table.get_mut("lapped_rigid") {
+            for (key, value) in skipped {
+                rigid.entry(key).or_insert(value);
             }
         }
         Ok(toml::to_string(&table)?)
@@ -641,6 +652,8 @@ flag_keys! {
     rigid.rigid_mask_softness => lapped_rigid.mask_softness: value,
     rigid.rigid_sink_speed => lapped_rigid.sink_speed: value,
     rigid.rigid_sink_fade_rate => lapped_rigid.sink_fade_rate: value,
+    rigid.rigid_placement => lapped_rigid.placement: value,
+    rigid.rigid_seed_texel => lapped_rigid.seed_texel: value,
 }
 
 /// Flags applied by hand in [`RunFlags::apply`] (their value is parsed
@@ -776,7 +789,7 @@ pub struct RigidFlags {
     /// lapped-rigid: ψ_{α=0}, receiver vertices beyond this angle are transparent, degrees [60]
     #[arg(long)]
     pub rigid_alpha_transparent: Option<f32>,
-    /// lapped-rigid: trackers farther than this × r from the next surface are deleted [0.25]
+    /// lapped-rigid: trackers farther than this × r from the next surface are deleted (0: never, the paper) [0.25]
     #[arg(long)]
     pub rigid_far_fraction: Option<f32>,
     /// lapped-rigid: RK4 substeps per frame [1]
@@ -809,6 +822,12 @@ pub struct RigidFlags {
     /// lapped-rigid: sink fade speed (1: gone when the corners would reach the centre) [1]
     #[arg(long)]
     pub rigid_sink_fade_rate: Option<f32>,
+    /// lapped-rigid: new trackers at the first uncovered texel (first) or at random uncovered texels (random, the paper) [first]
+    #[arg(long, value_parser = named::<RigidPlacement>())]
+    pub rigid_placement: Option<RigidPlacement>,
+    /// lapped-rigid: a seed texel its patch leaves short is closed anyway (forced) or left to later trackers (paper) [forced]
+    #[arg(long, value_parser = named::<SeedTexel>())]
+    pub rigid_seed_texel: Option<SeedTexel>,
 }
 
 #[cfg(test)]
@@ -1088,6 +1107,7 @@ mod tests {
                 "global",
                 "paper",
                 "full",
+                "random",
                 "aligned",
                 "advect",
                 "none",

@@ -218,6 +218,7 @@ fn keys_set_by(flag: &str, takes_value: bool, keys: &BTreeSet<String>) -> BTreeS
             "global",
             "paper",
             "full",
+            "random",
             "aligned",
             "a b c",
             "a=b.png",

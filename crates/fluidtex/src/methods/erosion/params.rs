@@ -145,18 +145,23 @@ pub enum SeedCorners {
     Paper,
 }
 
-/// A new patch that erodes the texel it was created for.
+/// What becomes of the texel a new patch was made for when the patch does
+/// not show it (erosion: the patch erodes it; `lapped-rigid`: its composite
+/// stays short of coverage).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum SeedTexel {
-    /// The texel is assigned to the patch anyway, at its centre, and counted
-    /// in `forced_texels`: every texel is covered.
+    /// The texel is closed by its patch anyway (erosion: at the patch
+    /// centre; `lapped-rigid`: with what it has, or the patch centre where
+    /// nothing showed) and counted in `forced_texels`: every texel is
+    /// covered.
     #[default]
     Forced,
-    /// The paper's: the texel stays uncovered (counted in
-    /// `uncovered_texels`). The paper would ask for another patch there;
-    /// ours are made deterministically from the point, so the same patch
-    /// would come back, and the texel waits for the next frame instead.
+    /// The papers': the texel is left to the patches still to come; where
+    /// none covers it, it stays uncovered (counted in `uncovered_texels`).
+    /// The papers would ask for another patch there; ours are made
+    /// deterministically from the point, so the same patch would come back,
+    /// and the texel seeds no other this frame.
     Paper,
 }
 

@@ -11,8 +11,13 @@ use std::collections::HashMap;
 /// Open/closed state of a list of uncovered texels (indices into it).
 pub struct Pending {
     closed: Vec<bool>,
+    /// Open texels that may no longer seed a patch ([`Pending::retire`]).
+    retired: Vec<bool>,
     by_triangle: HashMap<u32, Vec<u32>>,
     cursor: usize,
+    /// Random seeds: the texels that may still be open and unretired,
+    /// pruned lazily as they are drawn.
+    candidates: Option<Vec<u32>>,
 }
 
 impl Pending {
@@ -27,17 +32,57 @@ impl Pending {
         }
         Pending {
             closed: vec![false; n],
+            retired: vec![false; n],
             by_triangle,
             cursor: 0,
+            candidates: None,
         }
     }
 
-    /// The first open texel (the next seed); `None` once all are closed.
+    fn can_seed(&self, k: usize) -> bool {
+        !self.closed[k] && !self.retired[k]
+    }
+
+    /// The first open texel that may seed (the next seed); `None` once all
+    /// are closed or retired.
     pub fn next_open(&mut self) -> Option<usize> {
-        while self.cursor < self.closed.len() && self.closed[self.cursor] {
+        while self.cursor < self.closed.len() && !self.can_seed(self.cursor) {
             self.cursor += 1;
         }
         (self.cursor < self.closed.len()).then_some(self.cursor)
+    }
+
+    /// An open texel that may seed, drawn uniformly by `rng` among them
+    /// (the 2016 paper's random distribution over the uncovered area: the
+    /// texels of an atlas chart are spread evenly over the surface);
+    /// `None` once all are closed or retired. Each texel is dropped from
+    /// the draw once it is found closed, so a frame's draws cost about one
+    /// pass over the list.
+    pub fn random_open(&mut self, rng: &mut impl rand::Rng) -> Option<usize> {
+        let n = self.closed.len() as u32;
+        let candidates = self.candidates.get_or_insert_with(|| (0..n).collect());
+        while !candidates.is_empty() {
+            let i = rng.random_range(0..candidates.len());
+            let k = candidates[i] as usize;
+            if !self.closed[k] && !self.retired[k] {
+                return Some(k);
+            }
+            candidates.swap_remove(i);
+        }
+        None
+    }
+
+    /// Texel `k` stays open (later patches may still complete it) but no
+    /// longer seeds one.
+    pub fn retire(&mut self, k: usize) {
+        if let Some(r) = self.retired.get_mut(k) {
+            *r = true;
+        }
+    }
+
+    /// The texels still open, in list order.
+    pub fn open(&self) -> impl Iterator<Item = usize> + '_ {
+        (0..self.closed.len()).filter(|&k| !self.closed[k])
     }
 
     /// Calls `visit` on every open texel of fluid triangle `f`, in texel
@@ -96,5 +141,39 @@ mod tests {
         p.close(3);
         assert_eq!(p.next_open(), None);
         assert!(p.is_closed(99), "beyond the list counts as closed");
+    }
+
+    /// Random draws hand out every open, unretired texel and nothing else,
+    /// the same sequence for the same seed; a retired texel stays open.
+    #[test]
+    fn random_seeds_are_the_open_unretired_texels() {
+        use rand::SeedableRng;
+        let draw = |seed: u64| {
+            let mut p = Pending::new((0..50).map(|k| k % 7));
+            for k in [3, 10, 11] {
+                p.close(k);
+            }
+            p.retire(20);
+            let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+            let mut order = Vec::new();
+            while let Some(k) = p.random_open(&mut rng) {
+                assert!(!p.is_closed(k) && k != 20);
+                order.push(k);
+                p.close(k);
+            }
+            assert_eq!(p.open().collect::<Vec<_>>(), vec![20]);
+            order
+        };
+        let (a, b) = (draw(1), draw(1));
+        assert_eq!(a, b);
+        let mut sorted = a.clone();
+        sorted.sort_unstable();
+        let want: Vec<usize> = (0..50).filter(|k| ![3, 10, 11, 20].contains(k)).collect();
+        assert_eq!(sorted, want);
+        assert_ne!(a, want, "not texel order");
+        assert_ne!(a, draw(2));
+        let mut p = Pending::new([1, 1, 1]);
+        p.retire(0);
+        assert_eq!(p.next_open(), Some(1), "a retired texel seeds nothing");
     }
 }

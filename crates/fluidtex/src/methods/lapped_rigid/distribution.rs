@@ -11,7 +11,14 @@
 //! mask and falloff are 1, so it is covered by its own patch; should a
 //! strange surface still leave it short, it is closed with what it has and
 //! counted as `forced`, so the loop ends after at most as many trackers as
-//! there were uncovered texels.
+//! there were uncovered texels. With the paper's rule
+//! ([`super::SeedTexel::Paper`]) it is left open for the trackers still to
+//! come but seeds no other, so the same bound holds.
+//!
+//! **Placement** ([`Placement`]): the next seed is the first open texel in
+//! texel order, or, as the paper has it, a random one (uniform over the
+//! open texels, which an atlas spreads evenly over the surface, so uniform
+//! over the uncovered area), drawn from a generator seeded per frame.
 //!
 //! **Sinks.** Where the flow converges, the patch on top never leaves and
 //! the layering would keep it forever. A tracker whose four frame corners
@@ -30,6 +37,23 @@ use crate::methods::lapped::Pending;
 use crate::surface::SurfacePoint;
 use crate::surface::velocity::FlowFrame;
 
+/// Where new trackers go.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Placement {
+    /// At the first uncovered texel in texel order (the 2021 paper's rule):
+    /// the same layout for the same uncovered texels, whatever the seed.
+    #[default]
+    First,
+    /// The 2016 paper's: at a random uncovered texel, seeded per frame.
+    Random,
+}
+
+crate::named!(Placement {
+    First => "first",
+    Random => "random",
+});
+
 /// What the coverage update did.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct CoverStats {
@@ -44,6 +68,11 @@ pub struct CoverInputs<'a> {
     pub exemplar_size: f32,
     /// Rotation of the tracker created at a surface point.
     pub rotation: &'a (dyn Fn(SurfacePoint) -> f32 + Sync),
+    /// [`Placement::Random`]: the frame's generator; `None`: the first
+    /// open texel.
+    pub placement: Option<rand_pcg::Pcg64>,
+    /// A seed texel its patch leaves short is closed anyway (module doc).
+    pub force_seed: bool,
 }
 
 /// Covers every texel of `uncovered` with new trackers appended to
@@ -51,7 +80,7 @@ pub struct CoverInputs<'a> {
 /// list is replaced by the new patches one at a time.
 pub fn cover(
     template: &CompositeContext<'_>,
-    inputs: &CoverInputs<'_>,
+    inputs: CoverInputs<'_>,
     trackers: &mut Vec<Tracker>,
     next_id: &mut u32,
     mut uncovered: Vec<Uncovered>,
@@ -61,7 +90,12 @@ pub fn cover(
     let mut stats = CoverStats::default();
     let rc = inputs.receivers;
     let mut pending = Pending::new(uncovered.iter().map(|u| u.triangle));
-    while let Some(seed) = pending.next_open() {
+    let mut rng = inputs.placement;
+    let mut next = |pending: &mut Pending| match rng.as_mut() {
+        Some(rng) => pending.random_open(rng),
+        None => pending.next_open(),
+    };
+    while let Some(seed) = next(&mut pending) {
         let at = SurfacePoint::new(uncovered[seed].triangle, uncovered[seed].bary);
         let id = *next_id;
         *next_id += 1;
@@ -79,15 +113,24 @@ pub fn cover(
         let ctx = template.with_layers(&layer);
         let mut shown = composite_below(&ctx, rc, &mut pending, &mut uncovered, out);
         if !pending.is_closed(seed) {
-            shown += force_seed(&ctx, &tracker, &mut uncovered[seed], out);
-            pending.close(seed);
-            stats.forced += 1;
+            if inputs.force_seed {
+                shown += force_seed(&ctx, &tracker, &mut uncovered[seed], out);
+                pending.close(seed);
+                stats.forced += 1;
+            } else {
+                pending.retire(seed);
+            }
         }
         stats.created += 1;
         if let Some(c) = chooser.as_deref_mut() {
             c.coverage.push(tracker.position, tracker.exemplar, shown);
         }
         trackers.push(tracker);
+    }
+    // The paper's rule: what no tracker completed keeps what it has.
+    for k in pending.open().collect::<Vec<_>>() {
+        close(template, &uncovered[k], out);
+        pending.close(k);
     }
     stats
 }

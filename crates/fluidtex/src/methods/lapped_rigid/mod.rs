@@ -50,6 +50,7 @@ use self::distribution::{CoverInputs, SinkRule};
 use self::falloff::PatchMask;
 use self::receivers::{ReceiverContext, Receivers};
 use self::trackers::Tracker;
+pub use super::erosion::SeedTexel;
 use super::lapped::{PatchScale, ScaleKeys};
 use super::{
     ChannelSpec, FrameContext, FrameResult, Method, MethodError, StageClock, check_ranges,
@@ -94,7 +95,9 @@ pub struct LappedRigidParams {
     /// ψ_{α=1} < ψ_{α=0} < φ_max.
     pub alpha_transparent: f32,
     /// A tracker farther than this fraction of r from the next surface after
-    /// advection has left it and is deleted \[1/4] (erosion's removal distance).
+    /// advection has left it and is deleted \[1/4] (erosion's removal
+    /// distance); 0: never, the tracker goes to the closest surface point
+    /// however far (the paper has no such rule).
     pub far_fraction: f32,
     /// RK4 steps per frame \[1] (Sec. 3.1.1).
     pub substeps: u32,
@@ -129,6 +132,19 @@ pub struct LappedRigidParams {
     /// to carry its corners to its centre (Sec. 3.1.3: a rate proportional
     /// to the inward speed).
     pub sink_fade_rate: f32,
+    /// Where new trackers go \[first] (see [`distribution::Placement`]).
+    /// Left out of the settings at its default.
+    #[serde(skip_serializing_if = "is_default")]
+    pub placement: distribution::Placement,
+    /// What becomes of a seed texel its own new patch leaves short
+    /// \[forced] (see [`distribution::cover`]). Left out of the settings at
+    /// its default.
+    #[serde(skip_serializing_if = "is_default")]
+    pub seed_texel: SeedTexel,
+}
+
+fn is_default<T: Default + PartialEq>(value: &T) -> bool {
+    *value == T::default()
 }
 
 impl Default for LappedRigidParams {
@@ -153,6 +169,8 @@ impl Default for LappedRigidParams {
             mask_softness: 0.2,
             sink_speed: 0.25,
             sink_fade_rate: 1.0,
+            placement: distribution::Placement::First,
+            seed_texel: SeedTexel::Forced,
         }
     }
 }
@@ -168,14 +186,16 @@ impl LappedRigidParams {
             exemplar_scale: "lapped_rigid.exemplar_scale",
         })?;
         self.validate_angles()?;
-        check_ranges(&[
-            (
+        if self.far_fraction != 0.0 {
+            check_ranges(&[(
                 "lapped_rigid.far_fraction",
                 self.far_fraction,
                 1e-3,
                 10.0,
-                "[0.001, 10]",
-            ),
+                "0 or [0.001, 10]",
+            )])?;
+        }
+        check_ranges(&[
             (
                 "lapped_rigid.substeps",
                 self.substeps as f32,
@@ -540,7 +560,11 @@ impl LappedRigid {
                 });
             }
             if let Some(flow) = ctx.flow(self.params.substeps, 0.25 * radius) {
-                let far = self.params.far_fraction * radius;
+                let far = if self.params.far_fraction == 0.0 {
+                    f32::MAX
+                } else {
+                    self.params.far_fraction * radius
+                };
                 let (mesh, index, normals) = (ctx.mesh, ctx.index, ctx.normals);
                 let keep: Vec<bool> = self
                     .state
@@ -691,7 +715,13 @@ impl LappedRigid {
         clock.lap("fill");
 
         let first_new = self.state.next_id;
-        let stats = self.cover(&composite, &rc, exemplar_size, outcome.uncovered, out);
+        let stats = self.cover(
+            &composite,
+            &rc,
+            (exemplar_size, ctx.number),
+            outcome.uncovered,
+            out,
+        );
         counts.created += stats.created;
         counts.forced = stats.forced;
         // Trackers of the update were created for a texel they now cover.
@@ -706,7 +736,7 @@ impl LappedRigid {
         &mut self,
         composite: &CompositeContext<'_>,
         rc: &ReceiverContext<'_>,
-        exemplar_size: f32,
+        (exemplar_size, frame): (f32, i32),
         uncovered: Vec<composite::Uncovered>,
         out: &mut CompositeBuffers,
     ) -> distribution::CoverStats {
@@ -717,6 +747,13 @@ impl LappedRigid {
             receivers: rc,
             exemplar_size,
             rotation: &rotation,
+            placement: match self.params.placement {
+                distribution::Placement::First => None,
+                distribution::Placement::Random => Some(rand_pcg::Pcg64::seed_from_u64(
+                    super::erosion::mix(seed, 6, frame as u64),
+                )),
+            },
+            force_seed: self.params.seed_texel == SeedTexel::Forced,
         };
         let mut chooser = self.multi.as_ref().map(|m| {
             let mut c = Chooser::new(&m.set, seed, rc.mesh, m.region, rc.radius);
@@ -727,7 +764,7 @@ impl LappedRigid {
         });
         distribution::cover(
             composite,
-            &inputs,
+            inputs,
             &mut self.state.trackers,
             &mut self.state.next_id,
             uncovered,

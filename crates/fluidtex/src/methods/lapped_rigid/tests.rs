@@ -650,3 +650,123 @@ fn bad_parameters_and_missing_velocity_are_errors() {
         Err(MethodError::MissingVelocity { frame: 0, .. })
     ));
 }
+
+/// The 2016 paper's random placement: every texel is still covered, the
+/// trackers it adds are not those of the first-texel rule, and the same
+/// seed gives the same frames (another seed, others); a fluid at rest
+/// still gives identical frames.
+#[test]
+fn random_placement_covers_every_texel_and_follows_its_seed() {
+    let c = scene("vortex", 16, 4, 128);
+    let run = |placement, seed| {
+        let params = LappedRigidParams {
+            placement,
+            ..Default::default()
+        };
+        let mut m = LappedRigid::new(params, exemplar(), seed).expect("params");
+        let results = step_all(&mut m, &c);
+        let created: Vec<Vec3> = m
+            .state()
+            .trackers
+            .iter()
+            .filter(|t| t.id >= results.first().map_or(0, |r| stat(r, "patches_created")) as u32)
+            .map(|t| t.position)
+            .collect();
+        (results, created)
+    };
+    use distribution::Placement::{First, Random};
+    let (random, created) = run(Random, 1);
+    let (again, _) = run(Random, 1);
+    let (other, _) = run(Random, 2);
+    let (first, first_created) = run(First, 1);
+    assert!(!created.is_empty(), "later frames create trackers");
+    assert_ne!(created, first_created);
+    for (k, r) in random.iter().enumerate() {
+        assert_eq!(stat(r, "uncovered_texels"), 0, "frame {k}");
+        assert!(bits(r) == bits(&again[k]), "frame {k}: not reproducible");
+    }
+    let last = random.len() - 1;
+    assert!(bits(&random[last]) != bits(&other[last]));
+    assert!(bits(&random[last]) != bits(&first[last]));
+    let rest = static_clip(3, |_| Vec3::ZERO);
+    let params = LappedRigidParams {
+        placement: Random,
+        ..Default::default()
+    };
+    let mut m = LappedRigid::new(params, exemplar(), 4).expect("params");
+    let r = step_all(&mut m, &rest);
+    assert!(bits(&r[2]) == bits(&r[1]));
+}
+
+/// `far_fraction = 0` (the paper: no rule) keeps a tracker however far the
+/// surface moved from it; the default deletes it past r/4.
+#[test]
+fn far_fraction_zero_never_deletes_a_tracker_for_its_distance() {
+    let near = grid(8, 0.125, |_| Vec3::ZERO);
+    let mut far = near.clone();
+    for p in &mut far.positions {
+        p.z += 0.6;
+    }
+    let c = Clip::from_meshes(vec![near, far], 64);
+    let deleted = |far_fraction| {
+        let params = LappedRigidParams {
+            far_fraction,
+            ..Default::default()
+        };
+        let mut m = LappedRigid::new(params, exemplar(), 2).expect("params");
+        let r = step_all(&mut m, &c);
+        let radius = m.state().radius.expect("resolved");
+        assert!(0.6 > 0.25 * radius, "r = {radius}");
+        (
+            stat(&r[0], "patches_alive"),
+            stat(&r[1], "patches_deleted_advection"),
+        )
+    };
+    let (alive, gone) = deleted(0.25);
+    assert!(alive > 0);
+    assert_eq!(gone, alive);
+    assert_eq!(deleted(0.0), (alive, 0));
+    let bad = LappedRigidParams {
+        far_fraction: 0.0005,
+        ..Default::default()
+    };
+    assert!(LappedRigid::new(bad, exemplar(), 0).is_err());
+}
+
+/// Coverage 1 leaves seed texels a hair short of opacity (the sum of
+/// partial α rounds below 1): ours closes them (`forced_texels`), the
+/// paper's rule leaves them to later trackers and keeps what they have.
+/// Here every such texel had some α, and no later tracker reached it, so
+/// both give the same frames; only the count differs.
+#[test]
+fn the_papers_seed_texel_is_left_to_later_trackers() {
+    let c = scene("vortex", 16, 3, 128);
+    let run = |seed_texel| {
+        let params = LappedRigidParams {
+            coverage: 1.0,
+            seed_texel,
+            ..Default::default()
+        };
+        let mut m = LappedRigid::new(params, exemplar(), 1).expect("params");
+        step_all(&mut m, &c)
+    };
+    let forced = run(SeedTexel::Forced);
+    let paper = run(SeedTexel::Paper);
+    let total = |r: &[FrameResult], key| r.iter().map(|f| stat(f, key)).sum::<u64>();
+    assert!(total(&forced, "forced_texels") > 0, "the case arises");
+    assert_eq!(total(&paper, "forced_texels"), 0);
+    assert_eq!(total(&forced, "uncovered_texels"), 0);
+    for r in &paper {
+        let holes = r
+            .source
+            .as_deref()
+            .expect("source")
+            .iter()
+            .filter(|&&s| s == SOURCE_UNCOVERED)
+            .count() as u64;
+        assert_eq!(holes, stat(r, "uncovered_texels"));
+    }
+    for (a, b) in forced.iter().zip(&paper) {
+        assert!(bits(a) == bits(b));
+    }
+}
