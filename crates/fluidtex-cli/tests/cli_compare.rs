@@ -156,3 +156,65 @@ fn compare_takes_method_parameters_from_a_config_file() {
     assert!(line.contains("delta_onset = 9"), "{line}");
     assert!(!bad.join("report.json").exists());
 }
+
+/// `--paper` runs each method twice, its default and `--preset paper`,
+/// side by side: the second row carries the preset's parameters (with the
+/// config file's own keys still winning) and measures a different texture.
+#[test]
+fn compare_paper_reports_each_method_beside_its_preset_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("params.toml");
+    std::fs::write(&config, "[erosion]\ntone = \"match\"\n").unwrap();
+    let out = dir.path().join("out");
+    compare(
+        &out,
+        &[
+            "--methods",
+            "erosion,lapped-rigid",
+            "--paper",
+            "--config",
+            config.to_str().unwrap(),
+        ],
+    )
+    .unwrap();
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    assert!(json["command"].as_str().unwrap().ends_with(" --paper"));
+    let methods = json["scenes"][0]["methods"].as_array().unwrap();
+    let names: Vec<&str> = methods
+        .iter()
+        .map(|m| m["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        names,
+        [
+            "erosion",
+            "erosion (paper)",
+            "lapped-rigid",
+            "lapped-rigid (paper)"
+        ]
+    );
+    let params = |k: usize| &methods[k]["parameters"]["parameters"];
+    assert_eq!(params(0)["weights"], "progressive");
+    assert_eq!(params(1)["weights"], "paper");
+    assert_eq!(params(1)["seed_corners"], "paper");
+    // The file's key wins over the preset's `tone = "off"`.
+    assert_eq!(params(0)["tone"], "match");
+    assert_eq!(params(1)["tone"], "match");
+    assert_eq!(params(3)["placement"], "random");
+    assert_eq!(methods[3]["parameters"]["preset"], "paper");
+    // The preset changes what is measured.
+    let popping = |k: usize| {
+        methods[k]["metrics"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|m| m["key"] == "popping")
+            .unwrap()["mean"]
+            .clone()
+    };
+    assert_ne!(popping(0), popping(1));
+    assert_ne!(popping(2), popping(3));
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(md.contains("| erosion (paper) |"), "{md}");
+}

@@ -74,9 +74,19 @@ pub struct CompareArgs {
     /// Frames per second of --mesh (its velocities are per second)
     #[arg(long, default_value_t = 24.0)]
     pub fps: f64,
+    /// Also run every method under `--preset paper` (docs/departures.md),
+    /// reported beside it as `METHOD (paper)` and judged by the same rules:
+    /// the default and the published algorithm side by side
+    #[arg(long)]
+    pub paper: bool,
     /// No progress lines
     #[arg(long)]
     pub quiet: bool,
+}
+
+/// The name of a method's run under `--preset paper` in the report.
+pub fn paper_name(method: &str) -> String {
+    format!("{method} (paper)")
 }
 
 fn split_list(what: &str, text: &str) -> Result<Vec<String>> {
@@ -143,11 +153,8 @@ pub fn compare(a: &CompareArgs) -> Result<()> {
     }
     // A config file brings the methods' parameters (e.g. an erosion
     // δ_max to weigh against the defaults); the scene decides the input.
-    let file = match &a.config {
-        Some(path) => Config::load(path)?,
-        None => Config::default(),
-    };
-    let base = Config {
+    let file = Config::load_with_preset(a.config.as_deref(), None)?;
+    let for_compare = |file: Config| Config {
         atlas: Some(a.atlas),
         seed: Some(a.seed),
         exemplar: a.exemplar.clone().or(file.exemplar.clone()),
@@ -157,17 +164,25 @@ pub fn compare(a: &CompareArgs) -> Result<()> {
         out: None,
         ..file
     };
+    let base = for_compare(file);
+    // The file's own keys still win over the preset, as in `run`.
+    let paper = a
+        .paper
+        .then(|| Config::load_with_preset(a.config.as_deref(), Some("paper")).map(for_compare))
+        .transpose()?;
     // Validates the atlas size and gives the atlas parameters `run` uses.
     let job = build_job(&base, a.out.clone(), false)?;
     let exemplar = build_exemplar(&base)?.colour;
     let thresholds = Thresholds::committed()?;
     // Build every method once up front so a bad configuration fails before
     // any scene is generated.
-    for &kind in &kinds {
-        build_method(&Config {
-            method: Some(kind),
-            ..base.clone()
-        })?;
+    for config in std::iter::once(&base).chain(&paper) {
+        for &kind in &kinds {
+            build_method(&Config {
+                method: Some(kind),
+                ..config.clone()
+            })?;
+        }
     }
     std::fs::create_dir_all(&a.out)
         .with_context(|| format!("{}: cannot create the output folder", a.out.display()))?;
@@ -182,6 +197,7 @@ pub fn compare(a: &CompareArgs) -> Result<()> {
     let session = Session {
         args: a,
         base: &base,
+        paper: paper.as_ref(),
         atlas: &job.atlas,
         exemplar: &exemplar,
         thresholds: &thresholds,
@@ -299,6 +315,8 @@ fn plan_scene<'a>(
 struct Session<'a> {
     args: &'a CompareArgs,
     base: &'a Config,
+    /// With `--paper`: the same under `--preset paper`.
+    paper: Option<&'a Config>,
     atlas: &'a fluidtex::atlas::AtlasParams,
     exemplar: &'a Texture,
     thresholds: &'a Thresholds,
@@ -350,28 +368,41 @@ impl Session<'_> {
         .with_context(|| format!("scene {name}"))?;
         let mut runs: Vec<MethodRun> = Vec::new();
         let mut parameters = Vec::new();
+        // Each method's paper run right after its default run.
+        let variants: Vec<(&Config, bool)> = std::iter::once((self.base, false))
+            .chain(self.paper.map(|p| (p, true)))
+            .collect();
         for (m, &kind) in self.method_names.iter().zip(self.kinds) {
-            let config = Config {
-                method: Some(kind),
-                ..self.base.clone()
-            };
-            let mut method = build_method(&config)?;
-            let clock = Instant::now();
-            let run = eval::evaluate(
-                &prepared,
-                method.as_mut(),
-                self.exemplar,
-                &settings,
-                self.thresholds,
-            )
-            .with_context(|| format!("scene {name}, method {m}"))?;
-            self.say(format!(
-                "{name} / {m}: {} frames in {:.1} s",
-                run.frames.len(),
-                clock.elapsed().as_secs_f64()
-            ));
-            parameters.push(method_parameters(&config, m));
-            runs.push(run);
+            for &(base, is_paper) in &variants {
+                let config = Config {
+                    method: Some(kind),
+                    ..base.clone()
+                };
+                let mut method = build_method(&config)?;
+                let clock = Instant::now();
+                let mut run = eval::evaluate(
+                    &prepared,
+                    method.as_mut(),
+                    self.exemplar,
+                    &settings,
+                    self.thresholds,
+                )
+                .with_context(|| format!("scene {name}, method {m}"))?;
+                let label = if is_paper { paper_name(m) } else { m.clone() };
+                self.say(format!(
+                    "{name} / {label}: {} frames in {:.1} s",
+                    run.frames.len(),
+                    clock.elapsed().as_secs_f64()
+                ));
+                let mut p = method_parameters(&config, m);
+                if is_paper {
+                    run.method = label.clone();
+                    p["method"] = label.into();
+                    p["preset"] = "paper".into();
+                }
+                parameters.push(p);
+                runs.push(run);
+            }
         }
         // The source switch share passes relative to advect on the same
         // frames (and, on a strongly sheared scene, so does popping, against
@@ -419,6 +450,9 @@ fn command_line(a: &CompareArgs, methods: &[String]) -> String {
     }
     if let Some(e) = &a.exemplar {
         s.push_str(&format!(" --exemplar {}", e.display()));
+    }
+    if a.paper {
+        s.push_str(" --paper");
     }
     s
 }
