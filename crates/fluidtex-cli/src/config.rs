@@ -527,6 +527,9 @@ pub struct RunFlags {
     /// optimization: robust exponent of the texture energy (2: least squares) [0.8]
     #[arg(long)]
     pub robust: Option<f32>,
+    /// optimization: relaxation sweeps of each vertex neighbourhood's layout (the paper relaxes) [0]
+    #[arg(long)]
+    pub relaxation: Option<u32>,
     /// optimization: after each average, values take the exemplar's histogram (matched) or stay as averaged (paper) [matched]
     #[arg(long, value_parser = named::<Histogram>())]
     pub histogram: Option<Histogram>,
@@ -633,6 +636,7 @@ flag_keys! {
     orientation_iterations => optimization.orientation_iterations: value,
     robust => optimization.robust: value,
     histogram => optimization.histogram: value,
+    relaxation => optimization.relaxation: value,
     rigid.rigid_radius => lapped_rigid.radius: some,
     rigid.rigid_radius_fraction => lapped_rigid.radius_fraction: value,
     rigid.rigid_radius_edges => lapped_rigid.radius_edges: value,

@@ -349,6 +349,7 @@ fn documented_elsewhere(flag: &str) -> bool {
             "histogram",
             "passes-after-first",
             "orientation-iterations",
+            "relaxation",
             "preview-video",
             "prim",
         ]

@@ -125,6 +125,15 @@ pub struct OptimizationParams {
     pub orientation_iterations: u32,
     /// RK4 steps per frame for transport \[1].
     pub substeps: u32,
+    /// Relaxation sweeps after a vertex neighbourhood is laid out ring by
+    /// ring \[0: none] (Sec. V-A.2; the paper names no count, its preset
+    /// uses 4). See [`neighbourhood`]. Left out of the settings at 0.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub relaxation: u32,
+}
+
+fn is_zero(n: &u32) -> bool {
+    *n == 0
 }
 
 impl Default for OptimizationParams {
@@ -146,6 +155,7 @@ impl Default for OptimizationParams {
             histogram: Histogram::Matched,
             orientation_iterations: 10,
             substeps: 1,
+            relaxation: 0,
         }
     }
 }
@@ -224,6 +234,7 @@ impl OptimizationParams {
             "0..=1000",
         )?;
         check_range("substeps", self.substeps as f32, 1.0, 64.0, "1..=64")?;
+        check_range("relaxation", self.relaxation as f32, 0.0, 64.0, "0..=64")?;
         Ok(())
     }
 }
@@ -370,6 +381,7 @@ impl Optimization {
                         width,
                         grid: params.search_grid.min(width),
                         texel,
+                        relaxation: params.relaxation,
                     };
                     SearchIndex::new(&ex, window, params.rerank as usize)
                 })

@@ -8,6 +8,13 @@
 //! the edge's 3-D length, which is what unfolding a curved surface does to
 //! first order). Points whose normal turns away from c's (the other side of
 //! a thin sheet) are left out. Points with |x|, |y| < w/2 are members.
+//! On a curved surface the prediction depends on the path taken; the paper
+//! then relaxes the layout, which [`Window::relaxation`] sweeps do: each
+//! point but the centre moves to the mean of what all its placed
+//! neighbours predict (Gauss–Seidel on the sum over edges of the squared
+//! difference between the laid-out and the predicted edge, which every
+//! move lowers). By default no sweep is made: the averaged first layout is
+//! what the rest of the method was tuned on.
 //!
 //! **Pixel neighbourhood.** The colours at integer texel offsets of c's
 //! frame: the flattened triangles are rasterised and each offset gets the
@@ -58,6 +65,8 @@ pub struct Window {
     pub grid: u32,
     /// World size of one texel at this level.
     pub texel: f32,
+    /// Relaxation sweeps of the vertex neighbourhood's layout (module doc).
+    pub relaxation: u32,
 }
 
 impl Window {
@@ -182,13 +191,7 @@ fn flatten_rings(
             for &u in level.neighbours(v) {
                 let ui = u as usize;
                 if scratch.pstamp[ui] == g {
-                    let e = p_v - level.positions[ui];
-                    let mut e2d = Vec2::new(e.dot(e1), e.dot(e2));
-                    let l2 = e2d.length();
-                    if l2 > 1e-12 {
-                        e2d *= e.length() / l2;
-                    }
-                    sum += scratch.coords[ui] + e2d * inv;
+                    sum += scratch.coords[ui] + predicted_edge(level, (e1, e2, inv), u, v);
                     count += 1.0;
                 }
             }
@@ -210,7 +213,63 @@ fn flatten_rings(
             }
         }
     }
+    for _ in 0..window.relaxation {
+        relax(level, (e1, e2, inv), scratch, g);
+    }
     g
+}
+
+/// The edge from `u` to `v` laid into the frame (`e1`, `e2`) in texel units
+/// (`inv` per world unit), at its 3-D length.
+#[inline]
+fn predicted_edge(level: &Level, (e1, e2, inv): (Vec3, Vec3, f32), u: u32, v: u32) -> Vec2 {
+    let e = level.positions[v as usize] - level.positions[u as usize];
+    let mut e2d = Vec2::new(e.dot(e1), e.dot(e2));
+    let l2 = e2d.length();
+    if l2 > 1e-12 {
+        e2d *= e.length() / l2;
+    }
+    e2d * inv
+}
+
+/// One Gauss–Seidel sweep over the placed points but the centre (module
+/// doc): each moves to the mean of its placed neighbours' predictions.
+fn relax(level: &Level, frame: (Vec3, Vec3, f32), scratch: &mut Scratch, g: u32) {
+    for idx in 1..scratch.placed.len() {
+        let v = scratch.placed[idx];
+        let mut sum = Vec2::ZERO;
+        let mut count = 0.0f32;
+        for &u in level.neighbours(v) {
+            if scratch.pstamp[u as usize] == g {
+                sum += scratch.coords[u as usize] + predicted_edge(level, frame, u, v);
+                count += 1.0;
+            }
+        }
+        if count > 0.0 {
+            scratch.coords[v as usize] = sum / count;
+        }
+    }
+}
+
+/// The layout's misfit: over the edges between placed points, the sum of
+/// squared differences between the laid-out edge and the predicted one
+/// (what [`relax`] lowers).
+#[cfg(test)]
+pub(super) fn layout_misfit(level: &Level, centre: u32, d: Vec3, window: Window) -> (f64, usize) {
+    let mut scratch = Scratch::new(level);
+    let g = flatten_rings(level, centre, d, window, &mut scratch);
+    let n_c = level.normals[centre as usize];
+    let frame = (d, d.cross(n_c), 1.0 / window.texel);
+    let mut misfit = 0.0f64;
+    for &v in &scratch.placed {
+        for &u in level.neighbours(v) {
+            if u < v && scratch.pstamp[u as usize] == g {
+                let laid = scratch.coords[v as usize] - scratch.coords[u as usize];
+                misfit += f64::from((laid - predicted_edge(level, frame, u, v)).length_squared());
+            }
+        }
+    }
+    (misfit, scratch.placed.len())
 }
 
 /// The pixel neighbourhood: the flattened triangles (all three corners
