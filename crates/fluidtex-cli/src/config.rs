@@ -530,6 +530,9 @@ pub struct RunFlags {
     /// optimization: relaxation sweeps of each vertex neighbourhood's layout (the paper relaxes) [0]
     #[arg(long)]
     pub relaxation: Option<u32>,
+    /// optimization: diffusion sweeps of the values carried up to a finer level (the paper diffuses) [0]
+    #[arg(long)]
+    pub upsample_diffusion: Option<u32>,
     /// optimization: after each average, values take the exemplar's histogram (matched) or stay as averaged (paper) [matched]
     #[arg(long, value_parser = named::<Histogram>())]
     pub histogram: Option<Histogram>,
@@ -637,6 +640,7 @@ flag_keys! {
     robust => optimization.robust: value,
     histogram => optimization.histogram: value,
     relaxation => optimization.relaxation: value,
+    upsample_diffusion => optimization.upsample_diffusion: value,
     rigid.rigid_radius => lapped_rigid.radius: some,
     rigid.rigid_radius_fraction => lapped_rigid.radius_fraction: value,
     rigid.rigid_radius_edges => lapped_rigid.radius_edges: value,

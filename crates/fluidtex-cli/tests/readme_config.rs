@@ -350,6 +350,7 @@ fn documented_elsewhere(flag: &str) -> bool {
             "passes-after-first",
             "orientation-iterations",
             "relaxation",
+            "upsample-diffusion",
             "preview-video",
             "prim",
         ]

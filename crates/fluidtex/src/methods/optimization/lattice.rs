@@ -296,6 +296,28 @@ impl Lattice {
     }
 }
 
+impl Lattice {
+    /// The values of level `from` carried up to the finer level `to`
+    /// ([`Lattice::prolong`]), then diffused by `sweeps` rounds of
+    /// [`Level::smooth`] at the finer level: the 2007 paper's up-sampling
+    /// (copy, then diffusion; it names no count) where `sweeps` > 0.
+    pub fn upsample(
+        &self,
+        from: &Level,
+        values: &[f32],
+        k: usize,
+        to: &Level,
+        sweeps: u32,
+    ) -> Vec<f32> {
+        let mut up = vec![0.0f32; to.len() * k];
+        self.prolong(from, values, k, to, &mut up);
+        for _ in 0..sweeps {
+            up = to.smooth(&up, k);
+        }
+        up
+    }
+}
+
 /// One level of the hierarchy: a triangle mesh over a subset of the points.
 pub struct Level {
     /// Lattice stride of this level (1: finest).

@@ -130,6 +130,11 @@ pub struct OptimizationParams {
     /// uses 4). See [`neighbourhood`]. Left out of the settings at 0.
     #[serde(skip_serializing_if = "is_zero")]
     pub relaxation: u32,
+    /// Diffusion sweeps (1-ring averages) of the values carried up to a
+    /// finer level \[0: none] (Sec. V-B: the paper copies, then diffuses,
+    /// with no count; its preset uses 2). Left out of the settings at 0.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub upsample_diffusion: u32,
 }
 
 fn is_zero(n: &u32) -> bool {
@@ -156,6 +161,7 @@ impl Default for OptimizationParams {
             orientation_iterations: 10,
             substeps: 1,
             relaxation: 0,
+            upsample_diffusion: 0,
         }
     }
 }
@@ -235,6 +241,13 @@ impl OptimizationParams {
         )?;
         check_range("substeps", self.substeps as f32, 1.0, 64.0, "1..=64")?;
         check_range("relaxation", self.relaxation as f32, 0.0, 64.0, "0..=64")?;
+        check_range(
+            "upsample_diffusion",
+            self.upsample_diffusion as f32,
+            0.0,
+            64.0,
+            "0..=64",
+        )?;
         Ok(())
     }
 }
@@ -688,11 +701,9 @@ impl Optimization {
             }));
             if l > 0 {
                 // Copy up: shared points keep their values, new points take
-                // the interpolation of the coarser cell.
-                let finer = &levels[l - 1];
-                let mut up = vec![0.0f32; finer.len() * k];
-                lattice.prolong(lv, &s, k, finer, &mut up);
-                s = up;
+                // the interpolation of the coarser cell (and, with
+                // `upsample_diffusion`, the paper's diffusion after it).
+                s = lattice.upsample(lv, &s, k, &levels[l - 1], self.params.upsample_diffusion);
             }
         }
         Ok((s, level_stats))
