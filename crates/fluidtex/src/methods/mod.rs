@@ -61,6 +61,14 @@ use crate::surface::SurfaceIndex;
 use crate::surface::velocity::{FlowFrame, FlowInterval};
 use crate::texture::Texture;
 
+/// Whether a setting is at its default: the settings added after runs
+/// were fingerprinted are left out of the serialized parameters there
+/// (`#[serde(skip_serializing_if = "crate::methods::is_default")]`), so
+/// earlier runs keep their fingerprint and resume.
+pub(crate) fn is_default<T: Default + PartialEq>(value: &T) -> bool {
+    *value == T::default()
+}
+
 /// A frame as methods see it.
 pub struct FrameContext<'a> {
     /// The input's frame number.

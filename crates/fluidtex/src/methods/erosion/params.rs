@@ -83,34 +83,26 @@ pub struct ErosionParams {
     /// new source together \[0: the paper, one source per texel always]
     /// (see [`transition`]). Up to [`transition::MAX_FRAMES`]. Left out of
     /// the settings (and so of a run's fingerprint) at 0.
-    #[serde(skip_serializing_if = "is_zero")]
+    #[serde(skip_serializing_if = "crate::methods::is_default")]
     pub transition: u32,
     /// Which fluid triangles a new patch copies (Sec. 4) \[connected] (see
     /// [`PatchRegion`]). Left out of the settings at its default.
-    #[serde(skip_serializing_if = "is_default")]
+    #[serde(skip_serializing_if = "crate::methods::is_default")]
     pub patch_region: PatchRegion,
     /// Whether the corners of the triangle that holds p keep B_V = 1 (Eq. 2)
     /// \[pinned] (see [`SeedCorners`]). Left out of the settings at its
     /// default.
-    #[serde(skip_serializing_if = "is_default")]
+    #[serde(skip_serializing_if = "crate::methods::is_default")]
     pub seed_corners: SeedCorners,
     /// What becomes of the texel a new patch was made for when the patch
     /// erodes it (Sec. 5.1) \[forced] (see [`SeedTexel`]). Left out of the
     /// settings at its default.
-    #[serde(skip_serializing_if = "is_default")]
+    #[serde(skip_serializing_if = "crate::methods::is_default")]
     pub seed_texel: SeedTexel,
     /// How the erosion test reads the feature map F_m (Sec. 5.2) \[mip]
     /// (see [`FeatureFilter`]). Left out of the settings at its default.
-    #[serde(skip_serializing_if = "is_default")]
+    #[serde(skip_serializing_if = "crate::methods::is_default")]
     pub feature_filter: FeatureFilter,
-}
-
-fn is_zero(n: &u32) -> bool {
-    *n == 0
-}
-
-fn is_default<T: Default + PartialEq>(value: &T) -> bool {
-    *value == T::default()
 }
 
 /// Which fluid triangles a new patch copies. Both keep only the triangles

@@ -134,17 +134,13 @@ pub struct LappedRigidParams {
     pub sink_fade_rate: f32,
     /// Where new trackers go \[first] (see [`distribution::Placement`]).
     /// Left out of the settings at its default.
-    #[serde(skip_serializing_if = "is_default")]
+    #[serde(skip_serializing_if = "crate::methods::is_default")]
     pub placement: distribution::Placement,
     /// What becomes of a seed texel its own new patch leaves short
     /// \[forced] (see [`distribution::cover`]). Left out of the settings at
     /// its default.
-    #[serde(skip_serializing_if = "is_default")]
+    #[serde(skip_serializing_if = "crate::methods::is_default")]
     pub seed_texel: SeedTexel,
-}
-
-fn is_default<T: Default + PartialEq>(value: &T) -> bool {
-    *value == T::default()
 }
 
 impl Default for LappedRigidParams {

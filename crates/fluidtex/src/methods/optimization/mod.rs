@@ -128,17 +128,13 @@ pub struct OptimizationParams {
     /// Relaxation sweeps after a vertex neighbourhood is laid out ring by
     /// ring \[0: none] (Sec. V-A.2; the paper names no count, its preset
     /// uses 4). See [`neighbourhood`]. Left out of the settings at 0.
-    #[serde(skip_serializing_if = "is_zero")]
+    #[serde(skip_serializing_if = "crate::methods::is_default")]
     pub relaxation: u32,
     /// Diffusion sweeps (1-ring averages) of the values carried up to a
     /// finer level \[0: none] (Sec. V-B: the paper copies, then diffuses,
     /// with no count; its preset uses 2). Left out of the settings at 0.
-    #[serde(skip_serializing_if = "is_zero")]
+    #[serde(skip_serializing_if = "crate::methods::is_default")]
     pub upsample_diffusion: u32,
-}
-
-fn is_zero(n: &u32) -> bool {
-    *n == 0
 }
 
 impl Default for OptimizationParams {
