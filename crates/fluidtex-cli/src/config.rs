@@ -202,28 +202,55 @@ impl Config {
         for (name, value) in sections {
             table.entry(name).or_insert(value);
         }
-        // The keys left out of the fingerprint at their defaults.
-        let e = &self.erosion;
-        let skipped = [
-            ("transition", toml::Value::Integer(i64::from(e.transition))),
-            ("patch_region", toml::Value::try_from(e.patch_region)?),
-            ("seed_corners", toml::Value::try_from(e.seed_corners)?),
-            ("seed_texel", toml::Value::try_from(e.seed_texel)?),
-            ("feature_filter", toml::Value::try_from(e.feature_filter)?),
+        // The keys left out of the fingerprint at their defaults (a test
+        // holds this list against every section's fields).
+        let (e, r, o) = (&self.erosion, &self.lapped_rigid, &self.optimization);
+        let left_out = [
+            ("erosion", "transition", toml::Value::from(e.transition)),
+            (
+                "erosion",
+                "patch_region",
+                toml::Value::try_from(e.patch_region)?,
+            ),
+            (
+                "erosion",
+                "seed_corners",
+                toml::Value::try_from(e.seed_corners)?,
+            ),
+            (
+                "erosion",
+                "seed_texel",
+                toml::Value::try_from(e.seed_texel)?,
+            ),
+            (
+                "erosion",
+                "feature_filter",
+                toml::Value::try_from(e.feature_filter)?,
+            ),
+            (
+                "lapped_rigid",
+                "placement",
+                toml::Value::try_from(r.placement)?,
+            ),
+            (
+                "lapped_rigid",
+                "seed_texel",
+                toml::Value::try_from(r.seed_texel)?,
+            ),
+            (
+                "optimization",
+                "relaxation",
+                toml::Value::from(o.relaxation),
+            ),
+            (
+                "optimization",
+                "upsample_diffusion",
+                toml::Value::from(o.upsample_diffusion),
+            ),
         ];
-        if let Some(toml::Value::Table(erosion)) = table.get_mut("erosion") {
-            for (key, value) in skipped {
-                erosion.entry(key).or_insert(value);
-            }
-        }
-        let r = &self.lapped_rigid;
-        let skipped = [
-            ("placement", toml::Value::try_from(r.placement)?),
-            ("seed_texel", toml::Value::try_from(r.seed_texel)?),
-        ];
-        if let Some(toml::Value::Table(rigid)) = table.get_mut("lapped_rigid") {
-            for (key, value) in skipped {
-                rigid.entry(key).or_insert(value);
+        for (section, key, value) in left_out {
+            if let Some(toml::Value::Table(t)) = table.get_mut(section) {
+                t.entry(key).or_insert(value);
             }
         }
         Ok(toml::to_string(&table)?)
@@ -958,6 +985,41 @@ mod tests {
     }
 
     use fluidtex::methods::registry::field_names as fields_of;
+
+    /// `--print-config` prints every method parameter, those left out of
+    /// the fingerprint at their defaults included; only an unset option
+    /// (TOML has no null) is absent.
+    #[test]
+    fn the_resolved_config_names_every_method_parameter() {
+        fn missing<T: serde::Serialize + Default + for<'de> Deserialize<'de>>(
+            table: &toml::Table,
+            section: &str,
+        ) -> Vec<String> {
+            let defaults = serde_json::to_value(T::default()).expect("json");
+            let printed = table.get(section).and_then(|v| v.as_table());
+            fields_of::<T>()
+                .iter()
+                .filter(|f| defaults.get(**f).is_none_or(|v| !v.is_null()))
+                .filter(|f| printed.is_none_or(|t| !t.contains_key(**f)))
+                .map(|f| format!("{section}.{f}"))
+                .collect()
+        }
+        let text = Config::default().resolved_toml().expect("toml");
+        let table: toml::Table = toml::from_str(&text).expect("parse");
+        let mut absent = missing::<ErosionParams>(&table, "erosion");
+        absent.extend(missing::<LappedRigidParams>(&table, "lapped_rigid"));
+        absent.extend(missing::<OptimizationParams>(&table, "optimization"));
+        assert!(absent.is_empty(), "not printed: {absent:?}\n{text}");
+        // Known-bad control: a table without the later keys is caught.
+        let mut cut = table.clone();
+        if let Some(toml::Value::Table(o)) = cut.get_mut("optimization") {
+            o.remove("relaxation");
+        }
+        assert_eq!(
+            missing::<OptimizationParams>(&cut, "optimization"),
+            ["optimization.relaxation"]
+        );
+    }
 
     /// Every config key, `section.key` inside the method and output
     /// sections (tables of user names, `channels` and `exemplars`, are keys).
