@@ -249,12 +249,7 @@ impl<'u> Holes<'u> {
             }
         }
         let forced = !self.covered[seed] && inputs.force_seed;
-        if !self.covered[seed] && !inputs.force_seed {
-            // The paper's: the texel stays uncovered. Another patch made
-            // here would be this one again, so it is not asked for again
-            // this frame; marking it done moves the placement on.
-            self.covered[seed] = true;
-        } else if forced {
+        if forced {
             // See the module doc: the creating texel is the patch centre.
             let hit = Hit {
                 patch: 0,
@@ -262,9 +257,12 @@ impl<'u> Holes<'u> {
             };
             let texel = self.uncovered[seed].texel as usize;
             out.write(texel, hit, patch.id, ctx.exemplar_of(0));
-            self.covered[seed] = true;
             shown += 1;
         }
+        // Settled either way. With the paper's rule the texel stays
+        // uncovered: another patch made here would be this one again, so
+        // none is asked for this frame, and the placement moves on.
+        self.covered[seed] = true;
         (shown, forced)
     }
 }

@@ -128,9 +128,8 @@ pub fn cover(
         trackers.push(tracker);
     }
     // The paper's rule: what no tracker completed keeps what it has.
-    for k in pending.open().collect::<Vec<_>>() {
+    for k in pending.open() {
         close(template, &uncovered[k], out);
-        pending.close(k);
     }
     stats
 }
