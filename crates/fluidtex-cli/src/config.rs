@@ -8,7 +8,7 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 use fluidtex::methods::atlas_check::AtlasCheckParams;
 use fluidtex::methods::dual_rest::DualRestParams;
@@ -95,6 +95,17 @@ pub struct Config {
     /// index, projected from above over the first frame's x-z extent).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub exemplar_region: Option<PathBuf>,
+    /// Several exemplars chosen by a per-vertex scalar of the input
+    /// (`temperature`, `age`, ...): each exemplar entry gives its `range`,
+    /// new patches take the exemplar whose range holds the value at their
+    /// centre, and what no longer matches goes at `mismatch_rate`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub select_by: Option<String>,
+    /// With `select_by`: how fast a patch part whose exemplar no longer
+    /// matches goes, per second \[1] (erosion: the most a vertex weight
+    /// falls; lapped-rigid: the fade a patch loses).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mismatch_rate: Option<f32>,
     /// `paper`: every departure from the papers that has a paper setting
     /// set to it (`docs/departures.md`); the file's keys and the flags win.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -116,6 +127,10 @@ pub struct ExemplarEntry {
     /// Its extra channels, name = image (every exemplar the same names).
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     pub channels: BTreeMap<String, PathBuf>,
+    /// With `select_by`: the closed range `[lo, hi]` of the attribute this
+    /// exemplar shows (overlapping ranges share their overlap).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub range: Option<[f32; 2]>,
 }
 
 fn is_default_optimization(p: &OptimizationParams) -> bool {
@@ -395,9 +410,16 @@ pub struct RunFlags {
     pub seed: Option<u64>,
     /// Colour exemplar (PNG, JPEG, EXR); default: built-in pebbles. Repeat
     /// for several exemplars per surface, each IMG:WEIGHT (weight 1 when
-    /// left out)
-    #[arg(long = "exemplar", value_name = "IMG[:WEIGHT]")]
+    /// left out), or IMG@LO:HI with --select-by (the attribute range it shows)
+    #[arg(long = "exemplar", value_name = "IMG[:WEIGHT][@LO:HI]")]
     pub exemplar: Vec<String>,
+    /// Several exemplars: choose by this per-vertex scalar of the input
+    /// (temperature, age, ...), each exemplar showing its IMG@LO:HI range
+    #[arg(long, value_name = "ATTR")]
+    pub select_by: Option<String>,
+    /// With --select-by: how fast what no longer matches goes, per second [1]
+    #[arg(long)]
+    pub mismatch_rate: Option<f32>,
     /// Several exemplars: how a new patch picks one [probability]
     #[arg(long, value_parser = names::<fluidtex::exemplar::ExemplarSelect>())]
     pub exemplar_select: Option<String>,
@@ -619,6 +641,8 @@ flag_keys! {
     exemplar_filter => exemplar_filter: some,
     exemplar_select => exemplar_select: some,
     exemplar_region => exemplar_region: some,
+    select_by => select_by: some,
+    mismatch_rate => mismatch_rate: some,
     preview_video => preview_video: on,
     prim => prim: some,
     preset => preset: some,
@@ -756,7 +780,10 @@ impl RunFlags {
         match self.exemplar.as_slice() {
             [] => {}
             [one] => {
-                let (path, _) = exemplar_spec(one)?;
+                let (path, _, range) = exemplar_spec(one)?;
+                if range.is_some() {
+                    bail!("--exemplar {one}: a range needs several exemplars to choose among");
+                }
                 config.exemplar = Some(path);
                 config.exemplars.clear();
             }
@@ -765,10 +792,11 @@ impl RunFlags {
                 config.exemplars = several
                     .iter()
                     .map(|spec| {
-                        let (path, weight) = exemplar_spec(spec)?;
+                        let (path, weight, range) = exemplar_spec(spec)?;
                         Ok(ExemplarEntry {
                             path,
                             weight,
+                            range,
                             ..Default::default()
                         })
                     })
@@ -779,19 +807,33 @@ impl RunFlags {
     }
 }
 
-/// `IMG` or `IMG:WEIGHT` of `--exemplar`: the weight is what follows the
-/// last `:` when it reads as a number (so `C:\\tex\\a.png` stays a path).
-fn exemplar_spec(spec: &str) -> Result<(PathBuf, Option<f32>)> {
-    if let Some((path, w)) = spec.rsplit_once(':')
+/// `IMG`, `IMG:WEIGHT`, `IMG@LO:HI` or `IMG:WEIGHT@LO:HI` of
+/// `--exemplar`: the range is what follows the last `@` when it reads as
+/// two numbers, the weight what follows the last `:` before it when it
+/// reads as a number (so `C:\\tex\\a.png` stays a path).
+fn exemplar_spec(spec: &str) -> Result<(PathBuf, Option<f32>, Option<[f32; 2]>)> {
+    let mut rest = spec;
+    let mut range = None;
+    if let Some((head, tail)) = spec.rsplit_once('@')
+        && !head.is_empty()
+        && let Some((lo, hi)) = tail.split_once(':')
+        && let (Ok(lo), Ok(hi)) = (lo.parse::<f32>(), hi.parse::<f32>())
+    {
+        fluidtex::exemplar::set::AttributeRange::new(lo, hi)
+            .map_err(|e| anyhow!("--exemplar {spec}: {e}"))?;
+        range = Some([lo, hi]);
+        rest = head;
+    }
+    if let Some((path, w)) = rest.rsplit_once(':')
         && !path.is_empty()
         && let Ok(weight) = w.parse::<f32>()
     {
         if !(weight.is_finite() && weight > 0.0) {
             bail!("--exemplar {spec}: the weight must be a positive number");
         }
-        return Ok((PathBuf::from(path), Some(weight)));
+        return Ok((PathBuf::from(path), Some(weight), range));
     }
-    Ok((PathBuf::from(spec), None))
+    Ok((PathBuf::from(rest), None, range))
 }
 
 /// Flags of the lapped-rigid method (`[lapped_rigid]` keys), one per key

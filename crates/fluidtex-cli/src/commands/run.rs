@@ -6,6 +6,7 @@ use std::sync::Arc;
 use anyhow::{Context, Error, Result, anyhow, bail};
 use clap::Args;
 use fluidtex::atlas::AtlasParams;
+use fluidtex::exemplar::set::{AttributeRange, SelectBy};
 use fluidtex::exemplar::{
     Exemplar, ExemplarFilter, ExemplarSelect, ExemplarSet, FeatureMethod, RegionImage,
     builtin_pebbles,
@@ -239,6 +240,12 @@ pub fn build_exemplar_set(config: &Config) -> Result<ExemplarSet> {
         }
     };
     if config.exemplars.is_empty() {
+        if config.select_by.is_some() {
+            bail!(
+                "--select-by needs several exemplars, each with its range \
+                 (--exemplar IMG@LO:HI, repeated)"
+            );
+        }
         if config.exemplar_region.is_some() {
             bail!("--exemplar-region needs several exemplars (--exemplar IMG:WEIGHT, repeated)");
         }
@@ -269,7 +276,62 @@ pub fn build_exemplar_set(config: &Config) -> Result<ExemplarSet> {
         Some(path) => Some(RegionImage::load(path)?),
         None => None,
     };
-    Ok(ExemplarSet::new(entries, select, region)?)
+    let set = ExemplarSet::new(entries, select, region)?;
+    match select_by(config)? {
+        Some(by) => Ok(set.with_select_by(by)?),
+        None => Ok(set),
+    }
+}
+
+/// The config's selection by attribute: `select_by` with every exemplar's
+/// `range` (and `mismatch_rate`); ranges or a rate without `select_by`,
+/// or an exemplar without its range, are refused with the entry named.
+fn select_by(config: &Config) -> Result<Option<SelectBy>> {
+    let Some(attribute) = &config.select_by else {
+        if let Some(e) = config.exemplars.iter().find(|e| e.range.is_some()) {
+            bail!(
+                "exemplar {}: a range needs --select-by ATTR (the attribute it ranges over)",
+                e.path.display()
+            );
+        }
+        if config.mismatch_rate.is_some() {
+            bail!("mismatch_rate needs --select-by ATTR");
+        }
+        return Ok(None);
+    };
+    if attribute.is_empty() {
+        bail!("--select-by needs an attribute name");
+    }
+    if config
+        .exemplar_select
+        .as_deref()
+        .is_some_and(|s| s != "attribute")
+    {
+        bail!(
+            "--select-by {attribute} chooses by the attribute: it cannot be combined with \
+             --exemplar-select {}",
+            config.exemplar_select.as_deref().unwrap_or_default()
+        );
+    }
+    let mut ranges = Vec::with_capacity(config.exemplars.len());
+    for e in &config.exemplars {
+        let Some([lo, hi]) = e.range else {
+            bail!(
+                "--select-by {attribute}: exemplar {} has no range (give IMG@LO:HI, or \
+                 `range = [lo, hi]` in its [[exemplars]] entry)",
+                e.path.display()
+            );
+        };
+        ranges.push(
+            AttributeRange::new(lo, hi)
+                .map_err(|m| anyhow!("exemplar {}: {m}", e.path.display()))?,
+        );
+    }
+    let by = SelectBy::new(attribute.clone(), ranges);
+    Ok(Some(match config.mismatch_rate {
+        Some(rate) => by.with_mismatch_rate(rate).map_err(Error::msg)?,
+        None => by,
+    }))
 }
 
 /// The method the config names, its parameters checked before the

@@ -28,6 +28,7 @@ pub mod feature;
 pub mod mip;
 pub mod pebbles;
 mod sampling;
+pub mod select_by;
 pub mod set;
 pub mod tone;
 

@@ -18,7 +18,11 @@
 //!   exemplar histogram of its neighbourhood (atlas texels covered by the
 //!   patches whose centres lie within [`HISTOGRAM_REACH`] radii) closest to
 //!   the target, plus the same distance over the whole surface, so
-//!   proportions hold locally and the total does not drift.
+//!   proportions hold locally and the total does not drift;
+//! - **attribute**: the exemplar whose range holds a per-vertex scalar of
+//!   the input (`--select-by temperature`) at the patch centre, a seeded
+//!   draw where ranges overlap ([`super::select_by`]). This one is also
+//!   asked again every frame: the methods lower what no longer matches.
 //!
 //! All exemplars must have the same output channels (names, channel counts
 //! and storage formats) and the same feature-map availability (all given
@@ -35,6 +39,7 @@ use std::sync::Arc;
 use glam::Vec3;
 
 use super::channels::exemplar_channels;
+pub use super::select_by::{AttributeRange, SelectBy};
 use super::{Exemplar, ExemplarError, FeatureOrigin};
 use crate::mesh::{Attribute, TriMesh};
 use crate::surface::SurfacePoint;
@@ -57,12 +62,16 @@ pub enum ExemplarSelect {
     Region,
     /// Local-histogram steering toward the weights.
     Histogram,
+    /// The exemplar whose attribute range holds the value at the patch
+    /// centre ([`SelectBy`]).
+    Attribute,
 }
 
 crate::named!(ExemplarSelect {
     Probability => "probability",
     Region => "region",
     Histogram => "histogram",
+    Attribute => "attribute",
 });
 
 /// A region image: grey levels mapped to exemplar indices (black 0, white
@@ -157,6 +166,8 @@ pub struct ExemplarSet {
     weights: Vec<f32>,
     pub select: ExemplarSelect,
     pub region: Option<RegionImage>,
+    /// The attribute and ranges of `select = Attribute`.
+    pub by: Option<SelectBy>,
 }
 
 impl ExemplarSet {
@@ -168,6 +179,7 @@ impl ExemplarSet {
             weights: vec![1.0],
             select: ExemplarSelect::Probability,
             region: None,
+            by: None,
         }
     }
 
@@ -235,6 +247,7 @@ impl ExemplarSet {
             weights: Vec::with_capacity(entries.len()),
             select,
             region,
+            by: None,
         };
         for (name, e, w) in entries {
             set.names.push(name);
@@ -242,6 +255,24 @@ impl ExemplarSet {
             set.weights.push(w / total);
         }
         Ok(set)
+    }
+
+    /// Selection by attribute: `by` gives one range per exemplar, and
+    /// new patches choose by it ([`ExemplarSelect::Attribute`]).
+    pub fn with_select_by(mut self, by: SelectBy) -> Result<ExemplarSet, ExemplarError> {
+        if by.ranges.len() != self.len() {
+            return Err(ExemplarError::Layout {
+                what: format!("--select-by {}", by.attribute),
+                reason: format!(
+                    "{} ranges for {} exemplars: give every exemplar its range (IMG@LO:HI)",
+                    by.ranges.len(),
+                    self.len()
+                ),
+            });
+        }
+        self.select = ExemplarSelect::Attribute;
+        self.by = Some(by);
+        Ok(self)
     }
 
     pub fn len(&self) -> usize {
@@ -293,6 +324,9 @@ impl ExemplarSet {
     /// or the image) and that every `exemplar_id` of `mesh` names an
     /// exemplar; the error names the frame and the vertex.
     pub fn check_mesh(&self, mesh: &TriMesh, frame: i32) -> Result<(), String> {
+        if let Some(by) = &self.by {
+            return by.check_mesh(mesh, frame);
+        }
         if self.select != ExemplarSelect::Region || self.len() < 2 {
             return Ok(());
         }
@@ -450,6 +484,16 @@ impl<'a> Chooser<'a> {
                 }
                 argmin(&score)
             }
+            ExemplarSelect::Attribute => match &self.set.by {
+                Some(by) => match by.values(self.mesh) {
+                    Some(values) => {
+                        let x = SelectBy::value_at(values, self.mesh, at);
+                        by.draw(x, crate::seed::mix(self.seed, DRAW_STREAM, key))
+                    }
+                    None => draw(),
+                },
+                None => draw(),
+            },
         }
     }
 }

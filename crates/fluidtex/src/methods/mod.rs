@@ -45,6 +45,8 @@ mod multi_tests;
 #[cfg(test)]
 mod selection_tests;
 #[cfg(test)]
+mod state_tests;
+#[cfg(test)]
 pub(crate) mod test_clip;
 
 use glam::{Vec2, Vec3};

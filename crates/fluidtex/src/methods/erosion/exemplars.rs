@@ -19,11 +19,13 @@ use serde::{Deserialize, Serialize};
 use super::erode::ErosionTest;
 use super::feature_levels::{FeatureLevelSampler, FeatureLevels};
 use super::patch::Patch;
-use crate::exemplar::set::{Chooser, Coverage, RegionBox};
+use crate::exemplar::set::{Chooser, Coverage, RegionBox, SelectBy};
 use crate::exemplar::{Exemplar, ExemplarSelect, ExemplarSet};
+use crate::mesh::TriMesh;
 use crate::methods::MethodError;
 use crate::provenance::{SOURCE_OUTSIDE as OUTSIDE, SOURCE_UNCOVERED as UNCOVERED};
 use crate::surface::SurfacePoint;
+use crate::surface::bvh::SurfaceIndex;
 
 /// The exemplars of a multi-exemplar run and what the erosion derives from
 /// each (feature-map levels, erosion test).
@@ -109,6 +111,33 @@ impl Multi {
             p.exemplar = c.choose(point, p.id as u64);
             c.coverage.push(point.position(mesh), p.exemplar, 1.0);
         }
+    }
+
+    /// Per vertex of `p`: whether its exemplar no longer matches the
+    /// selecting attribute at the surface point nearest the vertex (within
+    /// `reach`; farther vertices, and runs not selecting by attribute,
+    /// mismatch nowhere: empty).
+    pub fn mismatched(
+        &self,
+        p: &Patch,
+        mesh: &TriMesh,
+        index: &SurfaceIndex,
+        reach: f32,
+    ) -> Vec<bool> {
+        let Some(by) = &self.set.by else {
+            return Vec::new();
+        };
+        let Some(values) = by.values(mesh) else {
+            return Vec::new();
+        };
+        p.positions
+            .iter()
+            .map(|&q| {
+                index.closest(q, reach).is_some_and(|h| {
+                    !by.matches(p.exemplar, SelectBy::value_at(values, mesh, h.location))
+                })
+            })
+            .collect()
     }
 
     /// The state after the patches: exemplar ids in patch order.

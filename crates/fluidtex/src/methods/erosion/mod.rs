@@ -654,7 +654,7 @@ impl Erosion {
         }
         clock.lap("creation");
         // 2. Weights (Eqs. 1-3), then the triangles they erode for good.
-        self.update_weights(&shape, ctx.dt, first_new_id);
+        self.update_weights(ctx, &shape, first_new_id);
         counts.pruned = self.prune(&shape, setup.test);
         clock.lap("weights");
         Ok(Some(setup))
@@ -870,15 +870,29 @@ impl Erosion {
     /// progressive weights.
     /// Patches from `first_new_id` on were placed this frame: they showed
     /// nothing the frame before.
-    fn update_weights(&mut self, shape: &PatchShape, dt: f32, first_new_id: u32) {
+    /// With selection by attribute, a vertex whose exemplar no longer
+    /// matches falls at the mismatch rate too (not `advect`, which never
+    /// lowers a weight).
+    fn update_weights(&mut self, ctx: &FrameContext<'_>, shape: &PatchShape, first_new_id: u32) {
+        let dt = ctx.dt;
         let max_drop = match (self.variant, self.params.weights) {
             (Variant::Erode, WeightMode::Progressive) => Some(self.params.erosion_rate * dt),
+            _ => None,
+        };
+        let mismatch = match (&self.multi, self.variant) {
+            (Some(m), Variant::Erode | Variant::Blend) => {
+                m.set.by.as_ref().map(|by| (m, by.mismatch_rate * dt))
+            }
             _ => None,
         };
         let older = self.transition_frames().saturating_sub(1) as usize;
         self.state.patches.par_iter_mut().for_each(|p| {
             p.remember_weights(older);
             p.update_weights(shape, max_drop);
+            if let Some((m, drop)) = mismatch {
+                let flags = m.mismatched(p, ctx.mesh, ctx.index, shape.radius);
+                p.lower_mismatched(&flags, drop);
+            }
             if p.id >= first_new_id {
                 p.weight_before.clear();
                 p.weight_older.clear();

@@ -799,6 +799,33 @@ impl Patch {
     }
 }
 
+impl Patch {
+    /// Lowers the weight of every vertex `mismatched` marks (its exemplar
+    /// no longer matches the selecting attribute where it lies,
+    /// [`crate::exemplar::SelectBy`]) by `drop` below the frame before's,
+    /// to no less than 0, as a distorted vertex falls: the other exemplar
+    /// then takes the texels over along the feature map, not by a
+    /// cross-fade. Never raises a weight; vertices without a weight the
+    /// frame before (none yet) keep theirs. Call after
+    /// [`Patch::update_weights`].
+    pub fn lower_mismatched(&mut self, mismatched: &[bool], drop: f32) {
+        let n = self.weight.len();
+        if mismatched.len() != n || self.weight_before.len() != n {
+            return;
+        }
+        for ((w, &before), &m) in self
+            .weight
+            .iter_mut()
+            .zip(&self.weight_before)
+            .zip(mismatched)
+        {
+            if m {
+                *w = w.min((before - drop).max(0.0));
+            }
+        }
+    }
+}
+
 /// Keeps the per-triangle `values` of the triangles `dead` does not mark;
 /// values that do not match the triangles (not computed yet) are cleared.
 fn keep_alive<T: Copy>(values: &mut Vec<T>, dead: &[bool]) {

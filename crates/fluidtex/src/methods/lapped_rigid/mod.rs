@@ -55,7 +55,7 @@ use super::lapped::{PatchScale, ScaleKeys};
 use super::{
     ChannelSpec, FrameContext, FrameResult, Method, MethodError, StageClock, check_ranges,
 };
-use crate::exemplar::set::{Chooser, Coverage, RegionBox};
+use crate::exemplar::set::{Chooser, Coverage, RegionBox, SelectBy};
 use crate::exemplar::{Exemplar, ExemplarFilter, ExemplarSelect, ExemplarSet};
 use crate::surface::SurfacePoint;
 use crate::surface::poisson::sample_mesh;
@@ -531,6 +531,7 @@ impl LappedRigid {
         };
         counts.deleted_left = self.advect(ctx, radius)?;
         clock.lap("advection");
+        self.fade_mismatched(ctx, radius);
         (counts.sinking, counts.deleted_sink) = self.sinks(&surface.here, radius, ctx.dt);
         clock.lap("sinks");
         if self.state.trackers.is_empty() {
@@ -579,6 +580,29 @@ impl LappedRigid {
             self.state.trackers.clear();
         }
         Ok(before - self.state.trackers.len())
+    }
+
+    /// With selection by attribute, a patch whose exemplar no longer
+    /// matches the attribute at its centre fades at the mismatch rate, as
+    /// a sink fades, and goes with the sinks at `keep_weight`: the patches
+    /// of the other exemplar, placed where the atlas opens, take over.
+    fn fade_mismatched(&mut self, ctx: &FrameContext<'_>, radius: f32) {
+        let Some(by) = self.multi.as_ref().and_then(|m| m.set.by.as_ref()) else {
+            return;
+        };
+        let Some(values) = by.values(ctx.mesh) else {
+            return;
+        };
+        let drop = by.mismatch_rate * ctx.dt;
+        let (mesh, index) = (ctx.mesh, ctx.index);
+        self.state.trackers.par_iter_mut().for_each(|t| {
+            let mismatched = index.closest(t.position, radius).is_some_and(|h| {
+                !by.matches(t.exemplar, SelectBy::value_at(values, mesh, h.location))
+            });
+            if mismatched {
+                t.fade = (t.fade - drop).max(0.0);
+            }
+        });
     }
 
     /// Stage 2 (Sec. 3.1.3): fades the sinks and deletes the invisible

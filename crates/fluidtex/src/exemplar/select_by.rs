@@ -1,0 +1,385 @@
+//! Exemplars chosen by a simulation attribute (`--select-by temperature`):
+//! each exemplar shows one range of a per-vertex scalar of the input mesh
+//! (`--exemplar crust.png@0:0.4 --exemplar glow.png@0.4:1`), so the
+//! texture follows the fluid's state and not only its motion.
+//!
+//! Two questions are asked of the ranges, and both are answered here so
+//! that every method asks them the same way:
+//!
+//! - **Which exemplar does a new patch take** at a point where the
+//!   attribute reads x? One whose range holds x. Where ranges overlap,
+//!   the choice is a seeded draw whose probabilities blend across the
+//!   overlap: each holding range weighs its depth, the distance from x to
+//!   its nearer end, so at the edge of one range its exemplar's share is 0
+//!   and it grows linearly into the range ([`SelectBy::probabilities`]).
+//!   A value no range holds (colder than the coldest range, or a gap
+//!   between ranges) goes to the nearest range: the texture never has a
+//!   hole because the simulation left the ranges the user guessed.
+//! - **Does a patch still match** where its vertices now lie? Its
+//!   exemplar matches x when its range holds x, or when no range holds x
+//!   and its range is among the nearest ([`SelectBy::matches`]). The
+//!   methods lower what does not match (erosion: the vertex weight, at
+//!   `mismatch_rate`; lapped-rigid: the patch's fade), so the other
+//!   texture takes over progressively.
+//!
+//! Bounds are closed: at x = 0.4 both `@0:0.4` and `@0.4:1` hold, and a
+//! patch of either matches there.
+
+use crate::mesh::{Attribute, TriMesh};
+use crate::surface::SurfacePoint;
+
+/// The closed range `[lo, hi]` of the selecting attribute one exemplar
+/// shows.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct AttributeRange {
+    pub lo: f32,
+    pub hi: f32,
+}
+
+impl AttributeRange {
+    /// A range with finite bounds, `lo ≤ hi`; the error says which rule
+    /// failed.
+    pub fn new(lo: f32, hi: f32) -> Result<AttributeRange, String> {
+        if !(lo.is_finite() && hi.is_finite()) {
+            return Err(format!("range {lo}:{hi} needs two finite numbers"));
+        }
+        if lo > hi {
+            return Err(format!(
+                "range {lo}:{hi} has its low end above its high end"
+            ));
+        }
+        Ok(AttributeRange { lo, hi })
+    }
+
+    pub fn holds(&self, x: f32) -> bool {
+        self.lo <= x && x <= self.hi
+    }
+
+    /// How far x lies from the range (0 inside).
+    fn distance(&self, x: f32) -> f32 {
+        (self.lo - x).max(x - self.hi).max(0.0)
+    }
+
+    /// How deep inside the range x lies: the distance to its nearer end.
+    fn depth(&self, x: f32) -> f32 {
+        (x - self.lo).min(self.hi - x).max(0.0)
+    }
+}
+
+/// Default [`SelectBy::mismatch_rate`]: a mismatching vertex goes from
+/// whole to nothing in one second (24 frames), about the time a cooling
+/// front takes to cross a patch in the `lava` scene, and 5× slower than
+/// the distortion's `erosion_rate`: a state change is a slow process, not
+/// a tear.
+pub const DEFAULT_MISMATCH_RATE: f32 = 1.0;
+
+/// The attribute that selects the exemplars and each exemplar's range.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SelectBy {
+    /// Name of the per-vertex scalar on the input mesh.
+    pub attribute: String,
+    /// One range per exemplar, in exemplar order.
+    pub ranges: Vec<AttributeRange>,
+    /// How fast what no longer matches goes, per second of animation
+    /// \[1] ([`DEFAULT_MISMATCH_RATE`]): the most an erosion vertex weight
+    /// falls, and the fade a lapped-rigid patch loses, per second.
+    pub mismatch_rate: f32,
+}
+
+impl SelectBy {
+    pub fn new(attribute: impl Into<String>, ranges: Vec<AttributeRange>) -> SelectBy {
+        SelectBy {
+            attribute: attribute.into(),
+            ranges,
+            mismatch_rate: DEFAULT_MISMATCH_RATE,
+        }
+    }
+
+    /// The same selection with another mismatch rate, which must be a
+    /// positive number (at most 1000 per second: a weight falls in one
+    /// frame well before that).
+    pub fn with_mismatch_rate(mut self, rate: f32) -> Result<SelectBy, String> {
+        if !(rate.is_finite() && rate > 0.0 && rate <= 1000.0) {
+            return Err(format!(
+                "mismatch_rate = {rate} must be a positive number of at most 1000 per second"
+            ));
+        }
+        self.mismatch_rate = rate;
+        Ok(self)
+    }
+
+    /// The ranges that decide at x: those holding x, or, when none does,
+    /// those nearest to it (ties all kept). Calls `f(exemplar, range)`.
+    fn deciding(&self, x: f32, mut f: impl FnMut(usize, &AttributeRange)) {
+        let held = self.ranges.iter().any(|r| r.holds(x));
+        let nearest = if held {
+            0.0
+        } else {
+            self.ranges
+                .iter()
+                .map(|r| r.distance(x))
+                .fold(f32::INFINITY, f32::min)
+        };
+        for (e, r) in self.ranges.iter().enumerate() {
+            if (held && r.holds(x)) || (!held && r.distance(x) == nearest) {
+                f(e, r);
+            }
+        }
+    }
+
+    /// Whether exemplar `exemplar` matches the attribute value `x`. A NaN
+    /// (a point with no value) matches everything: nothing is eroded for
+    /// want of a value.
+    pub fn matches(&self, exemplar: u32, x: f32) -> bool {
+        if x.is_nan() {
+            return true;
+        }
+        let mut hit = false;
+        self.deciding(x, |e, _| hit |= e == exemplar as usize);
+        hit
+    }
+
+    /// The probability of each exemplar for a new patch where the
+    /// attribute reads x: among the deciding ranges, proportional to their
+    /// depth at x, equal where every depth is 0 (a range's edge, a point
+    /// range, or x outside all ranges). Sums to 1.
+    pub fn probabilities(&self, x: f32) -> Vec<f32> {
+        let mut p = vec![0.0f32; self.ranges.len()];
+        if x.is_nan() {
+            let n = p.len().max(1) as f32;
+            p.iter_mut().for_each(|v| *v = 1.0 / n);
+            return p;
+        }
+        let mut count = 0usize;
+        let mut total = 0.0f32;
+        self.deciding(x, |e, r| {
+            p[e] = r.depth(x);
+            total += p[e];
+            count += 1;
+        });
+        if total > 0.0 {
+            p.iter_mut().for_each(|v| *v /= total);
+        } else {
+            let mut deciding = vec![false; p.len()];
+            self.deciding(x, |e, _| deciding[e] = true);
+            for (v, d) in p.iter_mut().zip(deciding) {
+                *v = if d { 1.0 / count as f32 } else { 0.0 };
+            }
+        }
+        p
+    }
+
+    /// The exemplar a uniform draw `bits` (64 random bits) picks where the
+    /// attribute reads x.
+    pub fn draw(&self, x: f32, bits: u64) -> u32 {
+        let p = self.probabilities(x);
+        let u = (bits >> 40) as f32 / (1u64 << 24) as f32;
+        let mut acc = 0.0;
+        let mut last = 0;
+        for (i, w) in p.iter().enumerate() {
+            if *w > 0.0 {
+                acc += w;
+                last = i;
+                if u < acc {
+                    return i as u32;
+                }
+            }
+        }
+        last as u32
+    }
+
+    /// The attribute's per-vertex values on `mesh`, when it has them as
+    /// one scalar per vertex.
+    pub fn values<'m>(&self, mesh: &'m TriMesh) -> Option<&'m [f32]> {
+        match mesh.attributes.get(&self.attribute) {
+            Some(Attribute::Scalar(v)) if v.len() == mesh.vertex_count() => Some(v),
+            _ => None,
+        }
+    }
+
+    /// The attribute at a surface point (linear over its triangle); NaN
+    /// where the mesh has no value there.
+    pub fn value_at(values: &[f32], mesh: &TriMesh, at: SurfacePoint) -> f32 {
+        let Some(t) = mesh.triangles.get(at.triangle as usize) else {
+            return f32::NAN;
+        };
+        let mut x = 0.0;
+        for (k, &v) in t.iter().enumerate() {
+            let Some(&value) = values.get(v as usize) else {
+                return f32::NAN;
+            };
+            x += at.bary[k] * value;
+        }
+        x
+    }
+
+    /// Checks that `mesh` (frame `frame`) carries the attribute, one
+    /// number per vertex; the error names the frame, the attribute and
+    /// what the mesh has instead.
+    pub fn check_mesh(&self, mesh: &TriMesh, frame: i32) -> Result<(), String> {
+        if mesh.is_empty() {
+            return Ok(());
+        }
+        match mesh.attributes.get(&self.attribute) {
+            Some(Attribute::Scalar(v)) => match v.iter().position(|x| !x.is_finite()) {
+                Some(vertex) => Err(format!(
+                    "frame {frame}: vertex {vertex} has {} = {} (--select-by needs finite values)",
+                    self.attribute, v[vertex]
+                )),
+                None => Ok(()),
+            },
+            Some(_) => Err(format!(
+                "frame {frame}: --select-by {}: the attribute must be one number per vertex",
+                self.attribute
+            )),
+            None => {
+                let have: Vec<&str> = mesh.attributes.keys().map(String::as_str).collect();
+                Err(format!(
+                    "frame {frame}: --select-by {}: the mesh has no per-vertex {} (it has: {})",
+                    self.attribute,
+                    self.attribute,
+                    if have.is_empty() {
+                        "no attribute".to_string()
+                    } else {
+                        have.join(", ")
+                    }
+                ))
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    fn ranges(r: &[(f32, f32)]) -> SelectBy {
+        SelectBy::new(
+            "temperature",
+            r.iter()
+                .map(|&(lo, hi)| AttributeRange::new(lo, hi).unwrap())
+                .collect(),
+        )
+    }
+
+    #[test]
+    fn bounds_are_closed_and_both_sides_of_a_shared_bound_match() {
+        let s = ranges(&[(0.0, 0.4), (0.4, 1.0)]);
+        assert!(s.matches(0, 0.0) && s.matches(0, 0.4) && !s.matches(0, 0.41));
+        assert!(s.matches(1, 0.4) && s.matches(1, 1.0) && !s.matches(1, 0.39));
+        // At the shared bound both have depth 0: an even draw.
+        assert_eq!(s.probabilities(0.4), vec![0.5, 0.5]);
+        assert_eq!(s.probabilities(0.2), vec![1.0, 0.0]);
+        assert_eq!(s.probabilities(0.7), vec![0.0, 1.0]);
+    }
+
+    #[test]
+    fn overlaps_blend_linearly_by_depth() {
+        let s = ranges(&[(0.0, 0.5), (0.4, 1.0)]);
+        let p = s.probabilities(0.42);
+        // Depths 0.08 and 0.02.
+        assert!(
+            (p[0] - 0.8).abs() < 1e-5 && (p[1] - 0.2).abs() < 1e-5,
+            "{p:?}"
+        );
+        let mid = s.probabilities(0.45);
+        assert!((mid[0] - 0.5).abs() < 1e-5, "{mid:?}");
+        assert!(s.matches(0, 0.45) && s.matches(1, 0.45));
+        // The draw follows the probabilities: u just below 0.8 picks 0, above picks 1.
+        let bits = |u: f64| ((u * (1u64 << 24) as f64) as u64) << 40;
+        assert_eq!(s.draw(0.42, bits(0.79)), 0);
+        assert_eq!(s.draw(0.42, bits(0.81)), 1);
+    }
+
+    #[test]
+    fn values_outside_every_range_go_to_the_nearest() {
+        let s = ranges(&[(0.0, 0.3), (0.6, 1.0)]);
+        // Below, above, and in the gap nearer to either side.
+        assert_eq!(s.probabilities(-2.0), vec![1.0, 0.0]);
+        assert_eq!(s.probabilities(5.0), vec![0.0, 1.0]);
+        assert_eq!(s.probabilities(0.35), vec![1.0, 0.0]);
+        assert_eq!(s.probabilities(0.55), vec![0.0, 1.0]);
+        assert!(s.matches(0, 0.35) && !s.matches(1, 0.35));
+        // Exactly between: both nearest, both match, an even draw.
+        let s = ranges(&[(0.0, 0.25), (0.75, 1.0)]);
+        assert_eq!(s.probabilities(0.5), vec![0.5, 0.5]);
+        assert!(s.matches(0, 0.5) && s.matches(1, 0.5));
+        // No value: nothing mismatches.
+        assert!(s.matches(0, f32::NAN) && s.matches(1, f32::NAN));
+    }
+
+    #[test]
+    fn probabilities_sum_to_one_on_seeded_random_cases() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(40);
+        for _ in 0..500 {
+            let n = rng.random_range(1..5);
+            let r: Vec<(f32, f32)> = (0..n)
+                .map(|_| {
+                    let a: f32 = rng.random_range(-1.0..2.0);
+                    let b: f32 = rng.random_range(-1.0..2.0);
+                    (a.min(b), a.max(b))
+                })
+                .collect();
+            let s = ranges(&r);
+            let x: f32 = rng.random_range(-2.0..3.0);
+            let p = s.probabilities(x);
+            let sum: f32 = p.iter().sum();
+            assert!((sum - 1.0).abs() < 1e-4, "{r:?} at {x}: {p:?}");
+            // Every exemplar a draw can give matches x.
+            for (e, w) in p.iter().enumerate() {
+                if *w > 0.0 {
+                    assert!(s.matches(e as u32, x), "{r:?} at {x}: {e} drawn, no match");
+                }
+            }
+            let drawn = s.draw(x, rng.random());
+            assert!(s.matches(drawn, x));
+        }
+    }
+
+    #[test]
+    fn bad_mismatch_rates_are_refused() {
+        let s = ranges(&[(0.0, 1.0)]);
+        assert_eq!(s.mismatch_rate, DEFAULT_MISMATCH_RATE);
+        for bad in [0.0, -1.0, f32::NAN, f32::INFINITY, 1001.0] {
+            assert!(s.clone().with_mismatch_rate(bad).is_err(), "{bad}");
+        }
+        assert_eq!(s.with_mismatch_rate(2.5).unwrap().mismatch_rate, 2.5);
+    }
+
+    #[test]
+    fn bad_ranges_are_refused() {
+        assert!(
+            AttributeRange::new(0.5, 0.1)
+                .unwrap_err()
+                .contains("low end above")
+        );
+        assert!(AttributeRange::new(f32::NAN, 1.0).is_err());
+        assert!(AttributeRange::new(0.0, f32::INFINITY).is_err());
+        assert!(AttributeRange::new(0.3, 0.3).is_ok());
+    }
+
+    #[test]
+    fn the_mesh_check_names_the_frame_and_the_attribute() {
+        let s = ranges(&[(0.0, 0.5), (0.5, 1.0)]);
+        let mut mesh = TriMesh::new(vec![Vec3::ZERO, Vec3::X, Vec3::Y], vec![[0, 1, 2]]);
+        let e = s.check_mesh(&mesh, 7).unwrap_err();
+        assert!(
+            e.contains("frame 7") && e.contains("no per-vertex temperature"),
+            "{e}"
+        );
+        mesh.attributes.insert(
+            "temperature".into(),
+            Attribute::Scalar(vec![0.1, f32::NAN, 0.2]),
+        );
+        let e = s.check_mesh(&mesh, 3).unwrap_err();
+        assert!(e.contains("vertex 1") && e.contains("temperature"), "{e}");
+        mesh.attributes
+            .insert("temperature".into(), Attribute::Scalar(vec![0.1, 0.9, 0.2]));
+        assert!(s.check_mesh(&mesh, 3).is_ok());
+        let at = SurfacePoint::new(0, [0.25, 0.5, 0.25]);
+        let x = SelectBy::value_at(s.values(&mesh).unwrap(), &mesh, at);
+        assert!((x - (0.025 + 0.45 + 0.05)).abs() < 1e-6, "{x}");
+    }
+}

@@ -1,0 +1,293 @@
+//! Exemplars chosen by a simulation attribute, end to end through both
+//! lapped methods: a plane at rest whose `temperature` falls from hot to
+//! cold behind a front that sweeps across it. The hot exemplar is white
+//! (range 0.5..1), the cold one black (0..0.5), so the colour of a texel
+//! says which exemplar shows there.
+
+use std::sync::Arc;
+
+use glam::Vec3;
+
+use super::registry::{MethodKind, MethodParams};
+use super::test_clip::{Clip, grey_exemplar, grid};
+use super::{FrameResult, Method, MethodError, SOURCE_OUTSIDE, SOURCE_UNCOVERED};
+use crate::exemplar::set::{AttributeRange, SelectBy};
+use crate::exemplar::{ExemplarSelect, ExemplarSet};
+use crate::mesh::Attribute;
+
+/// Frames before the front starts, and the frames it takes to cross.
+const HOT_FRAMES: usize = 4;
+const SWEEP_FRAMES: usize = 6;
+const FRAMES: usize = 34;
+/// Per second: a mismatching weight (or fade) goes in 6 frames at 24 fps.
+const RATE: f32 = 4.0;
+
+/// The temperature at `x` (the grid spans [−0.5, 0.5]) on frame `k`: 1
+/// everywhere, then 0 behind a front moving along +x, then 0 everywhere.
+fn temperature(x: f32, k: usize) -> f32 {
+    if k < HOT_FRAMES {
+        return 1.0;
+    }
+    let front = -0.5 + (k - HOT_FRAMES) as f32 / SWEEP_FRAMES as f32;
+    if x < front { 0.0 } else { 1.0 }
+}
+
+/// A 24×24 plane at rest (zero velocity), with its temperature per frame.
+fn cooling_plane() -> Clip {
+    let meshes = (0..FRAMES)
+        .map(|k| {
+            let mut m = grid(24, 1.0 / 24.0, |_| Vec3::ZERO);
+            let t = m.positions.iter().map(|p| temperature(p.x, k)).collect();
+            m.attributes
+                .insert("temperature".into(), Attribute::Scalar(t));
+            m
+        })
+        .collect();
+    Clip::from_meshes(meshes, 128)
+}
+
+/// Cold black (0..0.5) and hot white (0.5..1), chosen by temperature.
+fn crust_and_glow(rate: f32) -> ExemplarSet {
+    let set = ExemplarSet::new(
+        vec![
+            (
+                "crust.png".into(),
+                Arc::new(grey_exemplar(16, |_, _| 0.0)),
+                1.0,
+            ),
+            (
+                "glow.png".into(),
+                Arc::new(grey_exemplar(16, |_, _| 1.0)),
+                1.0,
+            ),
+        ],
+        ExemplarSelect::Probability,
+        None,
+    )
+    .expect("same channels");
+    let ranges = vec![
+        AttributeRange::new(0.0, 0.5).expect("range"),
+        AttributeRange::new(0.5, 1.0).expect("range"),
+    ];
+    let by = SelectBy::new("temperature", ranges)
+        .with_mismatch_rate(rate)
+        .expect("rate");
+    set.with_select_by(by).expect("two ranges")
+}
+
+fn build(kind: MethodKind, set: ExemplarSet) -> Box<dyn Method> {
+    let mut p = MethodParams::default();
+    p.erosion.radius_fraction = 0.06;
+    p.erosion.radius_edges = 0.0;
+    p.lapped_rigid.radius_fraction = 0.06;
+    p.lapped_rigid.radius_edges = 0.0;
+    p.build_set(kind, 3, || Ok::<_, MethodError>(set))
+        .expect("builds")
+}
+
+fn run(method: &mut dyn Method, clip: &Clip) -> Vec<FrameResult> {
+    (0..clip.meshes.len())
+        .map(|k| method.step(&clip.ctx(k)).expect("step"))
+        .collect()
+}
+
+/// Mean colour of the covered texels: the share of glow shown (1 all
+/// glow, 0 all crust).
+fn glow_share(r: &FrameResult) -> f64 {
+    let source = r.source.as_ref().expect("source");
+    let (mut sum, mut n) = (0.0f64, 0usize);
+    for (s, c) in source.iter().zip(&r.channels[0].data) {
+        if *s != SOURCE_OUTSIDE && *s != SOURCE_UNCOVERED {
+            sum += *c as f64;
+            n += 1;
+        }
+    }
+    assert!(n > 1000, "only {n} covered texels");
+    sum / n as f64
+}
+
+#[test]
+fn the_cold_exemplar_takes_over_progressively_and_then_holds_still() {
+    let clip = cooling_plane();
+    for kind in [MethodKind::Erosion, MethodKind::LappedRigid] {
+        let mut m = build(kind, crust_and_glow(RATE));
+        let results = run(m.as_mut(), &clip);
+        let glow: Vec<f64> = results.iter().map(glow_share).collect();
+        println!(
+            "{kind}: glow share per frame % {:?}",
+            glow.iter()
+                .map(|g| (g * 100.0).round() as i32)
+                .collect::<Vec<_>>()
+        );
+        // Hot everywhere: every new patch takes the glow.
+        assert!(glow[0] > 0.999, "{kind}: frame 0 shows {}", glow[0]);
+        // Cold everywhere, well after 1/rate s: the state agrees.
+        let last = FRAMES - 1;
+        assert!(
+            glow[last] < 0.05,
+            "{kind}: the last frame shows {}",
+            glow[last]
+        );
+        // Not a jump: no frame changes more than 40 % of the surface.
+        for k in 1..FRAMES {
+            assert!(
+                (glow[k] - glow[k - 1]).abs() < 0.4,
+                "{kind}: frame {k} jumps {} -> {}",
+                glow[k - 1],
+                glow[k]
+            );
+        }
+        // The crust follows the front: by the end of the sweep part of the
+        // surface has turned, not all of it.
+        let swept = HOT_FRAMES + SWEEP_FRAMES;
+        assert!(
+            glow[swept] < 0.9 && glow[swept] > 0.05,
+            "{kind}: {} glow at the end of the sweep",
+            glow[swept]
+        );
+        // At rest in a settled state the texture holds bit for bit.
+        assert_eq!(
+            results[last].channels,
+            results[last - 1].channels,
+            "{kind}: the settled frames differ"
+        );
+    }
+}
+
+#[test]
+fn without_the_mismatch_rule_old_patches_keep_their_glow() {
+    // Control: the same frames and exemplars chosen by probability keep
+    // showing glow where the surface went cold.
+    let clip = cooling_plane();
+    let set = ExemplarSet::new(
+        vec![
+            (
+                "crust.png".into(),
+                Arc::new(grey_exemplar(16, |_, _| 0.0)),
+                1.0,
+            ),
+            (
+                "glow.png".into(),
+                Arc::new(grey_exemplar(16, |_, _| 1.0)),
+                1.0,
+            ),
+        ],
+        ExemplarSelect::Probability,
+        None,
+    )
+    .expect("same channels");
+    let mut m = build(MethodKind::Erosion, set);
+    let results = run(m.as_mut(), &clip);
+    let last = glow_share(&results[FRAMES - 1]);
+    assert!(last > 0.2, "the control shows {last} glow at the end");
+}
+
+#[test]
+fn a_slower_mismatch_rate_takes_longer() {
+    let clip = cooling_plane();
+    let frames_to_settle = |rate: f32| {
+        let mut m = build(MethodKind::Erosion, crust_and_glow(rate));
+        let glow: Vec<f64> = run(m.as_mut(), &clip).iter().map(glow_share).collect();
+        glow.iter().position(|&g| g < 0.05).unwrap_or(FRAMES)
+    };
+    let (fast, slow) = (frames_to_settle(RATE), frames_to_settle(RATE / 3.0));
+    assert!(
+        fast < slow,
+        "rate {RATE}: {fast} frames, rate {}: {slow}",
+        RATE / 3.0
+    );
+}
+
+#[test]
+fn one_and_two_threads_give_identical_frames() {
+    let clip = cooling_plane();
+    let go = |threads: usize, kind: MethodKind| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("pool");
+        pool.install(|| {
+            let mut m = build(kind, crust_and_glow(RATE));
+            let results = run(m.as_mut(), &clip);
+            (
+                results
+                    .into_iter()
+                    .map(|r| (r.channels, r.source))
+                    .collect::<Vec<_>>(),
+                m.save_state().expect("state"),
+            )
+        })
+    };
+    for kind in [MethodKind::Erosion, MethodKind::LappedRigid] {
+        assert!(go(1, kind) == go(2, kind), "{kind}");
+    }
+}
+
+#[test]
+fn a_mesh_without_the_attribute_is_a_one_line_error() {
+    let mut clip = cooling_plane();
+    clip.meshes[0].attributes.remove("temperature");
+    let clip = Clip::from_meshes(clip.meshes, 64);
+    for kind in [MethodKind::Erosion, MethodKind::LappedRigid] {
+        let mut m = build(kind, crust_and_glow(RATE));
+        let err = m
+            .step(&clip.ctx(0))
+            .expect_err("no temperature")
+            .to_string();
+        assert!(
+            err.contains("frame 0") && err.contains("temperature") && !err.contains('\n'),
+            "{kind}: {err}"
+        );
+    }
+}
+
+/// A patch of `n` vertices with the given weights now and the frame before.
+fn patch_with(weight: Vec<f32>, before: Vec<f32>) -> super::erosion::patch::Patch {
+    let n = weight.len();
+    super::erosion::patch::Patch {
+        id: 0,
+        positions: vec![Vec3::ZERO; n],
+        rest: vec![glam::Vec2::ZERO; n],
+        triangles: Vec::new(),
+        pinned: vec![false; n],
+        weight,
+        weight_before: before,
+        weight_older: Vec::new(),
+        distorted: Vec::new(),
+        lod: Vec::new(),
+        still: false,
+        exemplar: 0,
+    }
+}
+
+#[test]
+fn mismatch_lowers_weights_only_where_the_range_is_violated() {
+    let mut p = patch_with(vec![0.9, 1.0, 0.6, 0.1], vec![1.0, 1.0, 0.5, 0.2]);
+    p.lower_mismatched(&[false, true, true, true], 0.25);
+    assert_eq!(p.weight, vec![0.9, 0.75, 0.25, 0.0]);
+    // No weight the frame before (a patch placed this frame): unchanged.
+    let mut p = patch_with(vec![0.9, 1.0], Vec::new());
+    p.lower_mismatched(&[true, true], 0.25);
+    assert_eq!(p.weight, vec![0.9, 1.0]);
+    // Seeded random cases: never raised, untouched where matching, at most
+    // `drop` below the frame before where not.
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(41);
+    for _ in 0..200 {
+        let n = rng.random_range(1..20);
+        let w: Vec<f32> = (0..n).map(|_| rng.random()).collect();
+        let b: Vec<f32> = (0..n).map(|_| rng.random()).collect();
+        let m: Vec<bool> = (0..n).map(|_| rng.random()).collect();
+        let drop: f32 = rng.random_range(0.0..0.5);
+        let mut p = patch_with(w.clone(), b.clone());
+        p.lower_mismatched(&m, drop);
+        for v in 0..n {
+            assert!(p.weight[v] <= w[v], "raised at {v}");
+            if m[v] {
+                assert_eq!(p.weight[v], w[v].min((b[v] - drop).max(0.0)));
+            } else {
+                assert_eq!(p.weight[v], w[v]);
+            }
+        }
+    }
+}
