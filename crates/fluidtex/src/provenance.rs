@@ -31,7 +31,7 @@ pub fn in_chart(source: u32) -> bool {
 /// point on the frame before: the *previous holder*, found by the method
 /// on its own carried patches (the erosion fill, for `erosion` and
 /// `advect`). A byte of flags: [`RENEWAL_HELD`], [`RENEWAL_SHOWN`],
-/// [`RENEWAL_DISTORTED`]; 0 where no patch held the point (it was a hole
+/// [`RENEWAL_DISTORTED`], [`RENEWAL_STATE`]; 0 where no patch held the point (it was a hole
 /// or is new surface), [`RENEWAL_UNKNOWN`] off the charts or where the
 /// method does not say.
 ///
@@ -47,13 +47,17 @@ pub const RENEWAL_SHOWN: u8 = 2;
 /// The previous holder's triangle at the point is past δ_max (Q_T = 0,
 /// Eq. 1 of Gagnon et al. 2021).
 pub const RENEWAL_DISTORTED: u8 = 4;
+/// The previous holder shows an exemplar that the fluid's state (the
+/// attribute of `--select-by`) no longer selects at the point.
+pub const RENEWAL_STATE: u8 = 8;
 /// No renewal recorded for the texel.
 pub const RENEWAL_UNKNOWN: u8 = 0x80;
 
 /// Whether a switch at a texel with renewal byte `r` is forced by the
-/// flow: nothing held the point, or its holder is past δ_max there.
+/// flow or the fluid's state: nothing held the point, or its holder is
+/// past δ_max there, or shows an exemplar the state no longer selects.
 pub fn renewal_forced(r: u8) -> bool {
-    r != RENEWAL_UNKNOWN && (r & RENEWAL_HELD == 0 || r & RENEWAL_DISTORTED != 0)
+    r != RENEWAL_UNKNOWN && (r & RENEWAL_HELD == 0 || r & (RENEWAL_DISTORTED | RENEWAL_STATE) != 0)
 }
 
 /// Whether a switch at a texel with renewal byte `r` is unforced: the

@@ -39,6 +39,7 @@ use thiserror::Error;
 pub use feature::{DistanceParams, FeatureMap, FeatureMethod, FeatureOrigin};
 pub use mip::mip_levels;
 pub use pebbles::builtin_pebbles;
+pub use select_by::{AttributeRange, SelectBy};
 pub use set::{ExemplarSelect, ExemplarSet, RegionImage};
 
 use crate::io::image_read::{self, ImageError};

@@ -145,6 +145,23 @@ fn the_cold_exemplar_takes_over_progressively_and_then_holds_still() {
             "{kind}: {} glow at the end of the sweep",
             glow[swept]
         );
+        // The state agreement the method reports: all glow on hot, all
+        // crust once settled, and in between while the front passes.
+        let agree: Vec<f64> = results
+            .iter()
+            .map(|r| {
+                r.stats["state_agreement"]
+                    .as_f64()
+                    .expect("state_agreement")
+            })
+            .collect();
+        assert_eq!(agree[0], 1.0, "{kind}");
+        assert!(agree[last] >= 0.95, "{kind}: {}", agree[last]);
+        assert!(
+            agree[swept] < 0.95,
+            "{kind}: {} during the front",
+            agree[swept]
+        );
         // At rest in a settled state the texture holds bit for bit.
         assert_eq!(
             results[last].channels,
@@ -254,6 +271,7 @@ fn patch_with(weight: Vec<f32>, before: Vec<f32>) -> super::erosion::patch::Patc
         weight_before: before,
         weight_older: Vec::new(),
         distorted: Vec::new(),
+        mismatched: Vec::new(),
         lod: Vec::new(),
         still: false,
         exemplar: 0,
@@ -288,6 +306,122 @@ fn mismatch_lowers_weights_only_where_the_range_is_violated() {
             } else {
                 assert_eq!(p.weight[v], w[v]);
             }
+        }
+    }
+}
+
+#[test]
+fn state_agreement_counts_the_texels_whose_exemplar_matches() {
+    let clip = cooling_plane();
+    let mut m = build(MethodKind::Erosion, crust_and_glow(RATE));
+    let r = m.step(&clip.ctx(0)).expect("step");
+    let source = r.source.as_ref().expect("source");
+    let set = crust_and_glow(RATE);
+    let by = set.by.as_ref().expect("by");
+    let agreement = |e: u32| {
+        super::lapped::state::state_agreement(&clip.atlases[0], &clip.meshes[0], by, source, |_| {
+            Some(e)
+        })
+    };
+    // Frame 0 is hot everywhere: glow (1) agrees at every texel, crust at none.
+    assert_eq!(agreement(1), Some(1.0));
+    assert_eq!(agreement(0), Some(0.0));
+    // Half the plane cold (x < 0): crust agrees on about half the texels.
+    let mut half = clip.meshes[0].clone();
+    let t = half
+        .positions
+        .iter()
+        .map(|p| if p.x < 0.0 { 0.0 } else { 1.0 })
+        .collect();
+    half.attributes
+        .insert("temperature".into(), Attribute::Scalar(t));
+    let a = super::lapped::state::state_agreement(&clip.atlases[0], &half, by, source, |_| Some(0))
+        .expect("covered");
+    assert!((a - 0.5).abs() < 0.08, "{a}");
+    let texels = super::lapped::state::texels_per_exemplar(source, 2, |_| Some(1));
+    assert_eq!(texels[0], 0);
+    assert!(texels[1] > 1000);
+}
+
+#[test]
+fn switches_the_state_forces_count_as_forced() {
+    // On the plane at rest every texel stays at its point, so the sources
+    // of consecutive frames compare texel by texel.
+    let clip = cooling_plane();
+    let mut m = build(MethodKind::Erosion, crust_and_glow(RATE));
+    m.set_renewal_read(true);
+    let results = run(m.as_mut(), &clip);
+    let (mut with_state, mut without_state) = (0usize, 0usize);
+    let mut switched = 0usize;
+    for k in 1..FRAMES {
+        let before = results[k - 1].source.as_ref().expect("source");
+        let after = results[k].source.as_ref().expect("source");
+        let renewal = results[k].renewal.as_ref().expect("renewal");
+        let causes = crate::metrics::switch_causes(before, after, renewal).expect("lengths");
+        switched += causes.forced + causes.unforced;
+        with_state += causes.unforced;
+        // Control: the same bytes without the state bit.
+        let plain: Vec<u8> = renewal
+            .iter()
+            .map(|&r| {
+                if r == crate::provenance::RENEWAL_UNKNOWN {
+                    r
+                } else {
+                    r & !crate::provenance::RENEWAL_STATE
+                }
+            })
+            .collect();
+        without_state += crate::metrics::switch_causes(before, after, &plain)
+            .expect("lengths")
+            .unforced;
+    }
+    assert!(switched > 1000, "only {switched} switches");
+    assert!(
+        with_state * 50 < switched,
+        "{with_state} of {switched} switches unforced"
+    );
+    assert!(
+        without_state * 2 > switched,
+        "the control: {without_state} of {switched} unforced without the state bit"
+    );
+}
+
+#[test]
+fn a_selection_by_attribute_resamples_into_the_one_pass_frame() {
+    // The mismatch marks travel in erosion's selection: a frame resampled
+    // from it by a fresh method has the same sources, renewal (forced by
+    // the state) and statistics (state agreement).
+    let clip = cooling_plane();
+    for kind in [MethodKind::Erosion, MethodKind::LappedRigid] {
+        let fresh = || {
+            let mut m = build(kind, crust_and_glow(RATE));
+            m.set_renewal_read(true);
+            m
+        };
+        let (mut one_pass, mut selecting) = (fresh(), fresh());
+        for k in 0..HOT_FRAMES + SWEEP_FRAMES + 4 {
+            let expected = one_pass.step(&clip.ctx(k)).expect("step");
+            let selection = selecting.select(&clip.ctx(k)).expect("select");
+            let mut ctx = clip.ctx(k);
+            let mut resampler = fresh();
+            if !selection.needs_previous() {
+                ctx.previous = None;
+            } else {
+                // Methods that replay need the state before the frame.
+                let mut before = fresh();
+                for j in 0..k {
+                    before.step(&clip.ctx(j)).expect("step");
+                }
+                resampler = before;
+            }
+            let got = resampler.resample(&ctx, &selection).expect("resample");
+            assert!(
+                expected.channels == got.channels,
+                "{kind} frame {k}: channels"
+            );
+            assert!(expected.source == got.source, "{kind} frame {k}: sources");
+            assert!(expected.renewal == got.renewal, "{kind} frame {k}: renewal");
+            assert_eq!(expected.stats, got.stats, "{kind} frame {k}: statistics");
         }
     }
 }

@@ -219,17 +219,3 @@ pub fn by_id(patches: &[Patch], next_id: u32) -> Vec<u32> {
     }
     out
 }
-
-/// Covered atlas texels per exemplar (`source` holds patch id + 1).
-pub fn texels_per_exemplar(source: &[u32], by_id: &[u32], count: usize) -> Vec<u64> {
-    let mut out = vec![0u64; count];
-    for &s in source {
-        if s != OUTSIDE && s != UNCOVERED && s > 0 {
-            let e = by_id.get(s as usize - 1).copied().unwrap_or(0) as usize;
-            if let Some(slot) = out.get_mut(e) {
-                *slot += 1;
-            }
-        }
-    }
-    out
-}

@@ -149,6 +149,8 @@ pub(super) struct CornerData {
     pub(super) w_before: [f32; 3],
     /// The triangle is past δ_max ([`Patch::distorted`]).
     pub(super) distorted: bool,
+    /// Its exemplar no longer matches the fluid's state ([`Patch::mismatched`]).
+    pub(super) mismatched: bool,
 }
 
 impl CornerData {
@@ -162,6 +164,7 @@ impl CornerData {
             lod: patch.lod.get(j as usize).copied().unwrap_or(0.0),
             w_before: t.map(|v| patch.weight_before.get(v as usize).copied().unwrap_or(0.0)),
             distorted: patch.distorted.get(j as usize).copied().unwrap_or(false),
+            mismatched: patch.mismatched.get(j as usize).copied().unwrap_or(false),
         }
     }
 

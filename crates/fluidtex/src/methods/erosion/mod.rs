@@ -353,7 +353,9 @@ impl Method for Erosion {
         let mut counts = StepCounts::default();
         let setup = self.carry(ctx, &mut counts, &mut clock)?;
         let texels = self.select_texels(ctx, setup, &mut counts, &mut clock);
-        Ok(self.resample_texels(texels, counts, clock))
+        let mut result = self.resample_texels(texels, counts, clock);
+        self.record_state_agreement(ctx, &mut result);
+        Ok(result)
     }
 
     /// The patches as this frame's fill reads them are the selection
@@ -395,7 +397,9 @@ impl Method for Erosion {
         };
         clock.lap("selection");
         let texels = self.select_texels(ctx, setup, &mut counts, &mut clock);
-        Ok(self.resample_texels(texels, counts, clock))
+        let mut result = self.resample_texels(texels, counts, clock);
+        self.record_state_agreement(ctx, &mut result);
+        Ok(result)
     }
 
     fn recycle(&mut self, spent: super::SpentBuffers) {
@@ -898,6 +902,28 @@ impl Erosion {
                 p.weight_older.clear();
             }
         });
+    }
+
+    /// With selection by attribute, the frame's state agreement
+    /// ([`crate::methods::lapped::state::state_agreement`]) in its
+    /// statistics.
+    fn record_state_agreement(&self, ctx: &FrameContext<'_>, result: &mut FrameResult) {
+        let (Some(by), Some(source)) = (
+            self.multi.as_ref().and_then(|m| m.set.by.as_ref()),
+            result.source.as_deref(),
+        ) else {
+            return;
+        };
+        let by_id = exemplars::by_id(&self.state.patches, self.state.next_id);
+        let share =
+            crate::methods::lapped::state::state_agreement(ctx.atlas, ctx.mesh, by, source, |id| {
+                by_id.get(id as usize).copied()
+            });
+        if let Some(share) = share {
+            result
+                .stats
+                .insert("state_agreement".into(), serde_json::json!(share));
+        }
     }
 
     /// Drops, from every patch, the triangles that can never show a texel

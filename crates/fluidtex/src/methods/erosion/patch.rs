@@ -228,6 +228,12 @@ pub struct Patch {
     /// Eq. 1) at this frame's positions; refreshed with the weights.
     #[serde(skip)]
     pub distorted: Vec<bool>,
+    /// Per triangle: a corner's exemplar no longer matches the selecting
+    /// attribute there ([`Patch::lower_mismatched`]); empty without
+    /// selection by attribute. A switch away from such a point is forced
+    /// by the fluid's state, as one past δ_max is by the flow.
+    #[serde(skip)]
+    pub mismatched: Vec<bool>,
     /// Per triangle: the feature-map level matching one atlas texel's
     /// footprint on it (log2 of feature texels per atlas texel along the
     /// most compressed direction), refreshed with the weights.
@@ -349,6 +355,7 @@ impl Patch {
             weight_before: Vec::new(),
             weight_older: Vec::new(),
             distorted: Vec::new(),
+            mismatched: Vec::new(),
             lod: Vec::new(),
             still: false,
             exemplar: 0,
@@ -611,6 +618,7 @@ impl Patch {
             .collect();
         keep_alive(&mut self.lod, dead);
         keep_alive(&mut self.distorted, dead);
+        keep_alive(&mut self.mismatched, dead);
         let border_after = Topology::new(n, &self.triangles);
         for (v, pinned) in self.pinned.iter_mut().enumerate() {
             let v = v as u32;
@@ -742,6 +750,7 @@ impl Patch {
         let base = shape.texel_size / s * shape.feature_width;
         self.lod.clear();
         self.distorted.clear();
+        self.mismatched.clear();
         for t in &self.triangles {
             let rest = t.map(|v| self.rest[v as usize] * s);
             let q = t.map(|v| self.positions[v as usize]);
@@ -810,7 +819,14 @@ impl Patch {
     /// [`Patch::update_weights`].
     pub fn lower_mismatched(&mut self, mismatched: &[bool], drop: f32) {
         let n = self.weight.len();
-        if mismatched.len() != n || self.weight_before.len() != n {
+        self.mismatched.clear();
+        if mismatched.len() != n {
+            return;
+        }
+        self.mismatched = (self.triangles.iter())
+            .map(|t| t.iter().any(|&v| mismatched[v as usize]))
+            .collect();
+        if self.weight_before.len() != n {
             return;
         }
         for ((w, &before), &m) in self

@@ -41,6 +41,7 @@ struct PatchFrameRef<'a> {
     weight_before: &'a [f32],
     weight_older: &'a [Vec<f32>],
     distorted: &'a [bool],
+    mismatched: &'a [bool],
     lod: &'a [f32],
     still: bool,
     exemplar: u32,
@@ -52,6 +53,7 @@ struct PatchFrame {
     weight_before: Vec<f32>,
     weight_older: Vec<Vec<f32>>,
     distorted: Vec<bool>,
+    mismatched: Vec<bool>,
     lod: Vec<f32>,
     still: bool,
     exemplar: u32,
@@ -82,6 +84,7 @@ impl Erosion {
                 weight_before: &p.weight_before,
                 weight_older: &p.weight_older,
                 distorted: &p.distorted,
+                mismatched: &p.mismatched,
                 lod: &p.lod,
                 still: p.still,
                 exemplar: p.exemplar,
@@ -113,6 +116,7 @@ impl Erosion {
             let fits = |n: usize, of: usize| n == 0 || n == of;
             if !(fits(f.weight_before.len(), vertices)
                 && fits(f.distorted.len(), triangles)
+                && fits(f.mismatched.len(), triangles)
                 && fits(f.lod.len(), triangles)
                 && f.exemplar < exemplars
                 && f.weight_before.iter().chain(&f.lod).all(|v| v.is_finite())
@@ -127,6 +131,7 @@ impl Erosion {
             p.weight_before = f.weight_before;
             p.weight_older = f.weight_older;
             p.distorted = f.distorted;
+            p.mismatched = f.mismatched;
             p.lod = f.lod;
             p.still = f.still;
             p.exemplar = f.exemplar;

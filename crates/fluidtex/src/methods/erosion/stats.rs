@@ -117,7 +117,11 @@ impl Erosion {
             stats.insert("transition_share".into(), serde_json::json!(share));
         }
         if let (Some(m), Some(by_id)) = (&self.multi, by_id) {
-            let texels = super::exemplars::texels_per_exemplar(&out.source, by_id, m.set.len());
+            let texels = crate::methods::lapped::state::texels_per_exemplar(
+                &out.source,
+                m.set.len(),
+                |id| by_id.get(id as usize).copied(),
+            );
             stats.insert("exemplar_texels".into(), texels.into());
         }
     }

@@ -278,6 +278,7 @@ fn weights_follow_eqs_1_to_3_on_a_hand_built_patch() {
         weight_before: Vec::new(),
         weight_older: Vec::new(),
         distorted: Vec::new(),
+        mismatched: Vec::new(),
         lod: Vec::new(),
         still: false,
         exemplar: 0,

@@ -23,6 +23,8 @@
 //!   has to close, grouped by fluid triangle, handed out in texel order.
 //! - [`scale`]: the patch radius r and exemplar size S, their checks and
 //!   their one-time resolution on the first frame with a surface.
+//! - [`state`]: texels per exemplar and the state agreement of a texture
+//!   chosen by a simulation attribute.
 //!
 //! Everything here is deterministic whatever the thread count: each band
 //! writes only its own rows and the merge sorts by texel and patch index.
@@ -31,6 +33,7 @@ pub mod bands;
 pub mod lists;
 pub mod pending;
 pub mod scale;
+pub mod state;
 
 pub use bands::{BandResult, BandTexel, SpanTexels, TexelBuffers, TexelRows, fill_bands};
 pub use lists::TriangleLists;

@@ -51,7 +51,7 @@ use self::falloff::PatchMask;
 use self::receivers::{ReceiverContext, Receivers};
 use self::trackers::Tracker;
 pub use super::erosion::SeedTexel;
-use super::lapped::{PatchScale, ScaleKeys};
+use super::lapped::{PatchScale, ScaleKeys, state};
 use super::{
     ChannelSpec, FrameContext, FrameResult, Method, MethodError, StageClock, check_ranges,
 };
@@ -866,10 +866,40 @@ impl LappedRigid {
             stats.insert("exemplar_size".into(), serde_json::json!(s));
         }
         if let Some(m) = &self.multi {
-            let texels = texels_per_exemplar(&out.source, &self.state.trackers, m.set.len());
+            let by_id = self.exemplar_by_id();
+            let texels =
+                state::texels_per_exemplar(&out.source, m.set.len(), |id| by_id.get(&id).copied());
             stats.insert("exemplar_texels".into(), texels.into());
         }
         stats
+    }
+
+    /// Exemplar of each tracker, by id.
+    fn exemplar_by_id(&self) -> std::collections::HashMap<u32, u32> {
+        self.state
+            .trackers
+            .iter()
+            .map(|t| (t.id, t.exemplar))
+            .collect()
+    }
+
+    /// With selection by attribute, the frame's state agreement
+    /// ([`state::state_agreement`]) in its statistics.
+    fn record_state_agreement(&self, ctx: &FrameContext<'_>, result: &mut FrameResult) {
+        let (Some(by), Some(source)) = (
+            self.multi.as_ref().and_then(|m| m.set.by.as_ref()),
+            result.source.as_deref(),
+        ) else {
+            return;
+        };
+        let by_id = self.exemplar_by_id();
+        if let Some(share) = state::state_agreement(ctx.atlas, ctx.mesh, by, source, |id| {
+            by_id.get(&id).copied()
+        }) {
+            result
+                .stats
+                .insert("state_agreement".into(), serde_json::json!(share));
+        }
     }
 }
 
@@ -930,6 +960,7 @@ impl Method for LappedRigid {
         counts.unused = self.delete_unused(used_ids);
         clock.lap("delete");
         let mut result = self.frame_result(out, &counts);
+        self.record_state_agreement(ctx, &mut result);
         result.timings = clock.stages;
         Ok(result)
     }
@@ -1000,20 +1031,4 @@ fn coverage(trackers: &[Tracker], source: &[u32]) -> Coverage {
         }
     }
     c
-}
-
-/// Covered texels per exemplar, by each texel's heaviest layer.
-fn texels_per_exemplar(source: &[u32], trackers: &[Tracker], count: usize) -> Vec<u64> {
-    let by_id: std::collections::HashMap<u32, u32> =
-        trackers.iter().map(|t| (t.id, t.exemplar)).collect();
-    let mut out = vec![0u64; count];
-    for &s in source {
-        if s != super::SOURCE_OUTSIDE && s != super::SOURCE_UNCOVERED && s > 0 {
-            let e = by_id.get(&(s - 1)).copied().unwrap_or(0) as usize;
-            if let Some(slot) = out.get_mut(e) {
-                *slot += 1;
-            }
-        }
-    }
-    out
 }

@@ -43,7 +43,7 @@ pub struct Transition {
 
 /// An earlier frame's holder: patch index, uv at the point, and whether
 /// its triangle there is past δ_max.
-type Holder = (u32, Vec2, bool);
+type Holder = (u32, Vec2, Forced);
 
 impl FillContext<'_> {
     /// [`FillContext::resolve_in_span`]'s hit (the same, by the same tests
@@ -77,7 +77,11 @@ impl FillContext<'_> {
             }
             for (level, holder) in holders.iter_mut().enumerate().take(levels) {
                 if holder.is_none() && self.held_at(c, bary, level) {
-                    *holder = Some((c.patch, located.uv, c.corners.distorted));
+                    let forced = Forced {
+                        distorted: c.corners.distorted,
+                        mismatched: c.corners.mismatched,
+                    };
+                    *holder = Some((c.patch, located.uv, forced));
                     open -= 1;
                 }
             }
@@ -155,16 +159,28 @@ impl FillContext<'_> {
 /// The renewal byte of a texel whose holder the frame before is `holder`
 /// and whose hit now is `hit`.
 fn renewal_byte(holder: Option<Holder>, hit: Option<Hit>) -> u8 {
-    use crate::provenance::{RENEWAL_DISTORTED, RENEWAL_HELD, RENEWAL_SHOWN};
-    let Some((patch, _, distorted)) = holder else {
+    use crate::provenance::{RENEWAL_DISTORTED, RENEWAL_HELD, RENEWAL_SHOWN, RENEWAL_STATE};
+    let Some((patch, _, forced)) = holder else {
         return 0;
     };
     let mut r = RENEWAL_HELD;
     if hit.is_some_and(|h| h.patch == patch) {
         r |= RENEWAL_SHOWN;
     }
-    if distorted {
+    if forced.distorted {
         r |= RENEWAL_DISTORTED;
     }
+    if forced.mismatched {
+        r |= RENEWAL_STATE;
+    }
     r
+}
+
+/// Why the holder of a point may have to give it up there: past δ_max
+/// (the flow), or showing an exemplar the fluid's state no longer
+/// selects.
+#[derive(Clone, Copy, Debug, Default)]
+struct Forced {
+    distorted: bool,
+    mismatched: bool,
 }
