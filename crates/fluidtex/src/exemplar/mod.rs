@@ -25,6 +25,7 @@
 
 pub mod channels;
 pub mod feature;
+pub mod lava;
 pub mod mip;
 pub mod pebbles;
 mod sampling;
@@ -37,6 +38,7 @@ use std::path::{Path, PathBuf};
 use thiserror::Error;
 
 pub use feature::{DistanceParams, FeatureMap, FeatureMethod, FeatureOrigin};
+pub use lava::{LavaState, builtin_lava};
 pub use mip::mip_levels;
 pub use pebbles::builtin_pebbles;
 pub use select_by::{AttributeRange, SelectBy};
