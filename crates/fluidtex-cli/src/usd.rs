@@ -20,6 +20,16 @@
 //! `velocities`, else the primvar `v` or `velocity`. Points are taken as
 //! authored, in the prim's own space: transforms of the prim and its
 //! ancestors are not applied (the outputs are then in that space too).
+//!
+//! Scalar primvars with one value per point (`interpolation = "vertex"` or
+//! `"varying"`, type `float[]`, `double[]`, `half[]` or `int[]`, indexed or
+//! not), e.g. `primvars:temperature`, are written as float properties of
+//! the PLY frames under their name without `primvars:`, so that
+//! [`ReadOptions::scalar_attributes`] (`--select-by temperature`) and
+//! `fluidtex info` see them as in any PLY sequence. Primvars of other
+//! interpolations (constant, uniform, faceVarying) or types are not
+//! per-vertex scalars and are left out, as are names a PLY frame already
+//! uses (`x`, `vx`, ...).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -50,7 +60,20 @@ pub struct UsdSource {
 }
 
 impl UsdSource {
+    /// [`UsdSource::open_with`] with the default read options.
     pub fn open(file: &str, prim: Option<&str>, range: Option<&str>) -> Result<UsdSource> {
+        UsdSource::open_with(file, prim, range, ReadOptions::default())
+    }
+
+    /// Converts `file`'s Mesh prim (`prim`, or the only one) and reads its
+    /// frames over `range` with `options` (e.g. the scalar attributes to
+    /// keep: the primvars of the same names).
+    pub fn open_with(
+        file: &str,
+        prim: Option<&str>,
+        range: Option<&str>,
+        options: ReadOptions,
+    ) -> Result<UsdSource> {
         let dir =
             tempfile::tempdir().context("cannot make a temporary folder for the USD frames")?;
         let exe = std::env::current_exe().context("cannot find the fluidtex program itself")?;
@@ -82,7 +105,7 @@ impl UsdSource {
             bail!("{file}: the USD reader stopped on damaged data ({why})");
         }
         let pattern = dir.path().join("fluid.####.ply");
-        let inner = SequenceSource::open(&pattern.to_string_lossy(), range, ReadOptions::default())
+        let inner = SequenceSource::open(&pattern.to_string_lossy(), range, options)
             .with_context(|| file.to_string())?;
         Ok(UsdSource {
             inner,
@@ -97,8 +120,20 @@ impl FrameSource for UsdSource {
         self.inner.frames()
     }
 
+    /// A frame; an error about the converted frame names the USD file and
+    /// the frame instead of the temporary file.
     fn read(&mut self, f: i32) -> Result<(TriMesh, ValidationReport), PipelineError> {
-        self.inner.read(f)
+        self.inner.read(f).map_err(|e| {
+            let message = e.to_string();
+            let temporary = self._frames_dir.path().join(format!("fluid.{f:04}.ply"));
+            let temporary = temporary.display().to_string();
+            if message.contains(&temporary) {
+                let named = format!("{} (frame {f})", self.file.display());
+                PipelineError::Source(message.replace(&temporary, &named))
+            } else {
+                e
+            }
+        })
     }
 
     fn input_paths(&self) -> Vec<PathBuf> {
@@ -139,6 +174,7 @@ pub fn usd_convert(a: &UsdConvertArgs) -> Result<()> {
         .attribute("points")
         .time_sample_times()
         .map_err(|e| anyhow!("{file}: {path}.points: {}", crate::one_line(&e)))?;
+    let primvars = scalar_primvar_names(file, &path, &prim)?;
     let samples: Vec<Option<f64>> = if times.is_empty() {
         vec![None]
     } else {
@@ -151,13 +187,16 @@ pub fn usd_convert(a: &UsdConvertArgs) -> Result<()> {
             Some(t) if t.fract() == 0.0 && (-1e6..=1e6).contains(&t) => t as i32,
             Some(t) => bail!("{file}: {path}.points: time code {t} is not a whole frame number"),
         };
-        let sample = MeshSample::read(&format!("{file}: {path}"), t, &at)?;
+        let whose = format!("{file}: {path}");
+        let sample = MeshSample::read(&whose, t, &at)?;
+        let scalars = scalar_primvars(&whose, t, &at, &primvars, sample.points.len())?;
         let ply = a.out.join(format!("fluid.{frame:04}.ply"));
         let velocity = sample.velocity.as_deref();
         write_ply(
             &ply,
             &sample.points,
             velocity,
+            &scalars,
             &sample.counts,
             &sample.indices,
         )
@@ -220,6 +259,98 @@ fn mesh_prim(file: &str, stage: &Stage, want: Option<&str>) -> Result<openusd::s
             ),
         },
     }
+}
+
+/// The prim's primvars that may be per-vertex scalars: those with one
+/// value per point (vertex or varying interpolation), in name order; their
+/// type is checked per sample ([`scalar_primvars`]).
+fn scalar_primvar_names(
+    file: &str,
+    path: &openusd::sdf::Path,
+    prim: &openusd::usd::Prim,
+) -> Result<Vec<String>> {
+    let names = prim
+        .property_names()
+        .map_err(|e| anyhow!("{file}: {path}: {}", crate::one_line(&e)))?;
+    let mut out = Vec::new();
+    for name in names {
+        let name = name.to_string();
+        let Some(short) = name.strip_prefix("primvars:") else {
+            continue;
+        };
+        if short.ends_with(":indices") || TAKEN.contains(&short) {
+            continue;
+        }
+        let interpolation = prim
+            .attribute(name.as_str())
+            .get_metadata::<Value>("interpolation")
+            .map_err(|e| anyhow!("{file}: {path}.{name}: {}", crate::one_line(&e)))?;
+        let per_point = match &interpolation {
+            Some(Value::Token(t)) => ["vertex", "varying"].contains(&t.as_str()),
+            Some(Value::String(t)) => ["vertex", "varying"].contains(&t.as_str()),
+            _ => false,
+        };
+        if per_point {
+            out.push(name);
+        }
+    }
+    out.sort();
+    Ok(out)
+}
+
+/// Property names of the PLY frames that a primvar cannot take.
+const TAKEN: [&str; 6] = ["x", "y", "z", "vx", "vy", "vz"];
+
+/// The scalar primvars of `names` at `t` as (name without `primvars:`,
+/// one value per point), expanded through their `:indices` when they have
+/// them; primvars of a non-scalar type are left out.
+fn scalar_primvars(
+    whose: &str,
+    t: Option<f64>,
+    at: &AttributeAt<'_>,
+    names: &[String],
+    points: usize,
+) -> Result<Vec<(String, Vec<f32>)>> {
+    let when = t.map_or("(default)".to_string(), |t| format!("at time {t}"));
+    let mut out = Vec::new();
+    for name in names {
+        let values: Vec<f32> = match at(name, t)? {
+            Some(Value::FloatVec(v)) => v,
+            Some(Value::DoubleVec(v)) => v.into_iter().map(|x| x as f32).collect(),
+            Some(Value::HalfVec(v)) => v.into_iter().map(f32::from).collect(),
+            Some(Value::IntVec(v)) => v.into_iter().map(|x| x as f32).collect(),
+            _ => continue,
+        };
+        let values = match ints(at(&format!("{name}:indices"), t)?)
+            .with_context(|| format!("{whose}.{name}:indices {when}"))?
+        {
+            Some(indices) => indices
+                .iter()
+                .enumerate()
+                .map(|(i, &k)| {
+                    usize::try_from(k)
+                        .ok()
+                        .and_then(|k| values.get(k).copied())
+                        .ok_or_else(|| {
+                            anyhow!(
+                                "{whose}.{name}:indices {when}: [{i}] = {k}, outside the {} values",
+                                values.len()
+                            )
+                        })
+                })
+                .collect::<Result<Vec<f32>>>()?,
+            None => values,
+        };
+        if values.len() != points {
+            bail!(
+                "{whose}.{name} {when}: {} values for {points} points",
+                values.len()
+            );
+        }
+        let short = name.strip_prefix("primvars:").unwrap_or(name);
+        out.push((short.to_string(), values));
+    }
+    Ok(out)
 }
 
 /// Reads an attribute of the prim at a time (`None`: its default value).
@@ -337,12 +468,14 @@ pub fn check_topology(counts: &[i32], indices: &[i32], points: usize) -> Result<
     Ok(())
 }
 
-/// Binary little-endian PLY with `vx vy vz` when there is a velocity, and
-/// polygons as authored (the reader triangulates them).
+/// Binary little-endian PLY with `vx vy vz` when there is a velocity, a
+/// float property per scalar primvar, and polygons as authored (the reader
+/// triangulates them).
 fn write_ply(
     path: &Path,
     points: &[[f32; 3]],
     velocity: Option<&[[f32; 3]]>,
+    scalars: &[(String, Vec<f32>)],
     counts: &[i32],
     indices: &[i32],
 ) -> Result<()> {
@@ -359,6 +492,9 @@ fn write_ply(
             "property float vx\nproperty float vy\nproperty float vz\n"
         )?;
     }
+    for (name, _) in scalars {
+        writeln!(out, "property float {name}")?;
+    }
     write!(
         out,
         "element face {}\nproperty list int int vertex_indices\nend_header\n",
@@ -372,6 +508,9 @@ fn write_ply(
             for c in &v[i] {
                 out.write_all(&c.to_le_bytes())?;
             }
+        }
+        for (_, values) in scalars {
+            out.write_all(&values[i].to_le_bytes())?;
         }
     }
     let mut next = 0;
@@ -398,6 +537,87 @@ mod tests {
         for no in ["a.ply", "a.usdz", "fluid.####.ply", "usd"] {
             assert!(!is_usd(no), "{no}");
         }
+    }
+
+    /// A stage with scalar primvars of each kind: the per-point ones
+    /// (float, double, int, indexed half) reach the PLY frames under their
+    /// short names; the constant, faceVarying and vector ones do not.
+    #[test]
+    fn per_point_scalar_primvars_become_ply_properties() {
+        let dir = tempfile::tempdir().expect("tmp");
+        let file = dir.path().join("hot.usda");
+        std::fs::write(
+            &file,
+            r#"#usda 1.0
+def Mesh "lava"
+{
+    int[] faceVertexCounts = [3]
+    int[] faceVertexIndices = [0, 1, 2]
+    point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]
+    float[] primvars:temperature = [0.25, 0.5, 1] (
+        interpolation = "vertex"
+    )
+    double[] primvars:age = [0, 1.5, 3] (
+        interpolation = "varying"
+    )
+    int[] primvars:id = [7, 8, 9] (
+        interpolation = "vertex"
+    )
+    half[] primvars:crust = [0, 1] (
+        interpolation = "vertex"
+    )
+    int[] primvars:crust:indices = [1, 1, 0]
+    float[] primvars:flat = [4] (
+        interpolation = "constant"
+    )
+    float[] primvars:corner = [1, 2, 3] (
+        interpolation = "faceVarying"
+    )
+    float3[] primvars:dir = [(1, 0, 0), (0, 1, 0), (0, 0, 1)] (
+        interpolation = "vertex"
+    )
+}
+"#,
+        )
+        .expect("write");
+        let out = dir.path().join("frames");
+        usd_convert(&UsdConvertArgs {
+            file: file.display().to_string(),
+            out: out.clone(),
+            prim: None,
+        })
+        .expect("convert");
+        let every = ReadOptions {
+            all_scalar_attributes: true,
+            ..Default::default()
+        };
+        let (mesh, _) = fluidtex::io::read_mesh(&out.join("fluid.0000.ply"), &every).expect("read");
+        let get = |n: &str| match mesh.attributes.get(n) {
+            Some(fluidtex::mesh::Attribute::Scalar(v)) => v.clone(),
+            other => panic!("{n}: {other:?}"),
+        };
+        let names: Vec<&str> = mesh.attributes.keys().map(String::as_str).collect();
+        assert_eq!(names, ["age", "crust", "id", "temperature"]);
+        assert_eq!(get("temperature"), [0.25, 0.5, 1.0]);
+        assert_eq!(get("age"), [0.0, 1.5, 3.0]);
+        assert_eq!(get("id"), [7.0, 8.0, 9.0]);
+        assert_eq!(get("crust"), [1.0, 1.0, 0.0]);
+        // A primvar with one value too few is an error naming it.
+        let bad = std::fs::read_to_string(&file)
+            .expect("read")
+            .replace("[0.25, 0.5, 1]", "[0.25, 0.5]");
+        std::fs::write(&file, bad).expect("write");
+        let err = usd_convert(&UsdConvertArgs {
+            file: file.display().to_string(),
+            out,
+            prim: None,
+        })
+        .expect_err("short primvar");
+        assert!(
+            err.to_string()
+                .ends_with("/lava.primvars:temperature (default): 2 values for 3 points"),
+            "{err}"
+        );
     }
 
     #[test]

@@ -1,7 +1,13 @@
 //! `fluidtex info PATTERN`: what a sequence holds, frame by frame.
+//!
+//! Every per-vertex scalar property of the files is read
+//! ([`ReadOptions::all_scalar_attributes`]) and listed with its range,
+//! e.g. `temperature:f[0.012..0.998]`, so that a user can see which
+//! attribute `--select-by` could use and over which values, before a run.
 
 use anyhow::{Context, Result};
 use clap::Args;
+use fluidtex::io::ReadOptions;
 use fluidtex::mesh::Attribute;
 use fluidtex::pipeline::{FrameSource, SequenceSource};
 
@@ -21,12 +27,16 @@ pub struct InfoArgs {
 }
 
 pub fn info(a: &InfoArgs) -> Result<()> {
-    let options = super::run::read_options(a.velocity.as_deref())?;
+    let options = ReadOptions {
+        all_scalar_attributes: true,
+        ..super::run::read_options(a.velocity.as_deref())?
+    };
     let mut source: Box<dyn FrameSource> = if crate::usd::is_usd(&a.pattern) {
-        Box::new(crate::usd::UsdSource::open(
+        Box::new(crate::usd::UsdSource::open_with(
             &a.pattern,
             a.prim.as_deref(),
             a.frames.as_deref(),
+            options,
         )?)
     } else {
         Box::new(SequenceSource::open(
@@ -70,13 +80,10 @@ pub fn info(a: &InfoArgs) -> Result<()> {
         let attrs: Vec<String> = mesh
             .attributes
             .iter()
-            .map(|(k, a)| {
-                let kind = match a {
-                    Attribute::Scalar(_) => "f",
-                    Attribute::Vec2(_) => "vec2",
-                    Attribute::Vec3(_) => "vec3",
-                };
-                format!("{k}:{kind}")
+            .map(|(k, a)| match a {
+                Attribute::Scalar(v) => format!("{k}:f[{}]", range(v)),
+                Attribute::Vec2(_) => format!("{k}:vec2"),
+                Attribute::Vec3(_) => format!("{k}:vec3"),
             })
             .collect();
         println!(
@@ -88,4 +95,28 @@ pub fn info(a: &InfoArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// "lo..hi" of a scalar attribute (3 decimals), "-" when it is empty.
+fn range(values: &[f32]) -> String {
+    let Some(&first) = values.first() else {
+        return "-".to_string();
+    };
+    let (lo, hi) = values
+        .iter()
+        .fold((first, first), |(lo, hi), &x| (lo.min(x), hi.max(x)));
+    format!("{lo:.3}..{hi:.3}")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::range;
+
+    #[test]
+    fn ranges_are_printed_with_three_decimals() {
+        assert_eq!(range(&[0.5, 0.012, 0.998]), "0.012..0.998");
+        assert_eq!(range(&[2.0]), "2.000..2.000");
+        assert_eq!(range(&[-1.5, 161.0]), "-1.500..161.000");
+        assert_eq!(range(&[]), "-");
+    }
 }

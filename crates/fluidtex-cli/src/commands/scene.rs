@@ -1,4 +1,9 @@
 //! `fluidtex scene NAME --out DIR`: write a generated scene as a PLY sequence.
+//!
+//! Each frame holds what the scene gives (`io::ply_write`): positions,
+//! velocity and every per-vertex scalar it carries (`lava`: `temperature`,
+//! `dam-break`: `age`), so that the frames can be textured by those
+//! attributes like a user's simulation (`--select-by`).
 
 use std::path::PathBuf;
 
@@ -21,7 +26,9 @@ pub struct SceneArgs {
     /// List the scenes and exit
     #[arg(long)]
     pub list: bool,
-    /// Output folder: fluid.FFFF.ply per frame and scene.json
+    /// Output folder: fluid.FFFF.ply per frame (positions, velocity and the
+    /// scene's per-vertex scalars: lava's temperature, dam-break's age) and
+    /// scene.json
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Frame range A-B (default: the scene's own)

@@ -109,6 +109,14 @@ pub enum IoError {
     /// Another run holds the output folder's lock ([`lock`]).
     #[error("{}: another fluidtex run is writing here ({holder}); wait for it to end or choose another --out", .dir.display())]
     Locked { dir: PathBuf, holder: String },
+    /// A scalar attribute named in [`ReadOptions::scalar_attributes`] that
+    /// the file does not have; `available` lists those it has.
+    #[error("{}: no per-vertex scalar attribute {attribute:?} (the file's scalar vertex properties: {})", .path.display(), list_or_none(.available))]
+    MissingAttribute {
+        path: PathBuf,
+        attribute: String,
+        available: Vec<String>,
+    },
     /// Data handed to a writer that the format cannot hold.
     #[error("{}: cannot write: {reason}", .path.display())]
     Unwritable { path: PathBuf, reason: String },
@@ -131,6 +139,11 @@ impl IoError {
 }
 
 /// Options for reading meshes.
+///
+/// Scalar per-vertex attributes (a simulation's `temperature`, `age`, ...)
+/// are kept only when asked for, so that a run that does not use them
+/// reads, allocates and validates exactly what it did before: a file's
+/// other properties cost nothing.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct ReadOptions {
     /// Names of the three per-vertex velocity properties in PLY files.
@@ -143,6 +156,59 @@ pub struct ReadOptions {
     /// files. Default `None`: the first of `velocity`, `Velocity`, `vel`,
     /// `v`, or no velocity. When set, a file without it is an error.
     pub vtk_velocity_array: Option<String>,
+    /// Per-vertex scalar properties (PLY) or 1-component point-data arrays
+    /// (VTK) to keep as [`crate::mesh::Attribute::Scalar`] under their own
+    /// name, converted to `f32` from any numeric type. A file without one
+    /// of them is an [`IoError::MissingAttribute`] (OBJ files have none);
+    /// a non-finite value is refused by validation, naming the vertex.
+    /// Default empty: no extra attribute is read.
+    pub scalar_attributes: Vec<String>,
+    /// Keep every scalar per-vertex property that is not a position,
+    /// velocity or normal component (for `fluidtex info`), as well as those
+    /// of `scalar_attributes`. Each kept attribute is validated like a
+    /// requested one. Default false.
+    pub all_scalar_attributes: bool,
+}
+
+impl ReadOptions {
+    /// The error for requested scalar attributes a file lacks, or `None`
+    /// when it has them all; `available` lists the file's scalar per-vertex
+    /// properties (for the message).
+    pub(crate) fn missing_scalar(
+        &self,
+        path: &Path,
+        found: &[&str],
+        available: &[String],
+    ) -> Option<IoError> {
+        let missing = self
+            .scalar_attributes
+            .iter()
+            .find(|n| !found.contains(&n.as_str()))?;
+        Some(IoError::MissingAttribute {
+            path: path.to_path_buf(),
+            attribute: missing.clone(),
+            available: available.to_vec(),
+        })
+    }
+}
+
+/// "a, b, c", or "none" for an empty list.
+fn list_or_none(names: &[String]) -> String {
+    if names.is_empty() {
+        "none".to_string()
+    } else {
+        names.join(", ")
+    }
+}
+
+/// Whether a per-vertex property name is a normal component (`nx`,
+/// `normal_x`, ...), which [`ReadOptions::all_scalar_attributes`] leaves
+/// out like positions and velocity.
+pub(crate) fn is_normal_like(name: &str) -> bool {
+    matches!(
+        name,
+        "nx" | "ny" | "nz" | "normal_x" | "normal_y" | "normal_z" | "n_x" | "n_y" | "n_z"
+    )
 }
 
 /// Mesh file formats [`read_mesh`] understands.
@@ -182,7 +248,14 @@ pub fn read_mesh(
     let format = MeshFormat::from_path(path)?;
     let mut mesh = match format {
         MeshFormat::Ply => ply::read_ply(path, options)?,
-        MeshFormat::Obj => obj::read_obj(path)?,
+        MeshFormat::Obj => {
+            let mesh = obj::read_obj(path)?;
+            // OBJ has no per-vertex scalar property to read one from.
+            if let Some(e) = options.missing_scalar(path, &[], &[]) {
+                return Err(e);
+            }
+            mesh
+        }
         MeshFormat::Vtk => vtk::read_vtk(path, options)?,
     };
     let report = mesh::validate(&mut mesh).map_err(|source| IoError::Mesh {

@@ -14,7 +14,11 @@
 //! We drive it one element at a time so that every error can name the
 //! element (`vertex 4120`, `face 88`). Velocity components are matched by
 //! renaming the chosen properties in a copy of the element definition, so the
-//! element structs match fixed keys whatever the file calls them.
+//! element structs match fixed keys whatever the file calls them. Scalar
+//! attributes asked for in [`ReadOptions::scalar_attributes`] (a
+//! simulation's `temperature`, `age`, ...) are renamed the same way, to
+//! numbered keys, so that a file's other properties still cost nothing and
+//! a run that asks for none reads exactly as before.
 //!
 //! Accepted: any element order; unknown elements and properties of any
 //! scalar or list type (ignored); positions and velocity of any scalar type;
@@ -49,6 +53,10 @@ pub const VELOCITY_NAMES: [[&str; 3]; 3] = [
 /// character keeps them from colliding with any real property name.
 const VEL_KEYS: [&str; 3] = ["\u{1}vx", "\u{1}vy", "\u{1}vz"];
 const FACE_KEY: &str = "\u{1}indices";
+/// Marker of the keys the kept scalar attributes are renamed to:
+/// marker, index in the kept list, marker, the file's name (so that
+/// messages can still name the property).
+const EXTRA_PREFIX: char = '\u{2}';
 
 /// Reads a PLY file into a mesh (velocity attached when present). The mesh
 /// is not validated beyond face indices; [`super::read_mesh`] does that.
@@ -74,7 +82,15 @@ pub fn parse_ply(path: &Path, bytes: &[u8], options: &ReadOptions) -> Result<Tri
         .get("vertex")
         .ok_or_else(|| header_err("no vertex element".into()))?;
     let vertex_count = vertex_def.count;
-    let (vertex_def, has_velocity) = vertex_definition(vertex_def, options).map_err(header_err)?;
+    let scalars = ScalarPlan::new(vertex_def, options);
+    if !options.scalar_attributes.is_empty()
+        && let Some(e) = options.missing_scalar(path, &scalars.found(), &scalar_names(vertex_def))
+    {
+        return Err(e);
+    }
+    let (vertex_def, velocity_names) =
+        vertex_definition(vertex_def, options, &scalars.extras).map_err(header_err)?;
+    let has_velocity = velocity_names.is_some();
     // The region map of several exemplars per surface (crate::exemplar::set).
     let has_exemplar_id = vertex_def
         .properties
@@ -97,8 +113,12 @@ pub fn parse_ply(path: &Path, bytes: &[u8], options: &ReadOptions) -> Result<Tri
         described.push(super::counted(def.count, name));
         match name.as_str() {
             "vertex" => {
-                let (v, e) = (has_velocity, has_exemplar_id);
-                vertices = ctx.vertices(&mut rest, &vertex_def, vertex_count, v, e)?;
+                let kept = Kept {
+                    velocity: has_velocity,
+                    exemplar_id: has_exemplar_id,
+                    extras: scalars.extras.len(),
+                };
+                vertices = ctx.vertices(&mut rest, &vertex_def, vertex_count, &kept)?;
             }
             "face" => {
                 let Some(face_def) = &face_def else { continue };
@@ -126,6 +146,19 @@ pub fn parse_ply(path: &Path, bytes: &[u8], options: &ReadOptions) -> Result<Tri
             ),
         });
     }
+    // Requested components of the position or of the velocity: copies.
+    let mut copies = Vec::new();
+    for name in &scalars.components {
+        let axis = |names: [&str; 3]| names.iter().position(|n| n == name);
+        let values: Vec<f32> = if let Some(k) = axis(["x", "y", "z"]) {
+            vertices.positions.iter().map(|p| p[k]).collect()
+        } else if let Some(k) = velocity_names.and_then(axis) {
+            vertices.velocity.iter().map(|v| v[k]).collect()
+        } else {
+            continue;
+        };
+        copies.push((name.clone(), values));
+    }
     let mut mesh = TriMesh::new(vertices.positions, triangles);
     if has_velocity {
         mesh = mesh.with_velocity(vertices.velocity);
@@ -136,45 +169,136 @@ pub fn parse_ply(path: &Path, bytes: &[u8], options: &ReadOptions) -> Result<Tri
             Attribute::Scalar(vertices.exemplar_ids),
         );
     }
+    for (name, values) in scalars.extras.into_iter().zip(vertices.extras) {
+        mesh.attributes.insert(name, Attribute::Scalar(values));
+    }
+    for (name, values) in copies {
+        mesh.attributes.insert(name, Attribute::Scalar(values));
+    }
     Ok(mesh)
 }
 
+/// Which scalar vertex properties a read keeps beyond positions, velocity
+/// and `exemplar_id` (always kept).
+struct ScalarPlan {
+    /// Properties read into their own attribute, in header order.
+    extras: Vec<String>,
+    /// Requested names that are a position or velocity component, copied
+    /// from those after reading.
+    components: Vec<String>,
+    /// Whether the file has a scalar `exemplar_id`.
+    exemplar_id: bool,
+}
+
+/// Every scalar vertex property but the position, for messages.
+fn scalar_names(def: &ElementDef) -> Vec<String> {
+    def.properties
+        .values()
+        .filter(|p| matches!(p.data_type, PropertyType::Scalar(_)))
+        .filter(|p| !["x", "y", "z"].contains(&p.name.as_str()))
+        .map(|p| p.name.clone())
+        .collect()
+}
+
+impl ScalarPlan {
+    fn new(def: &ElementDef, options: &ReadOptions) -> ScalarPlan {
+        let scalar = |p: &PropertyDef| matches!(p.data_type, PropertyType::Scalar(_));
+        let mut plan = ScalarPlan {
+            extras: Vec::new(),
+            components: Vec::new(),
+            exemplar_id: def.properties.get(EXEMPLAR_ID).is_some_and(scalar),
+        };
+        // Nothing asked for: nothing more to look at or to allocate.
+        if options.scalar_attributes.is_empty() && !options.all_scalar_attributes {
+            return plan;
+        }
+        let velocity = velocity_choice(def, options).ok().flatten();
+        let is_velocity = |n: &str| match velocity {
+            Some(c) => c.contains(&n),
+            None => false,
+        };
+        let is_component = |n: &str| ["x", "y", "z"].contains(&n) || is_velocity(n);
+        for p in def.properties.values().filter(|p| scalar(p)) {
+            let name = p.name.as_str();
+            let asked = options.scalar_attributes.iter().any(|n| n == name);
+            // Left out of "every scalar": what is not a quantity on the
+            // surface but its geometry or motion.
+            let other = is_component(name)
+                || VELOCITY_NAMES.iter().any(|t| t.contains(&name))
+                || super::is_normal_like(name);
+            if name == EXEMPLAR_ID || !(asked || (options.all_scalar_attributes && !other)) {
+                continue;
+            }
+            if is_component(name) {
+                plan.components.push(name.to_string());
+            } else {
+                plan.extras.push(name.to_string());
+            }
+        }
+        plan
+    }
+
+    /// Every attribute name the read will produce.
+    fn found(&self) -> Vec<&str> {
+        let mut found: Vec<&str> = self.extras.iter().map(String::as_str).collect();
+        found.extend(self.components.iter().map(String::as_str));
+        if self.exemplar_id {
+            found.push(EXEMPLAR_ID);
+        }
+        found
+    }
+}
+
+/// What [`Ctx::vertices`] keeps besides positions.
+struct Kept {
+    velocity: bool,
+    exemplar_id: bool,
+    /// Number of renamed scalar attributes ([`EXTRA_PREFIX`] keys).
+    extras: usize,
+}
+
 /// The per-vertex data of a PLY file; `velocity` is empty without
-/// velocity properties, `exemplar_ids` without an exemplar id.
+/// velocity properties, `exemplar_ids` without an exemplar id, `extras`
+/// holds one array per kept scalar attribute.
 #[derive(Default)]
 struct Vertices {
     positions: Vec<Vec3>,
     velocity: Vec<Vec3>,
     exemplar_ids: Vec<f32>,
+    extras: Vec<Vec<f32>>,
 }
 
 impl Ctx<'_> {
-    /// Reads the `count` vertices of `def`, with velocity and exemplar ids
-    /// where the header has them.
+    /// Reads the `count` vertices of `def`, with velocity, exemplar ids
+    /// and scalar attributes as `kept` says.
     fn vertices(
         &mut self,
         rest: &mut &[u8],
         def: &ElementDef,
         count: usize,
-        has_velocity: bool,
-        has_exemplar_id: bool,
+        kept: &Kept,
     ) -> Result<Vertices, IoError> {
         let mut out = Vertices::default();
         // Never trust a header count for an allocation.
         let cap = count.min(rest.len() / 3);
         out.positions.reserve(cap);
-        if has_velocity {
+        if kept.velocity {
             out.velocity.reserve(cap);
         }
+        out.extras = (0..kept.extras).map(|_| Vec::with_capacity(cap)).collect();
         let parser = Parser::<VertexRec>::new();
         for i in 0..count {
             let v = self.element(&parser, rest, def, i)?;
             out.positions.push(Vec3::from(v.p));
-            if has_velocity {
+            if kept.velocity {
                 out.velocity.push(Vec3::from(v.v));
             }
-            if has_exemplar_id {
+            if kept.exemplar_id {
                 out.exemplar_ids.push(v.exemplar_id);
+            }
+            for (k, values) in out.extras.iter_mut().enumerate() {
+                // Every property of the definition is set for every vertex.
+                values.push(v.extra.get(k).copied().unwrap_or(f32::NAN));
             }
         }
         Ok(out)
@@ -306,12 +430,17 @@ impl Ctx<'_> {
             ));
         }
         parser.read_ascii_element(text, def).map_err(|_| {
-            let non_finite = text.split_ascii_whitespace().any(|t| {
+            let non_finite = text.split_ascii_whitespace().position(|t| {
                 let t = t.trim_start_matches(['-', '+']).to_ascii_lowercase();
                 t == "nan" || t == "inf" || t == "infinity"
             });
-            let reason = if non_finite {
-                format!("has a non-finite value ({text})")
+            let reason = if let Some(k) = non_finite {
+                // With scalars only, token k is property k.
+                let what = match def.properties.values().nth(k) {
+                    Some(p) if scalars_only => original_name(&p.name).to_string(),
+                    _ => "value".to_string(),
+                };
+                format!("has a non-finite {what} ({text})")
             } else {
                 format!(
                     "cannot be read as {} (payload line {}: {text:?})",
@@ -329,7 +458,7 @@ fn describe(def: &ElementDef) -> String {
     def.properties
         .values()
         .map(|p| {
-            let name = p.name.trim_start_matches('\u{1}');
+            let name = original_name(&p.name);
             match &p.data_type {
                 PropertyType::Scalar(t) => format!("{name} {t:?}"),
                 PropertyType::List(c, t) => format!("{name} list {c:?} {t:?}"),
@@ -357,19 +486,21 @@ fn one_line(s: &str) -> String {
     s.split_whitespace().collect::<Vec<_>>().join(" ")
 }
 
-/// Copy of the vertex definition with the chosen velocity properties renamed
-/// to [`VEL_KEYS`]. Returns whether velocity is present.
-fn vertex_definition(
-    def: &ElementDef,
-    options: &ReadOptions,
-) -> Result<(ElementDef, bool), String> {
-    for axis in ["x", "y", "z"] {
-        match def.properties.get(axis) {
-            Some(p) if matches!(p.data_type, PropertyType::Scalar(_)) => {}
-            Some(_) => return Err(format!("vertex property {axis} is a list")),
-            None => return Err(format!("vertex element has no property {axis}")),
-        }
+/// The name a message shows for a (possibly renamed) key: a kept scalar
+/// attribute's file name, a velocity component's key without its marker.
+fn original_name(key: &str) -> &str {
+    match key.strip_prefix(EXTRA_PREFIX) {
+        Some(rest) => rest.split_once(EXTRA_PREFIX).map_or(rest, |(_, name)| name),
+        None => key.trim_start_matches('\u{1}'),
     }
+}
+
+/// The velocity property triple of the vertex element: the configured one
+/// (an error when absent) or the first complete default, `None` without.
+fn velocity_choice<'a>(
+    def: &ElementDef,
+    options: &'a ReadOptions,
+) -> Result<Option<[&'a str; 3]>, String> {
     let has_all = |names: &[&str; 3]| {
         names.iter().all(|n| {
             def.properties
@@ -377,7 +508,7 @@ fn vertex_definition(
                 .is_some_and(|p| matches!(p.data_type, PropertyType::Scalar(_)))
         })
     };
-    let chosen: Option<[&str; 3]> = match &options.velocity_properties {
+    match &options.velocity_properties {
         Some(names) => {
             let names = [names[0].as_str(), names[1].as_str(), names[2].as_str()];
             if !has_all(&names) {
@@ -386,15 +517,35 @@ fn vertex_definition(
                     names[0], names[1], names[2]
                 ));
             }
-            Some(names)
+            Ok(Some(names))
         }
-        None => VELOCITY_NAMES.iter().copied().find(|n| has_all(n)),
-    };
+        None => Ok(VELOCITY_NAMES.iter().copied().find(|n| has_all(n))),
+    }
+}
+
+/// Copy of the vertex definition with the chosen velocity properties renamed
+/// to [`VEL_KEYS`] and the properties of `extras` to [`EXTRA_PREFIX`] and
+/// their index. Returns the velocity properties chosen, if any.
+fn vertex_definition<'a>(
+    def: &ElementDef,
+    options: &'a ReadOptions,
+    extras: &[String],
+) -> Result<(ElementDef, Option<[&'a str; 3]>), String> {
+    for axis in ["x", "y", "z"] {
+        match def.properties.get(axis) {
+            Some(p) if matches!(p.data_type, PropertyType::Scalar(_)) => {}
+            Some(_) => return Err(format!("vertex property {axis} is a list")),
+            None => return Err(format!("vertex element has no property {axis}")),
+        }
+    }
+    let chosen = velocity_choice(def, options)?;
     let mut properties = KeyMap::new();
     for (key, p) in &def.properties {
-        let key = match chosen.and_then(|c| c.iter().position(|n| n == key)) {
-            Some(axis) => VEL_KEYS[axis].to_string(),
-            None => key.clone(),
+        let extra = extras.iter().position(|n| n == key);
+        let key = match (chosen.and_then(|c| c.iter().position(|n| n == key)), extra) {
+            (Some(axis), _) => VEL_KEYS[axis].to_string(),
+            (None, Some(k)) => format!("{EXTRA_PREFIX}{k}{EXTRA_PREFIX}{key}"),
+            (None, None) => key.clone(),
         };
         properties.insert(key.clone(), PropertyDef::new(key, p.data_type.clone()));
     }
@@ -404,7 +555,7 @@ fn vertex_definition(
             count: def.count,
             properties,
         },
-        chosen.is_some(),
+        chosen,
     ))
 }
 
@@ -446,11 +597,14 @@ impl PropertyAccess for Skip {
     }
 }
 
-/// Position and velocity of one vertex, whatever scalar types the file uses.
+/// Position, velocity and kept scalars of one vertex, whatever scalar types
+/// the file uses.
 struct VertexRec {
     p: [f32; 3],
     v: [f32; 3],
     exemplar_id: f32,
+    /// Kept scalar attributes by index (empty, not allocated, without).
+    extra: Vec<f32>,
 }
 
 impl VertexRec {
@@ -463,6 +617,16 @@ impl VertexRec {
             k if k == VEL_KEYS[1] => &mut self.v[1],
             k if k == VEL_KEYS[2] => &mut self.v[2],
             EXEMPLAR_ID => &mut self.exemplar_id,
+            k if k.starts_with(EXTRA_PREFIX) => {
+                let index = k[EXTRA_PREFIX.len_utf8()..].split(EXTRA_PREFIX).next();
+                let Some(Ok(i)) = index.map(str::parse::<usize>) else {
+                    return PropertyAccessResult::Ignored;
+                };
+                if self.extra.len() <= i {
+                    self.extra.resize(i + 1, f32::NAN);
+                }
+                &mut self.extra[i]
+            }
             _ => return PropertyAccessResult::Ignored,
         };
         *slot = value;
@@ -476,6 +640,7 @@ impl PropertyAccess for VertexRec {
             p: [0.0; 3],
             v: [0.0; 3],
             exemplar_id: 0.0,
+            extra: Vec::new(),
         }
     }
     fn set_char(&mut self, k: &str, v: i8) -> PropertyAccessResult {
@@ -734,7 +899,7 @@ mod tests {
         let err = parse(format!("{base}1 nan 2\n").as_bytes()).unwrap_err();
         assert_eq!(
             err.to_string(),
-            "t.ply: vertex 1: has a non-finite value (1 nan 2)"
+            "t.ply: vertex 1: has a non-finite y (1 nan 2)"
         );
         let err = parse(format!("{base}1 x 2\n").as_bytes()).unwrap_err();
         assert_eq!(
@@ -768,5 +933,24 @@ mod tests {
             assert!(parse(&good).is_ok());
             crate::io::assert_no_panic_on_damage(&good, |c| parse(c).map(|_| ()));
         }
+    }
+
+    /// The same with scalar attributes asked for (their renamed keys).
+    #[test]
+    fn never_panics_reading_scalar_attributes() {
+        let good = format!(
+            "{HEAD}element vertex 2\nproperty float x\nproperty float y\nproperty float z\n\
+             property uchar age\nproperty double heat\nend_header\n0 0 0 1 0.5\n1 0 0 2 0.25\n"
+        )
+        .into_bytes();
+        let opts = ReadOptions {
+            scalar_attributes: vec!["heat".into()],
+            all_scalar_attributes: true,
+            ..Default::default()
+        };
+        let read = |c: &[u8]| parse_ply(Path::new("t.ply"), c, &opts);
+        let m = read(&good).unwrap();
+        assert_eq!(m.attributes.len(), 2);
+        crate::io::assert_no_panic_on_damage(&good, |c| read(c).map(|_| ()));
     }
 }

@@ -1,17 +1,21 @@
 //! PLY writer (binary little endian, or ASCII for debugging) with
-//! per-vertex `vx vy vz` velocity when the mesh has one. Used by the scene
-//! generator.
+//! per-vertex `vx vy vz` velocity when the mesh has one, and every scalar
+//! attribute (a scene's `temperature`, `age`) as a float property of its
+//! own name, so that what a scene simulates beside the motion reaches the
+//! texturing run (read back with [`super::ReadOptions::scalar_attributes`]).
+//! Used by the scene generator.
 //!
 //! Written by hand rather than with ply-rs-bw's writer, which goes through
 //! its dynamically typed `HashMap` element (slow for 100k vertices); the
-//! layout we emit is fixed: `float x y z [vx vy vz]`, `list uchar int
-//! vertex_indices`.
+//! layout we emit is fixed: `float x y z [vx vy vz] [scalars, by name]`,
+//! `list uchar int vertex_indices`. A mesh without scalar attributes is
+//! written exactly as before they existed.
 
 use std::io::Write;
 use std::path::Path;
 
 use super::{IoError, write_atomic};
-use crate::mesh::TriMesh;
+use crate::mesh::{Attribute, TriMesh};
 
 /// PLY payload encoding.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -20,7 +24,8 @@ pub enum PlyEncoding {
     Ascii,
 }
 
-/// Writes `mesh` (positions, triangles and velocity if present) atomically.
+/// Writes `mesh` (positions, triangles, velocity if present and every
+/// scalar attribute, in name order) atomically.
 pub fn write_ply(path: &Path, mesh: &TriMesh, encoding: PlyEncoding) -> Result<(), IoError> {
     if let Some(&[a, b, c]) = mesh
         .triangles
@@ -48,6 +53,7 @@ pub fn write_ply(path: &Path, mesh: &TriMesh, encoding: PlyEncoding) -> Result<(
             ),
         });
     }
+    let scalars = scalar_attributes(path, mesh)?;
     write_atomic(path, |w| {
         let format = match encoding {
             PlyEncoding::BinaryLittleEndian => "binary_little_endian",
@@ -61,6 +67,9 @@ pub fn write_ply(path: &Path, mesh: &TriMesh, encoding: PlyEncoding) -> Result<(
         )?;
         if velocity.is_some() {
             w.write_all(b"property float vx\nproperty float vy\nproperty float vz\n")?;
+        }
+        for (name, _) in &scalars {
+            writeln!(w, "property float {name}")?;
         }
         write!(
             w,
@@ -78,6 +87,9 @@ pub fn write_ply(path: &Path, mesh: &TriMesh, encoding: PlyEncoding) -> Result<(
                         for c in v[i].to_array() {
                             buf.extend_from_slice(&c.to_le_bytes());
                         }
+                    }
+                    for (_, values) in &scalars {
+                        buf.extend_from_slice(&values[i].to_le_bytes());
                     }
                     if buf.len() >= 1 << 20 {
                         w.write_all(&buf)?;
@@ -102,6 +114,9 @@ pub fn write_ply(path: &Path, mesh: &TriMesh, encoding: PlyEncoding) -> Result<(
                     if let Some(v) = velocity {
                         write!(w, " {} {} {}", v[i].x, v[i].y, v[i].z)?;
                     }
+                    for (_, values) in &scalars {
+                        write!(w, " {}", values[i])?;
+                    }
                     w.write_all(b"\n")?;
                 }
                 for [a, b, c] in &mesh.triangles {
@@ -111,6 +126,45 @@ pub fn write_ply(path: &Path, mesh: &TriMesh, encoding: PlyEncoding) -> Result<(
         }
         Ok(())
     })
+}
+
+/// The scalar attributes to write, by name, each checked: one value per
+/// vertex, a name a PLY header can hold that no other property has.
+fn scalar_attributes<'a>(
+    path: &Path,
+    mesh: &'a TriMesh,
+) -> Result<Vec<(&'a str, &'a [f32])>, IoError> {
+    let unwritable = |reason: String| IoError::Unwritable {
+        path: path.to_path_buf(),
+        reason,
+    };
+    let mut out = Vec::new();
+    for (name, attribute) in &mesh.attributes {
+        let Attribute::Scalar(values) = attribute else {
+            continue;
+        };
+        if name.is_empty() || !name.bytes().all(|b| b.is_ascii_graphic()) {
+            return Err(unwritable(format!(
+                "attribute {name:?} is not a PLY property name (printable ASCII, no spaces)"
+            )));
+        }
+        let taken = ["x", "y", "z"].contains(&name.as_str())
+            || (mesh.velocity().is_some() && ["vx", "vy", "vz"].contains(&name.as_str()));
+        if taken {
+            return Err(unwritable(format!(
+                "attribute {name:?} has the name of a position or velocity property"
+            )));
+        }
+        if values.len() != mesh.positions.len() {
+            return Err(unwritable(format!(
+                "attribute {name} has {} values for {} vertices",
+                values.len(),
+                mesh.positions.len()
+            )));
+        }
+        out.push((name.as_str(), values.as_slice()));
+    }
+    Ok(out)
 }
 
 #[cfg(test)]

@@ -9,6 +9,9 @@
 //! `NORMALS`, `SCALARS` (any component count) or `FIELD` arrays. Velocity is
 //! the 3-component point array named in [`ReadOptions::vtk_velocity_array`]
 //! or, by default, the first of `velocity`, `Velocity`, `vel`, `v`.
+//! A 1-component point array named in [`ReadOptions::scalar_attributes`]
+//! (a simulation's `temperature`, ...) becomes a scalar attribute of that
+//! name; the others are read past, as before.
 //!
 //! Written by hand because the one Rust crate for it (vtkio) brings an XML
 //! stack and its legacy reader had open bugs splashsurf works around; the
@@ -21,7 +24,7 @@ use std::path::Path;
 use glam::Vec3;
 
 use super::{IoError, ReadOptions, read_bytes};
-use crate::mesh::{MeshError, TriMesh};
+use crate::mesh::{Attribute, MeshError, TriMesh};
 
 /// Default names of the velocity array, tried in order.
 pub const VELOCITY_ARRAYS: [&str; 4] = ["velocity", "Velocity", "vel", "v"];
@@ -60,6 +63,19 @@ pub fn parse_vtk(path: &Path, bytes: &[u8], options: &ReadOptions) -> Result<Tri
         mesh = mesh.with_velocity(v);
     } else if let Some(name) = &options.vtk_velocity_array {
         return Err(c.header(&format!("no 3-component point array named {name:?}")));
+    }
+    let found: Vec<&str> = sections.scalars.iter().map(|(k, _)| k.as_str()).collect();
+    if let Some(e) = options.missing_scalar(path, &found, &sections.scalar_names) {
+        return Err(e);
+    }
+    for (name, values) in sections.scalars {
+        if values.len() != n {
+            return Err(IoError::Counts {
+                path: path.to_path_buf(),
+                reason: format!("{name} has {} values for {n} points", values.len()),
+            });
+        }
+        mesh.attributes.insert(name, Attribute::Scalar(values));
     }
     Ok(mesh)
 }
@@ -100,6 +116,10 @@ struct Sections {
     in_point_data: bool,
     /// Rank in the wanted names of the velocity kept so far.
     best_rank: usize,
+    /// Kept 1-component point arrays (the first of a name), in file order.
+    scalars: Vec<(String, Vec<f32>)>,
+    /// Names of every 1-component point array, for messages.
+    scalar_names: Vec<String>,
 }
 
 fn vec3s(values: &[f64]) -> Vec<Vec3> {
@@ -150,7 +170,7 @@ impl Sections {
                     s.in_point_data = key == "POINT_DATA";
                 }
                 "VECTORS" | "NORMALS" | "SCALARS" | "FIELD" => {
-                    s.read_attributes(c, &words, &wanted)?;
+                    s.read_attributes(c, &words, &wanted, options)?;
                 }
                 "METADATA" => c.skip_metadata()?,
                 other => return Err(c.header(&format!("unsupported section {other:?}"))),
@@ -160,14 +180,26 @@ impl Sections {
     }
 
     /// Reads an attribute section (to get past it); keeps the best-ranked
-    /// 3-component point array of `wanted` as the velocity.
+    /// 3-component point array of `wanted` as the velocity, and the
+    /// 1-component point arrays `options` asks for.
     fn read_attributes(
         &mut self,
         c: &mut Cursor<'_>,
         words: &[String],
         wanted: &[&str],
+        options: &ReadOptions,
     ) -> Result<(), IoError> {
         for (name, comps, values) in c.attribute_arrays(words, self.section_len)? {
+            let any = !options.scalar_attributes.is_empty() || options.all_scalar_attributes;
+            if any && self.in_point_data && comps == 1 && !self.scalar_names.contains(&name) {
+                self.scalar_names.push(name.clone());
+                let asked = options.scalar_attributes.contains(&name);
+                let every = options.all_scalar_attributes && !super::is_normal_like(&name);
+                if asked || every {
+                    let v = values.iter().map(|&x| x as f32).collect();
+                    self.scalars.push((name.clone(), v));
+                }
+            }
             let rank = wanted.iter().position(|w| *w == name);
             if let (true, 3, Some(rank)) = (self.in_point_data, comps, rank)
                 && rank < self.best_rank

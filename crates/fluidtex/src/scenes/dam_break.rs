@@ -16,6 +16,16 @@
 //! * Velocity: per-particle velocities interpolated at the vertices with
 //!   splashsurf's `SphInterpolator` (first-order corrected, so the truncated
 //!   kernel at the free surface does not shrink them).
+//! * Age: every vertex carries a scalar [`AGE`] (seconds), so that a
+//!   texturing run can tell water that has travelled from the still
+//!   column (`--select-by age`: foam on the spray, calm water behind). It
+//!   is carried by the particles: 0 while a particle is still inside the
+//!   column's initial box, then the time since it first left it, which
+//!   keeps growing if it falls back in (the water has been out). The box
+//!   is left only through its two open faces (the dam face x = 0.3 and
+//!   the top y = 0.45; the others are tank walls), checked after every
+//!   substep, so the departure time is known to a substep. Vertices get it
+//!   like the velocity.
 //!
 //! Units: metres, seconds; y is up (gravity −9.81 m/s² along y), as in
 //! Houdini. salva uses nalgebra 0.35 and splashsurf_lib 0.34: vectors cross
@@ -37,7 +47,7 @@ use serde_json::json;
 
 use super::sph::{self, Surfacing, v3};
 use super::{Scene, SceneError, SceneInfo, SceneParams};
-use crate::mesh::TriMesh;
+use crate::mesh::{Attribute, TriMesh};
 
 /// Tank interior: x ∈ [0, 1], y ∈ [0, 0.6], z ∈ [0, 0.3] metres.
 pub const TANK: [f32; 3] = [1.0, 0.6, 0.3];
@@ -61,6 +71,8 @@ pub const SURFACE_CUBE: f32 = 1.0;
 pub const SURFACE_THRESHOLD: f32 = 0.6;
 /// Initial jitter of the particles, in particle spacings (seeded).
 pub const JITTER: f32 = 0.01;
+/// Name of the per-vertex age attribute (PLY property), in seconds.
+pub const AGE: &str = "age";
 
 const SURFACING: Surfacing = Surfacing {
     support: SURFACE_SUPPORT,
@@ -81,6 +93,9 @@ pub struct DamBreak {
     deleted: usize,
     boundary_particles: usize,
     fluid_particles: usize,
+    /// Time (s) each particle first left the column, index for index with
+    /// salva's arrays; `None` while it has not.
+    left_at: Vec<Option<f64>>,
 }
 
 impl DamBreak {
@@ -153,7 +168,26 @@ impl DamBreak {
             deleted: 0,
             boundary_particles,
             fluid_particles,
+            left_at: vec![None; fluid_particles],
         })
+    }
+
+    /// Whether a particle at `p` has left the column's initial box (through
+    /// its open faces: the others are tank walls).
+    pub fn outside_column(p: [f32; 3]) -> bool {
+        p[0] > COLUMN[0] || p[1] > COLUMN[1]
+    }
+
+    /// Records the particles that left the column by time `t`.
+    fn note_departures(&mut self, t: f64) {
+        let Some(fluid) = self.world.fluids().get(self.fluid) else {
+            return;
+        };
+        for (left, p) in self.left_at.iter_mut().zip(&fluid.positions) {
+            if left.is_none() && DamBreak::outside_column([p.x, p.y, p.z]) {
+                *left = Some(t);
+            }
+        }
     }
 
     /// Advances the world by one frame.
@@ -167,8 +201,13 @@ impl DamBreak {
             .map_or(0.0, sph::fastest);
         let (n, dt) = sph::substeps(frame_dt, self.radius, fastest, free_fall, CFL);
         let gravity = v3(0.0, -GRAVITY, 0.0);
-        for _ in 0..n {
+        if let Some(fluid) = self.world.fluids().get(self.fluid) {
+            sph::follow_removal(fluid, &mut self.left_at);
+        }
+        let t0 = self.params.time(self.at);
+        for k in 0..n {
             self.world.step(dt, &gravity);
+            self.note_departures(t0 + f64::from(k + 1) * f64::from(dt));
         }
         self.substeps += u64::from(n);
         // Remove particles that left the tank (a leak would spray the
@@ -196,13 +235,26 @@ impl DamBreak {
                 message: "the fluid vanished from the world".into(),
             })?;
         let (positions, velocities) = sph::live_state(fluid);
-        sph::reconstruct(
+        let t = self.params.time(frame);
+        let age: Vec<f32> = sph::live_values(fluid, &self.left_at)
+            .into_iter()
+            .map(|left| left.map_or(0.0, |l| (t - l).max(0.0) as f32))
+            .collect();
+        let mut mesh = sph::reconstruct_with(
             &positions,
             Some(&velocities),
+            &[(AGE, age.as_slice())],
             self.radius,
             &SURFACING,
             frame,
-        )
+        )?;
+        // A weighted mean of ages ≥ 0, up to rounding.
+        if let Some(Attribute::Scalar(a)) = mesh.attributes.get_mut(AGE) {
+            for x in a {
+                *x = x.max(0.0);
+            }
+        }
+        Ok(mesh)
     }
 
     /// Live fluid particles.
@@ -271,6 +323,11 @@ impl Scene for DamBreak {
                 "initial_jitter_spacings": JITTER,
                 "surface": SURFACING.info(self.radius),
                 "velocity": "SphInterpolator::interpolate_vector_quantity, first-order corrected",
+                "age": {
+                    "attribute": AGE,
+                    "particle": "0 until the particle first leaves the column (x > column x or y > column y, checked every substep), then the time since",
+                    "vertex": "SphInterpolator::interpolate_scalar_quantity, first-order corrected",
+                },
             }),
         }
     }

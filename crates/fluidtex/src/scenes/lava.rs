@@ -28,6 +28,28 @@
 //!   bit-identical still frames.
 //! * Surface and velocity: as `dam-break` (`sph::reconstruct`),
 //!   with a marching-cubes cell of [`SURFACE_CUBE`] particle radii.
+//! * Temperature: every vertex carries a scalar [`TEMPERATURE`] in
+//!   [0, 1] (1 = molten, as released; 0 = cold crust), so that a texturing
+//!   run can change the look of the lava as it cools (`--select-by
+//!   temperature`). It is carried by the particles, not painted on the
+//!   surface, so it moves with the lava and a vertex gets it the way it
+//!   gets its velocity (SPH interpolation of the particles in reach). Lava
+//!   loses its heat to the air, so a particle cools the faster the more of
+//!   it is open to the air: its exposure e ∈ [0, 1] is 1 minus its
+//!   neighbours' kernel weight (within [`EXPOSURE_RADIUS`] spacings) over
+//!   that of a particle deep inside, the wall and floor particles counting
+//!   as neighbours (the ground insulates; the bottom is not what is seen).
+//!   A particle's heat H = e^(−D), with the dose D = ∫ e dt /
+//!   [`COOLING_TIME`] added up frame by frame: the thin, exposed parts (the
+//!   tongue's tip, edges and top) cool first, and the cold reaches inward
+//!   over time. The crust that slows the lava (the drag above) is what
+//!   cools its surface, so the temperature also follows c(t): T = H ·
+//!   (1 − (1 − [`SOLID_HEAT`])·c(t)). At frame 0 every particle is at 1;
+//!   between [`COOL_START`] and [`SOLID`] the surface shows the spread of
+//!   H, so a threshold crosses it progressively; at [`SOLID`] every
+//!   particle is at most [`SOLID_HEAT`], and, the simulation stopped, the
+//!   temperature stops changing with the mesh (it is part of the repeated
+//!   solid mesh).
 //!
 //! `resolution` is the number of particles across the channel (default
 //! 24). Units: metres, seconds. Deterministic: single-threaded solver and
@@ -44,7 +66,7 @@ use serde_json::json;
 
 use super::sph::{self, Surfacing, v3};
 use super::{Scene, SceneError, SceneInfo, SceneParams};
-use crate::mesh::TriMesh;
+use crate::mesh::{Attribute, TriMesh};
 
 /// Inclination of the channel floor (degrees).
 pub const SLOPE_DEG: f32 = 15.0;
@@ -86,6 +108,21 @@ pub const SURFACE_CUBE: f32 = 0.35;
 pub const SURFACE_THRESHOLD: f32 = 0.6;
 /// Largest `resolution` (particles across the channel).
 pub const MAX_RESOLUTION: u32 = 120;
+/// Name of the per-vertex temperature attribute (PLY property).
+pub const TEMPERATURE: &str = "temperature";
+/// Radius (in particle spacings) within which neighbours shield a particle
+/// from the air: salva's kernel radius (2 × smoothing factor × radius).
+pub const EXPOSURE_RADIUS: f32 = 2.0;
+/// Time (s) in which a fully exposed particle's heat falls by a factor e.
+/// On the lattice, a particle of a flat free surface has exposure 0.24,
+/// one on an edge 0.44, on a corner 0.60 (the layer below: 0), so they
+/// lose half their heat in 2.9 s, 1.6 s and 1.2 s: by [`COOL_START`] the
+/// tongue's edges and tip are visibly cooler than its flat top, which is
+/// still clearly hotter than a corner when the crust sets.
+pub const COOLING_TIME: f32 = 1.0;
+/// Fraction of its heat H that a particle keeps once the lava is solid:
+/// the temperature is at most this from [`SOLID`] on.
+pub const SOLID_HEAT: f32 = 0.2;
 
 const SURFACING: Surfacing = Surfacing {
     support: SURFACE_SUPPORT,
@@ -110,6 +147,11 @@ pub struct Lava {
     fluid_particles: usize,
     /// The solid lava's mesh (slope frame turned to the world), made once.
     solid: Option<TriMesh>,
+    /// Cooling dose D of each particle, index for index with salva's
+    /// arrays (see the module doc).
+    dose: Vec<f32>,
+    /// Wall and floor particles (slope frame): neighbours that insulate.
+    walls: Vec<[f32; 3]>,
 }
 
 /// Slope frame → world frame: a turn about z by −θ, so the slope's
@@ -183,6 +225,7 @@ impl Lava {
             !(p[0] > 0.0 && p[1] > 0.0 && p[2] > -half && p[2] < half)
         });
         let boundary_particles = walls.len();
+        let wall_points = walls.iter().map(|p| [p.x, p.y, p.z]).collect();
         let mut world = LiquidWorld::new(
             DFSPHSolver::<salva3d::kernel::CubicSplineKernel>::new(),
             radius,
@@ -203,7 +246,40 @@ impl Lava {
             boundary_particles,
             fluid_particles,
             solid: None,
+            dose: vec![0.0; fluid_particles],
+            walls: wall_points,
         })
+    }
+
+    /// Temperature of a particle with cooling dose `dose` at time `t`: its
+    /// heat e^(−dose) times 1 − (1 − [`SOLID_HEAT`])·c(t) (module doc).
+    /// 1 for a fresh particle at t = 0, at most [`SOLID_HEAT`] from
+    /// [`SOLID`] on, lower for a larger dose.
+    pub fn temperature(dose: f32, t: f64) -> f32 {
+        let heat = (-dose.max(0.0)).exp();
+        let c = Lava::cooled(t);
+        // Exactly 1 before cooling and exactly SOLID_HEAT once solid.
+        let kept = if c >= 1.0 {
+            SOLID_HEAT
+        } else {
+            1.0 - (1.0 - SOLID_HEAT) * c
+        };
+        (heat * kept).clamp(0.0, 1.0)
+    }
+
+    /// Adds the cooling dose of `span` seconds at the current exposure.
+    /// Runs before the substeps of the span, when salva is about to drop
+    /// the particles deleted at the end of the last span.
+    fn cool(&mut self, span: f32) {
+        let Some(fluid) = self.world.fluids().get(self.fluid) else {
+            return;
+        };
+        sph::follow_removal(fluid, &mut self.dose);
+        let (positions, _) = sph::live_state(fluid);
+        let e = exposure(&positions, &self.walls, 2.0 * self.radius);
+        for (d, e) in self.dose.iter_mut().zip(e) {
+            *d += e * span / COOLING_TIME;
+        }
     }
 
     /// How far cooling has gone at time `t`: 0 until [`COOL_START`], 1 from
@@ -230,6 +306,7 @@ impl Lava {
             return;
         }
         let span = (end - self.time) as f32;
+        self.cool(span);
         let free_fall = (2.0 * GRAVITY * SOURCE_HEIGHT).sqrt();
         let fastest = self
             .world
@@ -298,7 +375,25 @@ impl Lava {
             })?;
         let (positions, velocities) = sph::live_state(fluid);
         let velocities = (!solid).then_some(velocities.as_slice());
-        let mut mesh = sph::reconstruct(&positions, velocities, self.radius, &SURFACING, frame)?;
+        let temperature: Vec<f32> = sph::live_values(fluid, &self.dose)
+            .into_iter()
+            .map(|d| Lava::temperature(d, self.time))
+            .collect();
+        let scalars = [(TEMPERATURE, temperature.as_slice())];
+        let mut mesh = sph::reconstruct_with(
+            &positions,
+            velocities,
+            &scalars,
+            self.radius,
+            &SURFACING,
+            frame,
+        )?;
+        // A weighted mean of values in [0, 1], up to rounding.
+        if let Some(Attribute::Scalar(t)) = mesh.attributes.get_mut(TEMPERATURE) {
+            for x in t {
+                *x = x.clamp(0.0, 1.0);
+            }
+        }
         for p in &mut mesh.positions {
             *p = to_world(*p);
         }
@@ -313,6 +408,77 @@ impl Lava {
         }
         Ok(mesh)
     }
+}
+
+/// Exposure to the air of each particle of `fluid` (module doc): 1 minus
+/// the summed weight (1 − d²/R²)³ of its neighbours within R =
+/// [`EXPOSURE_RADIUS`]·`spacing` (fluid and `walls` particles), over that
+/// of a particle inside a lattice of that spacing, clamped to [0, 1].
+/// Deterministic: neighbours are found in a sorted cell list and summed in
+/// a fixed order.
+pub fn exposure(fluid: &[[f32; 3]], walls: &[[f32; 3]], spacing: f32) -> Vec<f32> {
+    let radius = EXPOSURE_RADIUS * spacing;
+    let r2 = radius * radius;
+    let weight = |d2: f32| {
+        let x = 1.0 - d2 / r2;
+        if x > 0.0 { x * x * x } else { 0.0 }
+    };
+    // A bulk particle's neighbour weight, on the lattice of the release.
+    let reach = EXPOSURE_RADIUS.ceil() as i32;
+    let mut bulk = 0.0f32;
+    for k in -reach..=reach {
+        for j in -reach..=reach {
+            for i in -reach..=reach {
+                if (i, j, k) != (0, 0, 0) {
+                    let d = Vec3::new(i as f32, j as f32, k as f32) * spacing;
+                    bulk += weight(d.length_squared());
+                }
+            }
+        }
+    }
+    let cell = |p: &[f32; 3]| {
+        let c = |x: f32| (x / radius).floor() as i32;
+        (c(p[0]), c(p[1]), c(p[2]))
+    };
+    let all: Vec<&[f32; 3]> = fluid.iter().chain(walls).collect();
+    let mut cells: Vec<((i32, i32, i32), u32)> = all
+        .iter()
+        .enumerate()
+        .map(|(i, p)| (cell(p), i as u32))
+        .collect();
+    cells.sort_unstable();
+    fluid
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let (cx, cy, cz) = cell(p);
+            let mut sum = 0.0f32;
+            for dz in -1..=1 {
+                for dy in -1..=1 {
+                    for dx in -1..=1 {
+                        let key = (cx + dx, cy + dy, cz + dz);
+                        let start = cells.partition_point(|(c, _)| *c < key);
+                        for &(c, j) in &cells[start..] {
+                            if c != key {
+                                break;
+                            }
+                            if j as usize == i {
+                                continue;
+                            }
+                            let q = all[j as usize];
+                            let d = Vec3::from(*q) - Vec3::from(*p);
+                            sum += weight(d.length_squared());
+                        }
+                    }
+                }
+            }
+            if bulk > 0.0 {
+                (1.0 - sum / bulk).clamp(0.0, 1.0)
+            } else {
+                0.0
+            }
+        })
+        .collect()
 }
 
 impl Scene for Lava {
@@ -346,6 +512,15 @@ impl Scene for Lava {
                     "weight": "gravity scaled by 1 - c(t)",
                     "cool_start_s": COOL_START, "solid_s": SOLID, "cool_drag": COOL_DRAG,
                     "after_solid": "no motion: zero velocity, the same mesh every frame",
+                },
+                "temperature": {
+                    "attribute": TEMPERATURE,
+                    "particle": "T = exp(-D) * (1 - (1 - solid_heat) * c(t)), D = integral of exposure dt / cooling_time, per frame",
+                    "exposure": "1 - sum of (1 - d^2/R^2)^3 over fluid and wall neighbours within R, over that of a bulk lattice particle; clamped to [0, 1]",
+                    "exposure_radius_spacings": EXPOSURE_RADIUS,
+                    "cooling_time_s": COOLING_TIME,
+                    "solid_heat": SOLID_HEAT,
+                    "vertex": "SphInterpolator::interpolate_scalar_quantity, first-order corrected",
                 },
                 "substeps": format!("ceil(frame_dt / ({CFL} * 2r / max(v_max, sqrt(2 g H))))"),
                 "initial_jitter_spacings": JITTER,

@@ -19,12 +19,19 @@
 //! * **`dam-break`**: a liquid from a real SPH simulator (salva3d, DFSPH),
 //!   its surface reconstructed per frame by splashsurf_lib and velocities
 //!   carried to vertices by SPH interpolation ([`dam_break`], cargo feature
-//!   `sph`, on by default).
+//!   `sph`, on by default). Each vertex also carries the scalar `age`: the
+//!   time since its water left the initial column (0 while it has not).
 //! * **`viscous-drop`** and **`lava`**: the same SPH pipeline with a strong
 //!   XSPH viscosity, at the 2021 paper's two other scales: a blob that falls
 //!   onto a plane and spreads ([`viscous_drop`], ≈ 61k triangles), and a
 //!   stream down a sloping channel that cools and stops, after which its
-//!   frames are bit-identical ([`lava`], ≈ 270k triangles).
+//!   frames are bit-identical ([`lava`], ≈ 270k triangles). Each lava
+//!   vertex carries the scalar `temperature` in [0, 1] (1 molten, 0 cold
+//!   crust), cooling first where the lava is most exposed to the air.
+//!
+//! Per-vertex scalars like these are state the simulation carries on its
+//! particles, which a texturing method can select its exemplar by; the
+//! scene writer puts them in the PLY frames as float properties.
 //!
 //! Time: frame F is at t = (F − first)/fps seconds; velocities are world
 //! units per second (docs/design.md, *Time*).
@@ -225,7 +232,7 @@ pub fn catalogue() -> &'static [(&'static str, &'static str)] {
         ),
         (
             "dam-break",
-            "SPH dam break (salva3d) reconstructed per frame with splashsurf",
+            "SPH dam break (salva3d) reconstructed per frame with splashsurf; per-vertex age",
         ),
         (
             "viscous-drop",
@@ -233,7 +240,7 @@ pub fn catalogue() -> &'static [(&'static str, &'static str)] {
         ),
         (
             "lava",
-            "viscous SPH stream down a slope that cools and stops (about 270k triangles)",
+            "viscous SPH stream down a slope that cools and stops (about 270k triangles); per-vertex temperature",
         ),
     ]
 }

@@ -1,12 +1,20 @@
 //! Pieces shared by the SPH scenes (`dam-break`, `viscous-drop`, `lava`):
-//! the CFL substep count, boundary particle sheets and the per-frame
-//! surface reconstruction with splashsurf_lib.
+//! the CFL substep count, boundary particle sheets, per-particle state kept
+//! beside salva's arrays, and the per-frame surface reconstruction with
+//! splashsurf_lib.
 //!
 //! Kept in one place so that every SPH scene surfaces its particles the same
 //! way (splashsurf marching cubes on the SPH density, Moore & Warren cleanup,
-//! first-order corrected SPH interpolation of the velocity at the vertices)
-//! and so that the determinism settings (single-threaded, no SIMD, no
-//! spatial decomposition) cannot drift apart between scenes.
+//! first-order corrected SPH interpolation of the velocity and of any
+//! per-particle scalar at the vertices) and so that the determinism settings
+//! (single-threaded, no SIMD, no spatial decomposition) cannot drift apart
+//! between scenes.
+//!
+//! Per-particle state a scene carries (lava's heat, dam-break's time out of
+//! the column) lives in our own arrays, index for index with salva's. salva
+//! removes deleted particles by compacting its arrays at the next step
+//! ([`follow_removal`] does the same to ours just before), and until then
+//! flags them ([`live_values`] leaves them out, as [`live_state`] does).
 
 use glam::Vec3;
 use salva3d::math::Vector as SalvaVector;
@@ -16,7 +24,7 @@ use splashsurf_lib::sph_interpolation::SphInterpolator;
 use splashsurf_lib::{Parameters, SpatialDecomposition};
 
 use super::SceneError;
-use crate::mesh::TriMesh;
+use crate::mesh::{Attribute, TriMesh};
 
 /// Shorthand for salva's vector type.
 pub(crate) fn v3(x: f32, y: f32, z: f32) -> SalvaVector<f32> {
@@ -104,6 +112,34 @@ pub(crate) fn live_state(fluid: &Fluid) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
     .unzip()
 }
 
+/// Removes from `state` (one entry per particle of salva's arrays) the
+/// entries of the particles salva will remove at its next step. Call just
+/// before `world.step`, so that `state` stays index for index with them.
+pub(crate) fn follow_removal<T: Copy>(fluid: &Fluid, state: &mut Vec<T>) {
+    if fluid.num_deleted_particles() == 0 {
+        return;
+    }
+    let mask = fluid.deleted_particles_mask();
+    let mut i = 0;
+    state.retain(|_| {
+        let deleted = mask.get(i).copied().unwrap_or(false);
+        i += 1;
+        !deleted
+    });
+}
+
+/// The entries of `state` (one per particle of salva's arrays) of the live
+/// particles, in the order of [`live_state`].
+pub(crate) fn live_values<T: Copy>(fluid: &Fluid, state: &[T]) -> Vec<T> {
+    let mask = fluid.deleted_particles_mask();
+    state
+        .iter()
+        .enumerate()
+        .filter(|&(i, _)| !mask.get(i).copied().unwrap_or(false))
+        .map(|(_, &v)| v)
+        .collect()
+}
+
 /// Reconstructs the surface of particles `positions` (radius `r`) and
 /// carries `velocities` to its vertices. `velocities: None` gives every
 /// vertex the velocity exactly zero (a fluid at rest).
@@ -114,9 +150,38 @@ pub(crate) fn reconstruct(
     s: &Surfacing,
     frame: i32,
 ) -> Result<TriMesh, SceneError> {
+    reconstruct_with(positions, velocities, &[], r, s, frame)
+}
+
+/// [`reconstruct`], and each named per-particle scalar of `scalars` (one
+/// value per particle) carried to the vertices the same way as the
+/// velocity (first-order corrected SPH interpolation, so a vertex gets a
+/// weighted mean of the particles in reach), as a scalar attribute of
+/// that name. A vertex with no particle in reach gets 0. The velocity is
+/// the same, bit for bit, with or without scalars.
+pub(crate) fn reconstruct_with(
+    positions: &[[f32; 3]],
+    velocities: Option<&[[f32; 3]]>,
+    scalars: &[(&str, &[f32])],
+    r: f32,
+    s: &Surfacing,
+    frame: i32,
+) -> Result<TriMesh, SceneError> {
     let fail = |message: String| SceneError::Simulation { frame, message };
+    if let Some((name, values)) = scalars.iter().find(|(_, v)| v.len() != positions.len()) {
+        return Err(fail(format!(
+            "{} values of {name} for {} particles",
+            values.len(),
+            positions.len()
+        )));
+    }
     if positions.is_empty() {
-        return Ok(TriMesh::default().with_velocity(Vec::new()));
+        let mut mesh = TriMesh::default().with_velocity(Vec::new());
+        for (name, _) in scalars {
+            mesh.attributes
+                .insert(name.to_string(), Attribute::Scalar(Vec::new()));
+        }
+        return Ok(mesh);
     }
     let positions: Vec<SsVector<f32>> = positions
         .iter()
@@ -138,19 +203,27 @@ pub(crate) fn reconstruct(
         5,
         false,
     );
-    let velocity: Vec<Vec3> = match velocities {
-        Some(velocities) => {
-            let densities = surface
-                .particle_densities
-                .take()
-                .ok_or_else(|| fail("splashsurf returned no particle densities".into()))?;
+    let interpolator = if velocities.is_some() || !scalars.is_empty() {
+        let densities = surface
+            .particle_densities
+            .take()
+            .ok_or_else(|| fail("splashsurf returned no particle densities".into()))?;
+        let rest_mass = s.rest_density * (2.0 * r).powi(3);
+        Some(SphInterpolator::new(
+            &positions,
+            &densities,
+            rest_mass,
+            s.support * r,
+        ))
+    } else {
+        None
+    };
+    let velocity: Vec<Vec3> = match (velocities, &interpolator) {
+        (Some(velocities), Some(interpolator)) => {
             let velocities: Vec<SsVector<f32>> = velocities
                 .iter()
                 .map(|v| SsVector::new(v[0], v[1], v[2]))
                 .collect();
-            let rest_mass = s.rest_density * (2.0 * r).powi(3);
-            let interpolator =
-                SphInterpolator::new(&positions, &densities, rest_mass, s.support * r);
             interpolator
                 .interpolate_vector_quantity(&velocities, &surface.mesh.vertices, true)
                 .iter()
@@ -161,8 +234,19 @@ pub(crate) fn reconstruct(
                 })
                 .collect()
         }
-        None => vec![Vec3::ZERO; surface.mesh.vertices.len()],
+        _ => vec![Vec3::ZERO; surface.mesh.vertices.len()],
     };
+    let mut attributes = Vec::with_capacity(scalars.len());
+    if let Some(interpolator) = &interpolator {
+        for (name, values) in scalars {
+            let at_vertices = interpolator
+                .interpolate_scalar_quantity(values, &surface.mesh.vertices, true)
+                .into_iter()
+                .map(|x| if x.is_finite() { x } else { 0.0 })
+                .collect();
+            attributes.push((name.to_string(), Attribute::Scalar(at_vertices)));
+        }
+    }
     let mut triangles = Vec::with_capacity(surface.mesh.triangles.len());
     let n = surface.mesh.vertices.len();
     for (t, tri) in surface.mesh.triangles.iter().enumerate() {
@@ -181,7 +265,9 @@ pub(crate) fn reconstruct(
         .iter()
         .map(|v| Vec3::new(v.x, v.y, v.z))
         .collect();
-    Ok(TriMesh::new(positions, triangles).with_velocity(velocity))
+    let mut mesh = TriMesh::new(positions, triangles).with_velocity(velocity);
+    mesh.attributes.extend(attributes);
+    Ok(mesh)
 }
 
 /// Particles of a box lattice at `spacing`: cell centres of

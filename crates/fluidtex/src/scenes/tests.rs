@@ -1,6 +1,7 @@
 //! Scene-level tests: exact velocities, closedness, return to the start,
 //! rigid geometry, topology changes, the still frames of `stop`,
-//! determinism, and the dam break's velocities against its own motion.
+//! determinism, the dam break's velocities against its own motion, and the
+//! state the SPH scenes carry (lava's temperature, dam-break's age).
 
 use std::f64::consts::PI;
 
@@ -34,6 +35,14 @@ fn small(name: &str) -> SceneParams {
 
 fn scene(name: &str) -> analytic::AnalyticScene {
     analytic::by_name(name, small(name)).expect("analytic scene")
+}
+
+/// A scalar attribute of a mesh (panics when absent).
+fn scalar<'a>(m: &'a TriMesh, name: &str) -> &'a [f32] {
+    match m.attributes.get(name) {
+        Some(crate::mesh::Attribute::Scalar(v)) => v,
+        other => panic!("{name}: {other:?}"),
+    }
 }
 
 /// Positions, triangles and velocities as raw bits.
@@ -451,6 +460,97 @@ mod dam_break_tests {
         assert_eq!(info.name, "dam-break");
         assert!(info.parameters["fluid_particles"].as_u64().unwrap_or(0) > 100);
     }
+
+    #[test]
+    fn age_is_zero_in_the_column_and_counts_the_time_out_of_it() {
+        let mut s = by_name("dam-break", Some(params(0, 6))).expect("dam-break");
+        let first = s.frame(0).expect("frame 0");
+        let age0 = scalar(&first, dam_break::AGE);
+        assert_eq!(age0.len(), first.vertex_count());
+        assert!(age0.iter().all(|&a| a == 0.0), "nothing has left at t = 0");
+        let m = s.frame(6).expect("frame 6");
+        let t = 6.0 / 24.0;
+        let age = scalar(&m, dam_break::AGE);
+        // Vertices well out of the column: all their water has left, and
+        // not before the release.
+        let spacing = dam_break::COLUMN[1] / 8.0;
+        let out: Vec<f32> = m
+            .positions
+            .iter()
+            .zip(age)
+            .filter(|(p, _)| p.x > dam_break::COLUMN[0] + 2.0 * spacing)
+            .map(|(_, &a)| a)
+            .collect();
+        assert!(!out.is_empty(), "the water has run out of the column");
+        assert!(out.iter().all(|&a| a > 0.0 && a <= t as f32), "{out:?}");
+        // Water that never left (the back of the column, at the floor).
+        assert!(
+            m.positions
+                .iter()
+                .zip(age)
+                .any(|(p, &a)| p.x < spacing && p.y < spacing && a == 0.0),
+            "control: the back of the column is still age 0"
+        );
+        // The front left first, so it is the oldest: the farthest vertex
+        // is older than the median of those out.
+        let far = m
+            .positions
+            .iter()
+            .zip(age)
+            .max_by(|a, b| a.0.x.total_cmp(&b.0.x))
+            .map(|(_, &a)| a)
+            .expect("vertices");
+        let mut sorted = out.clone();
+        sorted.sort_by(f32::total_cmp);
+        assert!(far > sorted[sorted.len() / 2], "{far} vs {sorted:?}");
+    }
+
+    #[test]
+    fn scalars_ride_along_without_changing_the_velocity() {
+        let spacing = 0.02f32;
+        let mut positions = Vec::new();
+        let mut velocities = Vec::new();
+        for k in 0..6 {
+            for j in 0..6 {
+                for i in 0..6 {
+                    positions.push([i as f32 * spacing, j as f32 * spacing, k as f32 * spacing]);
+                    velocities.push([j as f32, -(i as f32), 0.5]);
+                }
+            }
+        }
+        let surfacing = sph::Surfacing {
+            support: 4.0,
+            cube: 1.0,
+            threshold: 0.6,
+            rest_density: 1000.0,
+        };
+        let r = 0.5 * spacing;
+        let plain =
+            sph::reconstruct(&positions, Some(&velocities), r, &surfacing, 0).expect("mesh");
+        let constant = vec![0.75f32; positions.len()];
+        let ramp: Vec<f32> = positions.iter().map(|p| p[0]).collect();
+        let scalars = [("c", constant.as_slice()), ("x", ramp.as_slice())];
+        let with = sph::reconstruct_with(&positions, Some(&velocities), &scalars, r, &surfacing, 0)
+            .expect("mesh");
+        assert!(
+            bits(&with) == bits(&plain),
+            "velocity and geometry unchanged"
+        );
+        assert_eq!(with.attributes.len(), 3);
+        // A weighted mean: a constant stays (to rounding), a ramp in x
+        // follows x within the kernel's reach.
+        assert!(scalar(&with, "c").iter().all(|&c| (c - 0.75).abs() < 1e-6));
+        for (p, &x) in with.positions.iter().zip(scalar(&with, "x")) {
+            assert!((x - p.x).abs() < 2.0 * spacing, "{} vs {x}", p.x);
+        }
+        let wrong = [("c", &constant[1..])];
+        let err = sph::reconstruct_with(&positions, None, &wrong, r, &surfacing, 3)
+            .expect_err("one value short");
+        assert_eq!(
+            err.to_string(),
+            "frame 3: simulation failed: 215 values of c for 216 particles"
+        );
+    }
 }
 
 /// `viscous-drop` and `lava` at tiny sizes: spreading, flowing downhill,
@@ -586,6 +686,143 @@ mod viscous_scene_tests {
                 .iter()
                 .any(|v| *v != Vec3::ZERO)
         );
+
+        // Temperature: molten at release, every surface vertex cold by the
+        // time it is solid, then frozen with the mesh.
+        let temperature = |f: usize| scalar(&meshes[f], lava::TEMPERATURE);
+        assert!(temperature(0).iter().all(|&t| t >= 0.9), "frame 0");
+        let solid_t: Vec<u32> = temperature(24).iter().map(|t| t.to_bits()).collect();
+        assert!(
+            temperature(24).iter().all(|&t| (0.0..0.3).contains(&t)),
+            "solid: {:?}",
+            temperature(24).iter().fold(0.0f32, |a, &t| a.max(t))
+        );
+        for f in 25..=28 {
+            let t: Vec<u32> = temperature(f).iter().map(|t| t.to_bits()).collect();
+            assert!(t == solid_t, "frame {f}: temperature changed after SOLID");
+        }
+        assert!(temperature(23) != temperature(24), "control: still cooling");
+        // Between COOL_START (frame 15) and SOLID the surface is not one
+        // temperature, and a threshold crosses it progressively: the share
+        // of the surface below 0.5 grows frame by frame, and for several
+        // frames part of it is below and part above.
+        let below = |f: usize| {
+            let t = temperature(f);
+            t.iter().filter(|&&x| x < 0.5).count() as f64 / t.len() as f64
+        };
+        for f in 15..24 {
+            let t = temperature(f);
+            let (lo, hi) = t
+                .iter()
+                .fold((1.0f32, 0.0f32), |(a, b), &x| (a.min(x), b.max(x)));
+            assert!(hi - lo > 0.15, "frame {f}: {lo}..{hi}");
+        }
+        for f in 16..=24 {
+            assert!(
+                below(f) >= below(f - 1),
+                "frame {f}: {} < {}",
+                below(f),
+                below(f - 1)
+            );
+        }
+        let partial = (15..24)
+            .filter(|&f| below(f) > 0.02 && below(f) < 0.98)
+            .count();
+        assert!(
+            partial >= 2,
+            "{:?}",
+            (15..=24).map(below).collect::<Vec<_>>()
+        );
+        // The molten look lasts: before COOL_START most of the surface is
+        // still above 0.5, and the coolest part is well below the hottest.
+        assert_eq!(below(14), 0.0);
+        let t14 = temperature(14);
+        let (lo, hi) = t14
+            .iter()
+            .fold((1.0f32, 0.0f32), |(a, b), &x| (a.min(x), b.max(x)));
+        assert!(hi - lo > 0.2, "frame 14: {lo}..{hi}");
+    }
+
+    #[test]
+    fn lava_particle_temperature_follows_the_dose_and_the_clock() {
+        use lava::{COOL_START, Lava, SOLID, SOLID_HEAT};
+        assert_eq!(Lava::temperature(0.0, 0.0), 1.0);
+        // Before COOL_START only the dose counts: e^(−D).
+        for d in [0.0f32, 0.1, 0.5, 2.0] {
+            assert_eq!(Lava::temperature(d, 1.0), (-d).exp(), "dose {d}");
+            assert_eq!(Lava::temperature(d, COOL_START), (-d).exp());
+        }
+        // From SOLID on, at most SOLID_HEAT and no longer changing.
+        assert_eq!(Lava::temperature(0.0, SOLID), SOLID_HEAT);
+        for d in [0.0f32, 0.3, 1.0] {
+            let at = Lava::temperature(d, SOLID);
+            assert!(at <= SOLID_HEAT);
+            assert_eq!(Lava::temperature(d, SOLID + 7.0).to_bits(), at.to_bits());
+        }
+        // Colder with a larger dose and with time during cooling.
+        let mid = 0.5 * (COOL_START + SOLID);
+        assert!(Lava::temperature(0.5, mid) < Lava::temperature(0.2, mid));
+        assert!(Lava::temperature(0.2, mid) < Lava::temperature(0.2, COOL_START));
+        assert!(Lava::temperature(0.2, SOLID) < Lava::temperature(0.2, mid));
+    }
+
+    #[test]
+    fn lava_exposure_is_zero_inside_and_grows_to_faces_edges_and_corners() {
+        let s = 0.01f32;
+        let mut block = Vec::new();
+        for k in 0..7 {
+            for j in 0..7 {
+                for i in 0..7 {
+                    block.push([i as f32 * s, j as f32 * s, k as f32 * s]);
+                }
+            }
+        }
+        let at = |e: &[f32], i: usize, j: usize, k: usize| e[(k * 7 + j) * 7 + i];
+        let e = lava::exposure(&block, &[], s);
+        // The weights of the half-space, quarter-space and octant of the
+        // lattice within 2 spacings, over the whole: 1 − 3.171875/4.15625,
+        // 1 − 2.34375/4.15625, 1 − 1.65625/4.15625.
+        assert_eq!(at(&e, 3, 3, 3), 0.0, "inside");
+        assert_eq!(at(&e, 3, 3, 1), 0.0, "a layer below a face");
+        assert!(
+            (at(&e, 3, 3, 0) - 0.236_842).abs() < 1e-5,
+            "face {}",
+            at(&e, 3, 3, 0)
+        );
+        assert!(
+            (at(&e, 3, 0, 0) - 0.436_090).abs() < 1e-5,
+            "edge {}",
+            at(&e, 3, 0, 0)
+        );
+        assert!(
+            (at(&e, 0, 0, 0) - 0.601_504).abs() < 1e-5,
+            "corner {}",
+            at(&e, 0, 0, 0)
+        );
+        // Wall particles shield like fluid ones: a floor under the block
+        // makes its bottom face an inside.
+        let floor: Vec<[f32; 3]> = (-2..9)
+            .flat_map(|i| (-2..9).flat_map(move |j| (1..3).map(move |k| (i, j, k))))
+            .map(|(i, j, k)| [i as f32 * s, j as f32 * s, -(k as f32) * s])
+            .collect();
+        let on_floor = lava::exposure(&block, &floor, s);
+        assert_eq!(at(&on_floor, 3, 3, 0), 0.0);
+        assert_eq!(
+            at(&on_floor, 3, 3, 6),
+            at(&e, 3, 3, 6),
+            "the top is still open"
+        );
+        // Alone, a particle is fully exposed. The same input gives the
+        // same bits; another order only sums in another order.
+        assert_eq!(lava::exposure(&[[0.5, 0.5, 0.5]], &[], s), [1.0]);
+        assert_eq!(lava::exposure(&block, &[], s), e);
+        let mut reversed = block.clone();
+        reversed.reverse();
+        let mut back = lava::exposure(&reversed, &[], s);
+        back.reverse();
+        for (a, b) in back.iter().zip(&e) {
+            assert!((a - b).abs() < 1e-6, "{a} vs {b}");
+        }
     }
 
     #[test]
@@ -599,7 +836,21 @@ mod viscous_scene_tests {
                 pool.install(|| {
                     let mut s = by_name(name, Some(params(name, 8, 24.0, 6, seed))).expect("scene");
                     (0..=6)
-                        .map(|f| bits(&s.frame(f).expect("frame")))
+                        .map(|f| {
+                            let m = s.frame(f).expect("frame");
+                            // The scalar attributes (lava's temperature) too.
+                            let scalars: Vec<Vec<u32>> = m
+                                .attributes
+                                .values()
+                                .filter_map(|a| match a {
+                                    crate::mesh::Attribute::Scalar(v) => {
+                                        Some(v.iter().map(|x| x.to_bits()).collect())
+                                    }
+                                    _ => None,
+                                })
+                                .collect();
+                            (bits(&m), scalars)
+                        })
                         .collect::<Vec<_>>()
                 })
             };
