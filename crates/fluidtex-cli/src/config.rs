@@ -292,7 +292,9 @@ impl Config {
         })?;
         let base = path.parent().unwrap_or(Path::new(""));
         let rebase = |p: &mut PathBuf| {
-            if p.is_relative() {
+            // `builtin:NAME` names an exemplar, not a file.
+            let builtin = p.to_str().is_some_and(|s| s.starts_with("builtin:"));
+            if p.is_relative() && !builtin {
                 *p = base.join(&*p);
             }
         };

@@ -8,8 +8,8 @@ use clap::Args;
 use fluidtex::atlas::AtlasParams;
 use fluidtex::exemplar::set::{AttributeRange, SelectBy};
 use fluidtex::exemplar::{
-    Exemplar, ExemplarFilter, ExemplarSelect, ExemplarSet, FeatureMethod, RegionImage,
-    builtin_pebbles,
+    Exemplar, ExemplarFilter, ExemplarSelect, ExemplarSet, FeatureMethod, LavaState, RegionImage,
+    builtin_lava, builtin_pebbles,
 };
 use fluidtex::io::ReadOptions;
 use fluidtex::methods::{Method, Stat, StatsExt};
@@ -68,12 +68,13 @@ pub fn run(a: &RunArgs) -> Result<()> {
         .out
         .clone()
         .context("no output folder: give --out DIR")?;
-    let options = read_options(config.velocity.as_ref().map(|v| v.as_slice()))?;
+    let options = config_read_options(&config)?;
     if crate::usd::is_usd(&pattern) {
-        let mut source = crate::usd::UsdSource::open(
+        let mut source = crate::usd::UsdSource::open_with(
             &pattern,
             config.prim.as_deref(),
             config.frames.as_deref(),
+            options,
         )?;
         return execute(&config, out, &mut source, a.resume, a.quiet, limit, a.phase);
     }
@@ -179,8 +180,18 @@ pub fn frames_of(config: &Config, pattern: &str) -> Result<Vec<i32>> {
             crate::usd::UsdSource::open(pattern, config.prim.as_deref(), config.frames.as_deref())?;
         return Ok(source.frames());
     }
-    let options = read_options(config.velocity.as_ref().map(|v| v.as_slice()))?;
+    let options = config_read_options(config)?;
     Ok(SequenceSource::open(pattern, config.frames.as_deref(), options)?.frames())
+}
+
+/// The reader options of `config`: its velocity properties, and the
+/// attribute that selects the exemplars, which every frame must carry.
+fn config_read_options(config: &Config) -> Result<ReadOptions> {
+    let mut options = read_options(config.velocity.as_ref().map(|v| v.as_slice()))?;
+    options
+        .scalar_attributes
+        .extend(config.select_by.iter().cloned());
+    Ok(options)
 }
 
 /// The reader options for `--velocity a,b,c`.
@@ -216,18 +227,61 @@ pub fn build_exemplar(config: &Config) -> Result<Exemplar> {
         .iter()
         .map(|(k, v)| (k.clone(), v.clone()))
         .collect();
+    let seed = config.seed.unwrap_or(0);
     let exemplar = match &config.exemplar {
-        Some(path) => Exemplar::load(path, &channels, config.feature.as_deref(), method)?,
+        Some(path) => load_exemplar(path, &channels, config.feature.as_deref(), method, seed)?,
         None => {
             if !channels.is_empty() || config.feature.is_some() {
                 bail!(
                     "--channel and --feature need --exemplar (the built-in pebbles carry their own)"
                 );
             }
-            builtin_pebbles(BUILTIN_EXEMPLAR_SIZE, config.seed.unwrap_or(0))
+            builtin_pebbles(BUILTIN_EXEMPLAR_SIZE, seed)
         }
     };
     Ok(exemplar.with_filter(filter))
+}
+
+/// Prefix of the built-in exemplars' names (`builtin:glow`).
+pub const BUILTIN_PREFIX: &str = "builtin:";
+
+/// The built-in exemplars by name: the pebbles of the demo and the two
+/// lava states of selection by temperature.
+pub const BUILTIN_EXEMPLARS: &[&str] = &["pebbles", "glow", "crust"];
+
+/// The exemplar at `path`, or the built-in one `builtin:NAME` names (which
+/// carries its own feature map and has no extra channels).
+fn load_exemplar(
+    path: &std::path::Path,
+    channels: &[(String, PathBuf)],
+    feature: Option<&std::path::Path>,
+    method: FeatureMethod,
+    seed: u64,
+) -> Result<Exemplar> {
+    let Some(name) = path.to_str().and_then(|p| p.strip_prefix(BUILTIN_PREFIX)) else {
+        return Ok(Exemplar::load(path, channels, feature, method)?);
+    };
+    if !channels.is_empty() || feature.is_some() {
+        bail!(
+            "{}: a built-in exemplar carries its own feature map and no extra channels",
+            path.display()
+        );
+    }
+    let size = BUILTIN_EXEMPLAR_SIZE;
+    Ok(match name {
+        "pebbles" => builtin_pebbles(size, seed),
+        "glow" => builtin_lava(LavaState::Glow, size, seed),
+        "crust" => builtin_lava(LavaState::Crust, size, seed),
+        _ => bail!(
+            "{}: no such built-in exemplar; available: {}",
+            path.display(),
+            BUILTIN_EXEMPLARS
+                .iter()
+                .map(|n| format!("{BUILTIN_PREFIX}{n}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+    })
 }
 
 /// The exemplars the config names: `exemplars` (several per surface) or
@@ -265,7 +319,8 @@ pub fn build_exemplar_set(config: &Config) -> Result<ExemplarSet> {
             .iter()
             .map(|(k, v)| (k.clone(), v.clone()))
             .collect();
-        let exemplar = Exemplar::load(&e.path, &channels, e.feature.as_deref(), method)?;
+        let seed = config.seed.unwrap_or(0);
+        let exemplar = load_exemplar(&e.path, &channels, e.feature.as_deref(), method, seed)?;
         entries.push((
             e.path.display().to_string(),
             Arc::new(exemplar.with_filter(filter)),

@@ -1,0 +1,239 @@
+//! Exemplars chosen by a per-vertex attribute through the binary (issue
+//! 40): `--select-by ATTR` with `--exemplar IMG@LO:HI` (and the same in
+//! the TOML `[[exemplars]]`), the built-in lava exemplars, the state
+//! agreement in each frame's statistics, and the one-line errors.
+
+#![allow(clippy::unwrap_used)]
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use common::*;
+
+/// Writes `frames` ASCII PLY frames of a flat 12×12 grid at rest with a
+/// per-vertex `temperature` of `t(x, frame)`; returns the pattern.
+fn cooling_grid(dir: &Path, frames: usize, t: impl Fn(f32, usize) -> f32) -> PathBuf {
+    std::fs::create_dir_all(dir).unwrap();
+    let n = 12usize;
+    for f in 0..frames {
+        let mut ply = String::new();
+        let verts = (n + 1) * (n + 1);
+        ply.push_str(&format!(
+            "ply\nformat ascii 1.0\nelement vertex {verts}\nproperty float x\nproperty float y\n\
+             property float z\nproperty float vx\nproperty float vy\nproperty float vz\n\
+             property float temperature\nelement face {}\nproperty list uchar int vertex_indices\n\
+             end_header\n",
+            2 * n * n
+        ));
+        for j in 0..=n {
+            for i in 0..=n {
+                let x = i as f32 / n as f32 - 0.5;
+                let y = j as f32 / n as f32 - 0.5;
+                ply.push_str(&format!("{x} {y} 0 0 0 0 {}\n", t(x, f)));
+            }
+        }
+        let w = n + 1;
+        for j in 0..n {
+            for i in 0..n {
+                let a = j * w + i;
+                ply.push_str(&format!("3 {a} {} {}\n", a + 1, a + w + 1));
+                ply.push_str(&format!("3 {a} {} {}\n", a + w + 1, a + w));
+            }
+        }
+        std::fs::write(dir.join(format!("fluid.{f:04}.ply")), ply).unwrap();
+    }
+    dir.join("fluid.####.ply")
+}
+
+/// Frames of the run: 1/rate = 6 frames, and margin for the new patches.
+const FRAMES: usize = 16;
+
+fn stats(out: &Path, frame: usize) -> serde_json::Value {
+    let bytes = std::fs::read(out.join(format!("stats.{frame:04}.json"))).unwrap();
+    serde_json::from_slice(&bytes).unwrap()
+}
+
+fn state_agreement(out: &Path, frame: usize) -> f64 {
+    stats(out, frame)["state_agreement"]
+        .as_f64()
+        .unwrap_or_else(|| panic!("frame {frame}: no state_agreement in {}", stats(out, frame)))
+}
+
+#[test]
+fn the_built_in_lava_exemplars_follow_the_temperature() {
+    let dir = tempfile::tempdir().unwrap();
+    // Hot on the left half, cold on the right.
+    let mesh = cooling_grid(&dir.path().join("in"), FRAMES, |x, _| {
+        if x < 0.0 { 1.0 } else { 0.0 }
+    });
+    let out = dir.path().join("out");
+    let m = mesh.to_str().unwrap();
+    let o = out.to_str().unwrap();
+    ok(&[
+        "run",
+        "--mesh",
+        m,
+        "--out",
+        o,
+        "--atlas",
+        "256",
+        "--select-by",
+        "temperature",
+        "--mismatch-rate",
+        "4",
+        "--exemplar",
+        "builtin:glow@0.5:1",
+        "--exemplar",
+        "builtin:crust@0:0.5",
+    ]);
+    // Patches a third of the surface wide straddle the border at first;
+    // their wrong side erodes within 1/rate seconds and new patches of the
+    // right exemplar close it.
+    let (first, last) = (state_agreement(&out, 0), state_agreement(&out, FRAMES - 1));
+    assert!(
+        first > 0.8 && last >= 0.95 && last > first,
+        "{first} -> {last}"
+    );
+    let texels = &stats(&out, 0)["exemplar_texels"];
+    let (crust, glow) = (texels[0].as_u64().unwrap(), texels[1].as_u64().unwrap());
+    assert!(crust > 1000 && glow > 1000, "crust {crust}, glow {glow}");
+    // The same selection from the TOML table, with the images swapped.
+    let swapped = dir.path().join("swapped");
+    let config = dir.path().join("swapped.toml");
+    std::fs::write(
+        &config,
+        "select_by = \"temperature\"\nmismatch_rate = 4.0\n\
+         [[exemplars]]\npath = \"builtin:glow\"\nrange = [0.0, 0.5]\n\
+         [[exemplars]]\npath = \"builtin:crust\"\nrange = [0.5, 1.0]\n",
+    )
+    .unwrap();
+    ok(&[
+        "run",
+        "--config",
+        config.to_str().unwrap(),
+        "--mesh",
+        m,
+        "--out",
+        swapped.to_str().unwrap(),
+        "--atlas",
+        "256",
+    ]);
+    // It agrees as well...
+    assert!(state_agreement(&swapped, FRAMES - 1) >= 0.95);
+    // ...and shows the other image on each half: the glow is now cold.
+    let red = |dir: &Path| {
+        let t = image(&dir.join("color.0000.png"));
+        t.data.iter().step_by(t.channels).sum::<f32>() / (t.width * t.height) as f32
+    };
+    assert!(
+        (red(&out) - red(&swapped)).abs() > 0.01,
+        "{} vs {}",
+        red(&out),
+        red(&swapped)
+    );
+}
+
+#[test]
+fn bad_selections_are_one_line_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = cooling_grid(&dir.path().join("in"), 1, |_, _| 0.5);
+    let m = mesh.to_str().unwrap();
+    let o = dir.path().join("out");
+    let o = o.to_str().unwrap();
+    let run = |extra: &[&str]| {
+        let mut args = vec!["run", "--mesh", m, "--out", o, "--atlas", "64"];
+        args.extend_from_slice(extra);
+        user_error(&args)
+    };
+    let e = run(&[
+        "--select-by",
+        "temperature",
+        "--exemplar",
+        "builtin:glow@0.6:0.2",
+        "--exemplar",
+        "builtin:crust@0:0.5",
+    ]);
+    assert!(
+        e.contains("builtin:glow@0.6:0.2") && e.contains("low end above"),
+        "{e}"
+    );
+    let e = run(&[
+        "--exemplar",
+        "builtin:glow@0.5:1",
+        "--exemplar",
+        "builtin:crust@0:0.5",
+    ]);
+    assert!(e.contains("needs --select-by"), "{e}");
+    let e = run(&[
+        "--select-by",
+        "temperature",
+        "--exemplar",
+        "builtin:glow@0.5:1",
+        "--exemplar",
+        "builtin:crust",
+    ]);
+    assert!(e.contains("builtin:crust has no range"), "{e}");
+    let e = run(&["--select-by", "temperature", "--exemplar", "builtin:glow"]);
+    assert!(e.contains("several exemplars"), "{e}");
+    let e = run(&[
+        "--select-by",
+        "temperature",
+        "--exemplar",
+        "builtin:lava@0:1",
+        "--exemplar",
+        "builtin:crust@0:0.5",
+    ]);
+    assert!(
+        e.contains("builtin:lava") && e.contains("builtin:glow"),
+        "{e}"
+    );
+    let e = run(&[
+        "--select-by",
+        "temperature",
+        "--mismatch-rate",
+        "0",
+        "--exemplar",
+        "builtin:glow@0.5:1",
+        "--exemplar",
+        "builtin:crust@0:0.5",
+    ]);
+    assert!(e.contains("mismatch_rate"), "{e}");
+    let e = run(&[
+        "--select-by",
+        "temperature",
+        "--exemplar-select",
+        "histogram",
+        "--exemplar",
+        "builtin:glow@0.5:1",
+        "--exemplar",
+        "builtin:crust@0:0.5",
+    ]);
+    assert!(e.contains("--exemplar-select histogram"), "{e}");
+    // An attribute the input does not have: the file and the name.
+    let e = run(&[
+        "--select-by",
+        "age",
+        "--exemplar",
+        "builtin:glow@0.5:1",
+        "--exemplar",
+        "builtin:crust@0:0.5",
+    ]);
+    assert!(e.contains("age") && e.contains("fluid.0000.ply"), "{e}");
+    // A control: the same run with the attribute it has works.
+    ok(&[
+        "run",
+        "--mesh",
+        m,
+        "--out",
+        o,
+        "--atlas",
+        "64",
+        "--select-by",
+        "temperature",
+        "--exemplar",
+        "builtin:glow@0.5:1",
+        "--exemplar",
+        "builtin:crust@0:0.5",
+    ]);
+}
