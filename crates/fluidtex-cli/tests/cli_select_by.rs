@@ -237,3 +237,69 @@ fn bad_selections_are_one_line_errors() {
         "builtin:crust@0:0.5",
     ]);
 }
+
+#[test]
+fn compare_reports_the_state_agreement_of_each_method() {
+    let dir = tempfile::tempdir().unwrap();
+    // Cold everywhere from frame 3 on: the glow of frames 0-2 must go.
+    let mesh = cooling_grid(&dir.path().join("in"), FRAMES, |_, f| {
+        if f < 3 { 1.0 } else { 0.0 }
+    });
+    let out = dir.path().join("cmp");
+    let config = dir.path().join("rate.toml");
+    std::fs::write(&config, "mismatch_rate = 4.0\n").unwrap();
+    ok(&[
+        "compare",
+        "--mesh",
+        mesh.to_str().unwrap(),
+        "--select-by",
+        "temperature",
+        "--config",
+        config.to_str().unwrap(),
+        "--atlas",
+        "128",
+        "--render",
+        "64",
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    let methods = report["scenes"][0]["methods"].as_array().unwrap();
+    let names: Vec<&str> = methods
+        .iter()
+        .map(|m| m["name"].as_str().unwrap())
+        .collect();
+    // The default methods with --select-by: those that choose per patch.
+    assert_eq!(names, ["erosion", "advect", "lapped-rigid"]);
+    let last = |m: &serde_json::Value| {
+        m["per_frame"].as_array().unwrap().last().unwrap()["state_agreement"]
+            .as_f64()
+            .unwrap()
+    };
+    // Erosion renews what cooled; advect never renews, so its glow stays
+    // (the known-bad control).
+    assert!(last(&methods[0]) >= 0.95, "erosion: {}", last(&methods[0]));
+    assert!(last(&methods[1]) < 0.5, "advect: {}", last(&methods[1]));
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(md.contains("state agreement"), "{md}");
+    // A plain comparison has no such column.
+    let plain = dir.path().join("plain");
+    ok(&[
+        "compare",
+        "--mesh",
+        mesh.to_str().unwrap(),
+        "--methods",
+        "erosion",
+        "--atlas",
+        "128",
+        "--render",
+        "64",
+        "--out",
+        plain.to_str().unwrap(),
+        "--quiet",
+    ]);
+    let md = std::fs::read_to_string(plain.join("report.md")).unwrap();
+    assert!(!md.contains("state agreement"));
+}

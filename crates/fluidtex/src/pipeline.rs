@@ -508,7 +508,19 @@ impl SequenceScene {
         fps: f64,
         name: &str,
     ) -> Result<SequenceScene, PipelineError> {
-        let source = SequenceSource::open(pattern, range, crate::io::ReadOptions::default())?;
+        Self::open_with(pattern, range, fps, name, crate::io::ReadOptions::default())
+    }
+
+    /// [`SequenceScene::open`] with reader options (e.g. the attribute
+    /// that selects the exemplars, which every frame must carry).
+    pub fn open_with(
+        pattern: &str,
+        range: Option<&str>,
+        fps: f64,
+        name: &str,
+        options: crate::io::ReadOptions,
+    ) -> Result<SequenceScene, PipelineError> {
+        let source = SequenceSource::open(pattern, range, options)?;
         let frames = source.frames();
         if frames.len() < 2 {
             return Err(PipelineError::Source(format!(

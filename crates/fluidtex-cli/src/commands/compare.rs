@@ -16,8 +16,8 @@ use fluidtex::pipeline::SequenceScene;
 use fluidtex::scenes;
 use fluidtex::texture::Texture;
 
-use super::run::{build_exemplar, build_job, build_method};
-use crate::config::Config;
+use super::run::{build_exemplar_set, build_job, build_method};
+use crate::config::{Config, ExemplarEntry};
 use fluidtex::methods::registry::MethodKind;
 use fluidtex::named::Named;
 
@@ -79,6 +79,13 @@ pub struct CompareArgs {
     /// the default and the published algorithm side by side
     #[arg(long)]
     pub paper: bool,
+    /// Exemplars chosen by this per-vertex scalar of the scene (lava's
+    /// temperature, dam-break's age): the config's `[[exemplars]]` with
+    /// their `range`, or else builtin:glow@0.5:1 and builtin:crust@0:0.5;
+    /// the report gains each method's state agreement. Default methods:
+    /// those that take several exemplars
+    #[arg(long, value_name = "ATTR")]
+    pub select_by: Option<String>,
     /// No progress lines
     #[arg(long)]
     pub quiet: bool,
@@ -154,15 +161,24 @@ pub fn compare(a: &CompareArgs) -> Result<()> {
     // A config file brings the methods' parameters (e.g. an erosion
     // δ_max to weigh against the defaults); the scene decides the input.
     let file = Config::load_with_preset(a.config.as_deref(), None)?;
-    let for_compare = |file: Config| Config {
-        atlas: Some(a.atlas),
-        seed: Some(a.seed),
-        exemplar: a.exemplar.clone().or(file.exemplar.clone()),
-        mesh: None,
-        method: None,
-        frames: None,
-        out: None,
-        ..file
+    let for_compare = |file: Config| {
+        let mut config = Config {
+            atlas: Some(a.atlas),
+            seed: Some(a.seed),
+            exemplar: a.exemplar.clone().or(file.exemplar.clone()),
+            mesh: None,
+            method: None,
+            frames: None,
+            out: None,
+            ..file
+        };
+        if let Some(attribute) = &a.select_by {
+            config.select_by = Some(attribute.clone());
+            if config.exemplars.is_empty() && config.exemplar.is_none() {
+                config.exemplars = lava_pair();
+            }
+        }
+        config
     };
     let base = for_compare(file);
     // The file's own keys still win over the preset, as in `run`.
@@ -172,7 +188,9 @@ pub fn compare(a: &CompareArgs) -> Result<()> {
         .transpose()?;
     // Validates the atlas size and gives the atlas parameters `run` uses.
     let job = build_job(&base, a.out.clone(), false)?;
-    let exemplar = build_exemplar(&base)?.colour;
+    // The metrics compare with the first exemplar (the one exemplar of a
+    // plain run).
+    let exemplar = build_exemplar_set(&base)?.primary().colour.clone();
     let thresholds = Thresholds::committed()?;
     // Build every method once up front so a bad configuration fails before
     // any scene is generated.
@@ -235,10 +253,28 @@ pub fn compare(a: &CompareArgs) -> Result<()> {
     Ok(())
 }
 
+/// The methods compared by default with `--select-by`: those that take
+/// several exemplars and choose them per patch (advect as the floor).
+const STATE_METHODS: &[&str] = &["erosion", "advect", "lapped-rigid"];
+
+/// The lava pair `--select-by` compares when the config names no
+/// exemplars: glow above 0.5, crust below.
+fn lava_pair() -> Vec<ExemplarEntry> {
+    [("builtin:glow", [0.5, 1.0]), ("builtin:crust", [0.0, 0.5])]
+        .into_iter()
+        .map(|(path, range)| ExemplarEntry {
+            path: path.into(),
+            range: Some(range),
+            ..Default::default()
+        })
+        .collect()
+}
+
 /// The methods asked for (every method by default), by name and kind.
 fn methods_of(a: &CompareArgs) -> Result<(Vec<String>, Vec<MethodKind>)> {
     let names = match &a.methods {
         Some(m) => split_list("methods", m)?,
+        None if a.select_by.is_some() => STATE_METHODS.iter().map(|m| m.to_string()).collect(),
         None => MethodKind::ALL
             .iter()
             .map(|m| m.name().to_string())
@@ -271,7 +307,11 @@ const MESH_SCENE: &str = "mesh";
 
 /// The plan of `--mesh`: every frame of the sequence checked present.
 fn plan_mesh(a: &CompareArgs, pattern: &str) -> Result<ScenePlan<'static>> {
-    let files = SequenceScene::open(pattern, a.frames.as_deref(), a.fps, MESH_SCENE)
+    let options = fluidtex::io::ReadOptions {
+        scalar_attributes: a.select_by.iter().cloned().collect(),
+        ..Default::default()
+    };
+    let files = SequenceScene::open_with(pattern, a.frames.as_deref(), a.fps, MESH_SCENE, options)
         .with_context(|| format!("--mesh {pattern}"))?;
     let info = scenes::Scene::info(&files);
     Ok(ScenePlan {
@@ -453,6 +493,9 @@ fn command_line(a: &CompareArgs, methods: &[String]) -> String {
     }
     if a.paper {
         s.push_str(" --paper");
+    }
+    if let Some(attribute) = &a.select_by {
+        s.push_str(&format!(" --select-by {attribute}"));
     }
     s
 }

@@ -292,6 +292,9 @@ pub struct FrameRecord {
     /// ([`metrics::SwitchCauses`]; on advect, the renewal floor); NaN where
     /// the method records no renewal.
     pub switch_causes: [f64; 3],
+    /// For information: the method's state agreement (exemplars chosen by
+    /// an attribute, [`Stat::StateAgreement`]); NaN where it has none.
+    pub state_agreement: f64,
 }
 
 impl FrameRecord {
@@ -531,6 +534,10 @@ impl FrameSink for MetricsSink<'_> {
             point_sources,
             switch_same_points: [f64::NAN; 2],
             switch_causes,
+            state_agreement: result
+                .stats
+                .number(Stat::StateAgreement)
+                .unwrap_or(f64::NAN),
         });
         self.previous_view = Some(rendered);
         Ok(())

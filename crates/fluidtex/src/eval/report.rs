@@ -37,6 +37,10 @@ pub struct Spread {
     pub max: f64,
 }
 
+fn is_nan(x: &f64) -> bool {
+    x.is_nan()
+}
+
 /// One frame in the JSON (NaN is written as null).
 #[derive(Clone, Debug, Serialize)]
 pub struct FrameJson {
@@ -53,6 +57,10 @@ pub struct FrameJson {
     /// Shares of forced and unforced switches and of points whose previous
     /// patch is past δ_max (information beside the switch share).
     pub switch_causes: [f64; 3],
+    /// Exemplars chosen by an attribute: the share of covered texels whose
+    /// exemplar matches it (absent otherwise).
+    #[serde(skip_serializing_if = "is_nan")]
+    pub state_agreement: f64,
 }
 
 /// One method on one scene.
@@ -73,6 +81,10 @@ pub struct MethodReport {
     /// Per-frame share of points whose previous patch is past δ_max; on
     /// advect, the renewal floor (information only).
     pub holder_distorted: Option<Spread>,
+    /// Per-frame state agreement over frames, where the exemplars are
+    /// chosen by an attribute (information only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub state_agreement: Option<Spread>,
     /// Exemplar texels per atlas texel the fidelity reference used.
     pub fidelity_scale: f64,
     pub metrics: Vec<MetricCell>,
@@ -92,6 +104,7 @@ impl MethodReport {
             switch_forced: spread(run.frames.iter().map(|r| r.switch_causes[0])),
             switch_unforced: spread(run.frames.iter().map(|r| r.switch_causes[1])),
             holder_distorted: spread(run.frames.iter().map(|r| r.switch_causes[2])),
+            state_agreement: spread(run.frames.iter().map(|r| r.state_agreement)),
             fidelity_scale: run.fidelity_scale,
             metrics: run
                 .summaries
@@ -121,6 +134,7 @@ impl MethodReport {
                     anisotropy: r.anisotropy,
                     switch_same_points: r.switch_same_points,
                     switch_causes: r.switch_causes,
+                    state_agreement: r.state_agreement,
                     values: PER_FRAME
                         .iter()
                         .zip(r.values)
@@ -285,6 +299,17 @@ fn spread_text(s: &Spread) -> String {
     format!("{} [{}, {}]", num(s.median), num(s.min), num(s.max))
 }
 
+/// Title of the information column of a run whose exemplars follow an
+/// attribute (shown only then).
+const STATE: &str = "state agreement (info; ≥ 0.95 once settled)";
+
+impl SceneReport {
+    /// Whether a method of the scene reports a state agreement.
+    fn has_state(&self) -> bool {
+        self.methods.iter().any(|m| m.state_agreement.is_some())
+    }
+}
+
 /// Columns of the tables: every metric but exemplar-size cost.
 const COLUMNS: &[Metric] = Metric::ALL.split_at(11).0;
 
@@ -333,6 +358,10 @@ impl Report {
                     }
                 }
             }
+            if scene.has_state() {
+                let _ = write!(head, " {STATE} |");
+                rule.push_str(" --- |");
+            }
             head.push_str(" s/frame | patches |");
             rule.push_str(" --- | --- |");
             let _ = writeln!(s, "{head}\n{rule}");
@@ -350,6 +379,10 @@ impl Report {
                             let _ = write!(row, " {text} |");
                         }
                     }
+                }
+                if scene.has_state() {
+                    let text = m.state_agreement.as_ref().map_or("—".into(), spread_text);
+                    let _ = write!(row, " {text} |");
                 }
                 let _ = write!(
                     row,
@@ -491,6 +524,9 @@ fn scene_table(s: &mut String, scene: &SceneReport) {
             }
         }
     }
+    if scene.has_state() {
+        let _ = write!(s, "<th>{}</th>", esc(STATE));
+    }
     s.push_str("<th>s/frame</th><th>patches</th></tr>\n");
     for m in &scene.methods {
         let _ = write!(s, "<tr><th>{}</th>", esc(&m.name));
@@ -511,6 +547,10 @@ fn scene_table(s: &mut String, scene: &SceneReport) {
                     let _ = write!(s, "<td>{}</td>", esc(&text));
                 }
             }
+        }
+        if scene.has_state() {
+            let text = m.state_agreement.as_ref().map_or("—".into(), spread_text);
+            let _ = write!(s, "<td>{}</td>", esc(&text));
         }
         let _ = writeln!(
             s,

@@ -202,6 +202,9 @@ pub enum Stat {
     ExemplarSize,
     /// dual-rest: the weight of layer A in the mix.
     WeightA,
+    /// With selection by attribute: the share of covered texels whose
+    /// exemplar matches the attribute there.
+    StateAgreement,
 }
 
 crate::named!(Stat {
@@ -220,6 +223,7 @@ crate::named!(Stat {
     RadiusRule => "radius_rule",
     ExemplarSize => "exemplar_size",
     WeightA => "weight_a",
+    StateAgreement => "state_agreement",
 });
 
 /// Method statistics as written to `stats.F.json`: typed keys, JSON values.

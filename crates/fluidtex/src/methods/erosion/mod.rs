@@ -920,9 +920,10 @@ impl Erosion {
                 by_id.get(id as usize).copied()
             });
         if let Some(share) = share {
+            use crate::methods::StatsExt;
             result
                 .stats
-                .insert("state_agreement".into(), serde_json::json!(share));
+                .set(crate::methods::Stat::StateAgreement, share);
         }
     }
 

@@ -896,9 +896,8 @@ impl LappedRigid {
         if let Some(share) = state::state_agreement(ctx.atlas, ctx.mesh, by, source, |id| {
             by_id.get(&id).copied()
         }) {
-            result
-                .stats
-                .insert("state_agreement".into(), serde_json::json!(share));
+            use super::StatsExt;
+            result.stats.set(super::Stat::StateAgreement, share);
         }
     }
 }
