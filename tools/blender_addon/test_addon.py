@@ -268,7 +268,44 @@ def main():
     for m in saved:
         ob.data.materials.append(m)
     report["render_seconds"] = {k: round(v, 2) for k, v in times.items()}
+    report["state"] = select_by_attribute(a, s)
     print("fluidtex-addon-test: " + json.dumps(report), flush=True)
+
+
+def select_by_attribute(a, s):
+    """Exemplars chosen by a mesh attribute: a grid at rest whose left
+    half is hot (temperature 1) and right half cold (0); returns the state
+    agreement per frame, and the message of a missing attribute."""
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=24, y_subdivisions=24, size=1.0)
+    grid = bpy.context.active_object
+    me = grid.data
+    vel = me.attributes.new("velocity", "FLOAT_VECTOR", "POINT")
+    vel.data.foreach_set("vector", [0.0] * (3 * len(me.vertices)))
+    temp = me.attributes.new("temperature", "FLOAT", "POINT")
+    temp.data.foreach_set("value", [1.0 if v.co.x < 0 else 0.0 for v in me.vertices])
+    s.use_scene_range = False
+    s.frame_start, s.frame_end = 1, 2
+    s.velocity_auto = False
+    s.velocity_scale = 1.0
+    s.work_dir = os.path.join(a.work, "state")
+    s.select_by = "age"
+    out = {}
+    try:
+        with bpy.context.temp_override(active_object=grid, object=grid):
+            bpy.ops.fluidtex.texture_liquid()
+        check(False, "a missing attribute was not reported")
+    except RuntimeError as e:
+        out["missing_message"] = str(e).strip()
+    s.select_by = "temperature"
+    with bpy.context.temp_override(active_object=grid, object=grid):
+        check(bpy.ops.fluidtex.texture_liquid() == {"FINISHED"}, "Texture by temperature")
+    agreement = []
+    for f in (1, 2):
+        with open(os.path.join(a.work, "state", "out", f"stats.{f:04d}.json")) as st:
+            agreement.append(json.load(st).get("state_agreement"))
+    out["state_agreement"] = agreement
+    s.select_by = ""
+    return out
 
 
 try:

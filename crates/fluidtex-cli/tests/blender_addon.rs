@@ -165,6 +165,19 @@ fn blender_addon_textures_a_baked_liquid_and_renders_it() {
     );
     let missing = report["missing_message"].as_str().unwrap();
     assert!(missing.contains("fluidtex not found at"), "{missing}");
+    // Exemplars chosen by a mesh attribute: every frame carries it, the
+    // run reports how well the exemplars follow it, and a name the mesh
+    // does not have is refused naming it and what the mesh has.
+    let state = &report["state"];
+    let absent = state["missing_message"].as_str().unwrap();
+    assert!(
+        absent.contains("'age'") && absent.contains("temperature"),
+        "{absent}"
+    );
+    for a in state["state_agreement"].as_array().unwrap() {
+        let a = a.as_f64().unwrap();
+        assert!(a > 0.8, "state agreement {a}");
+    }
     // The velocity scale fitted to the surface's motion: Mantaflow's
     // attribute is not in world units per second (a sweep on this bake put
     // the best factor at 0.42-0.55), and with it the texture rides the flow

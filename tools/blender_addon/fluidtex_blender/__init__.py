@@ -50,7 +50,15 @@ from array import array
 
 import bpy
 from bpy.app.handlers import persistent
-from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
+from bpy.props import (
+    BoolProperty,
+    EnumProperty,
+    FloatProperty,
+    FloatVectorProperty,
+    IntProperty,
+    PointerProperty,
+    StringProperty,
+)
 
 METHODS = [
     ("erosion", "Patch erosion", "Patch erosion for deformable lapped textures (default)"),
@@ -124,6 +132,33 @@ class FluidtexSettings(bpy.types.PropertyGroup):
         subtype="DIR_PATH",
         default="//fluidtex/",
     )
+    select_by: StringProperty(
+        name="Select by attribute",
+        description=(
+            "A per-vertex float attribute of the liquid mesh (e.g. temperature); empty: one exemplar. "
+            "Each of the two exemplars below then shows its range of it, and what no longer matches erodes away"
+        ),
+        default="",
+    )
+    state_exemplar_a: StringProperty(
+        name="Exemplar A",
+        description="Image path, or builtin:glow, builtin:crust, builtin:pebbles",
+        default="builtin:glow",
+    )
+    state_range_a: FloatVectorProperty(name="Range A", size=2, default=(0.5, 1.0))
+    state_exemplar_b: StringProperty(
+        name="Exemplar B",
+        description="Image path, or builtin:glow, builtin:crust, builtin:pebbles",
+        default="builtin:crust",
+    )
+    state_range_b: FloatVectorProperty(name="Range B", size=2, default=(0.0, 0.5))
+    mismatch_rate: FloatProperty(
+        name="Mismatch rate",
+        description="Per second: how fast a patch part whose exemplar no longer matches the attribute goes",
+        default=1.0,
+        min=0.001,
+        max=1000.0,
+    )
     import_after: BoolProperty(name="Import the result", default=True)
     result_dir: StringProperty(
         name="Result folder", description="An output folder of fluidtex run", subtype="DIR_PATH", default=""
@@ -178,14 +213,18 @@ def frame_range(settings, scene):
     return settings.frame_start, settings.frame_end
 
 
-def write_ply(path, positions, velocities, triangles):
-    """Binary little-endian PLY: x y z vx vy vz per vertex, triangles."""
+def write_ply(path, positions, velocities, triangles, scalar=None):
+    """Binary little-endian PLY: x y z vx vy vz per vertex (then the
+    float property `scalar` = (name, values), if given), triangles."""
     n = len(positions) // 3
     t = len(triangles) // 3
-    vertex = array("f", bytes(4 * 6 * n))
+    per = 7 if scalar else 6
+    vertex = array("f", bytes(4 * per * n))
     for k in range(3):
-        vertex[k::6] = positions[k::3]
-        vertex[3 + k :: 6] = velocities[k::3]
+        vertex[k::per] = positions[k::3]
+        vertex[3 + k :: per] = velocities[k::3]
+    if scalar:
+        vertex[6::per] = scalar[1]
     face = struct.Struct("<B3i")
     faces = bytearray(face.size * t)
     for i in range(t):
@@ -196,7 +235,8 @@ def write_ply(path, positions, velocities, triangles):
         "ply\nformat binary_little_endian 1.0\ncomment written by the fluidtex Blender add-on\n"
         f"element vertex {n}\nproperty float x\nproperty float y\nproperty float z\n"
         "property float vx\nproperty float vy\nproperty float vz\n"
-        f"element face {t}\nproperty list uchar int vertex_indices\nend_header\n"
+        + (f"property float {scalar[0]}\n" if scalar else "")
+        + f"element face {t}\nproperty list uchar int vertex_indices\nend_header\n"
     )
     tmp = path + ".tmp"
     with open(tmp, "wb") as f:
@@ -240,6 +280,55 @@ def evaluate_frame(ob, depsgraph, frame):
             positions[j : j + 3] = array("f", m @ Vector(positions[j : j + 3]))
             velocities[j : j + 3] = array("f", lin @ Vector(velocities[j : j + 3]))
     return positions, velocities, triangles
+
+
+def evaluate_scalar(ob, depsgraph, frame, name):
+    """The per-vertex float attribute `name` of `ob`'s evaluated mesh at
+    the current frame, as a flat array (integers and booleans converted)."""
+    ob_eval = ob.evaluated_get(depsgraph)
+    mesh = ob_eval.to_mesh()
+    try:
+        attr = mesh.attributes.get(name)
+        kinds = {"FLOAT": "value", "INT": "value", "BOOLEAN": "value", "INT8": "value"}
+        if attr is None or attr.domain != "POINT" or attr.data_type not in kinds:
+            have = sorted(
+                a.name
+                for a in mesh.attributes
+                if a.domain == "POINT" and a.data_type in kinds and not a.name.startswith(".")
+            )
+            raise FluidtexError(
+                f"{ob.name}, frame {frame}: no per-vertex number attribute '{name}' to select by "
+                f"(it has: {', '.join(have) if have else 'none'})"
+            )
+        if attr.data_type == "FLOAT":
+            values = array("f", bytes(4 * len(mesh.vertices)))
+            attr.data.foreach_get("value", values)
+        else:
+            values = array("f", (float(d.value) for d in attr.data))
+        if any(v != v or v in (float("inf"), float("-inf")) for v in values):
+            raise FluidtexError(f"{ob.name}, frame {frame}: attribute '{name}' has a value that is not a number")
+        return values
+    finally:
+        ob_eval.to_mesh_clear()
+
+
+def state_args(settings):
+    """fluidtex's flags of the selection by attribute (empty when off)."""
+    if not settings.select_by:
+        return []
+
+    def exemplar(path, r):
+        path = path if path.startswith("builtin:") else bpy.path.abspath(path)
+        if not (r[0] <= r[1]):
+            raise FluidtexError(f"{path}: range {r[0]:g} to {r[1]:g} has its low end above its high end")
+        return f"{path}@{r[0]:g}:{r[1]:g}"
+
+    return [
+        "--select-by", settings.select_by,
+        "--exemplar", exemplar(settings.state_exemplar_a, settings.state_range_a),
+        "--exemplar", exemplar(settings.state_exemplar_b, settings.state_range_b),
+        "--mismatch-rate", f"{settings.mismatch_rate:g}",
+    ]  # fmt: skip
 
 
 def fit_velocity_scale(frames, fps, samples=1000):
@@ -319,10 +408,14 @@ def texture_job(context, ob, settings):
                 )
         for k, f in enumerate(frames):
             scene.frame_set(f)
-            positions, velocities, triangles = evaluate_frame(ob, context.evaluated_depsgraph_get(), f)
+            depsgraph = context.evaluated_depsgraph_get()
+            positions, velocities, triangles = evaluate_frame(ob, depsgraph, f)
             if scale != 1.0:
                 velocities = array("f", (x * scale for x in velocities))
-            write_ply(os.path.join(inputs, f"fluid.{f:04d}.ply"), positions, velocities, triangles)
+            scalar = None
+            if settings.select_by:
+                scalar = (settings.select_by, evaluate_scalar(ob, depsgraph, f, settings.select_by))
+            write_ply(os.path.join(inputs, f"fluid.{f:04d}.ply"), positions, velocities, triangles, scalar)
             yield (k + 1) / total, f"fluidtex: exported frame {f} ({k + 1}/{len(frames)})"
     finally:
         scene.frame_set(keep)
@@ -339,7 +432,9 @@ def texture_job(context, ob, settings):
         "--fps", str(fps),
         "--quiet",
     ]  # fmt: skip
-    if settings.exemplar:
+    if settings.select_by:
+        args += state_args(settings)
+    elif settings.exemplar:
         args += ["--exemplar", bpy.path.abspath(settings.exemplar)]
     if settings.radius > 0:
         args += ["--radius", str(settings.radius)]
@@ -692,6 +787,14 @@ class FLUIDTEX_PT_panel(bpy.types.Panel):
         col = layout.column()
         col.prop(s, "method")
         col.prop(s, "exemplar")
+        col.prop(s, "select_by")
+        if s.select_by:
+            box = col.box()
+            box.prop(s, "state_exemplar_a")
+            box.prop(s, "state_range_a")
+            box.prop(s, "state_exemplar_b")
+            box.prop(s, "state_range_b")
+            box.prop(s, "mismatch_rate")
         col.prop(s, "atlas")
         col.prop(s, "radius")
         col.prop(s, "velocity_auto")

@@ -230,10 +230,7 @@ pub fn compare(a: &CompareArgs) -> Result<()> {
         command: command_line(a, &method_names),
         atlas_size: a.atlas,
         seed: a.seed,
-        exemplar: a
-            .exemplar
-            .as_ref()
-            .map_or("built-in pebbles".into(), |p| p.display().to_string()),
+        exemplar: exemplar_text(a, &base),
         seconds: start.elapsed().as_secs_f64(),
         scenes: scene_reports,
         not_measured: vec![
@@ -251,6 +248,25 @@ pub fn compare(a: &CompareArgs) -> Result<()> {
         a.out.join("report.html").display()
     ));
     Ok(())
+}
+
+/// How the report names the exemplars: the one given, or each of several
+/// with its range (the first is the metrics' reference).
+fn exemplar_text(a: &CompareArgs, base: &Config) -> String {
+    if base.exemplars.is_empty() {
+        return a
+            .exemplar
+            .as_ref()
+            .map_or("built-in pebbles".into(), |p| p.display().to_string());
+    }
+    let each: Vec<String> = (base.exemplars.iter())
+        .map(|e| match e.range {
+            Some([lo, hi]) => format!("{}@{lo}:{hi}", e.path.display()),
+            None => e.path.display().to_string(),
+        })
+        .collect();
+    let by = (base.select_by.as_ref()).map_or(String::new(), |s| format!(" by {s}"));
+    format!("{}{by} (metrics against the first)", each.join(", "))
 }
 
 /// The methods compared by default with `--select-by`: those that take
