@@ -46,9 +46,9 @@ fn cooling_plane() -> Clip {
     Clip::from_meshes(meshes, 128)
 }
 
-/// Cold black (0..0.5) and hot white (0.5..1), chosen by temperature.
-fn crust_and_glow(rate: f32) -> ExemplarSet {
-    let set = ExemplarSet::new(
+/// Black crust and white glow, drawn by probability.
+fn crust_and_glow_drawn() -> ExemplarSet {
+    ExemplarSet::new(
         vec![
             (
                 "crust.png".into(),
@@ -64,7 +64,12 @@ fn crust_and_glow(rate: f32) -> ExemplarSet {
         ExemplarSelect::Probability,
         None,
     )
-    .expect("same channels");
+    .expect("same channels")
+}
+
+/// Cold black (0..0.5) and hot white (0.5..1), chosen by temperature.
+fn crust_and_glow(rate: f32) -> ExemplarSet {
+    let set = crust_and_glow_drawn();
     let ranges = vec![
         AttributeRange::new(0.0, 0.5).expect("range"),
         AttributeRange::new(0.5, 1.0).expect("range"),
@@ -176,24 +181,7 @@ fn without_the_mismatch_rule_old_patches_keep_their_glow() {
     // Control: the same frames and exemplars chosen by probability keep
     // showing glow where the surface went cold.
     let clip = cooling_plane();
-    let set = ExemplarSet::new(
-        vec![
-            (
-                "crust.png".into(),
-                Arc::new(grey_exemplar(16, |_, _| 0.0)),
-                1.0,
-            ),
-            (
-                "glow.png".into(),
-                Arc::new(grey_exemplar(16, |_, _| 1.0)),
-                1.0,
-            ),
-        ],
-        ExemplarSelect::Probability,
-        None,
-    )
-    .expect("same channels");
-    let mut m = build(MethodKind::Erosion, set);
+    let mut m = build(MethodKind::Erosion, crust_and_glow_drawn());
     let results = run(m.as_mut(), &clip);
     let last = glow_share(&results[FRAMES - 1]);
     assert!(last > 0.2, "the control shows {last} glow at the end");

@@ -908,23 +908,13 @@ impl Erosion {
     /// ([`crate::methods::lapped::state::state_agreement`]) in its
     /// statistics.
     fn record_state_agreement(&self, ctx: &FrameContext<'_>, result: &mut FrameResult) {
-        let (Some(by), Some(source)) = (
-            self.multi.as_ref().and_then(|m| m.set.by.as_ref()),
-            result.source.as_deref(),
-        ) else {
+        let Some(by) = self.multi.as_ref().and_then(|m| m.set.by.as_ref()) else {
             return;
         };
         let by_id = exemplars::by_id(&self.state.patches, self.state.next_id);
-        let share =
-            crate::methods::lapped::state::state_agreement(ctx.atlas, ctx.mesh, by, source, |id| {
-                by_id.get(id as usize).copied()
-            });
-        if let Some(share) = share {
-            use crate::methods::StatsExt;
-            result
-                .stats
-                .set(crate::methods::Stat::StateAgreement, share);
-        }
+        crate::methods::lapped::state::record_agreement(ctx, by, result, |id| {
+            by_id.get(id as usize).copied()
+        });
     }
 
     /// Drops, from every patch, the triangles that can never show a texel

@@ -8,6 +8,7 @@
 use crate::atlas::Atlas;
 use crate::exemplar::SelectBy;
 use crate::mesh::TriMesh;
+use crate::methods::{FrameContext, FrameResult, Stat, StatsExt};
 use crate::provenance::{SOURCE_OUTSIDE, SOURCE_UNCOVERED};
 use crate::surface::SurfacePoint;
 
@@ -60,4 +61,20 @@ pub fn state_agreement(
         }
     }
     (covered > 0).then(|| agree as f64 / covered as f64)
+}
+
+/// Records the frame's state agreement under `by` in `result`'s
+/// statistics ([`Stat::StateAgreement`]), from the sources it carries.
+pub fn record_agreement(
+    ctx: &FrameContext<'_>,
+    by: &SelectBy,
+    result: &mut FrameResult,
+    exemplar_of: impl Fn(u32) -> Option<u32>,
+) {
+    let Some(source) = result.source.as_deref() else {
+        return;
+    };
+    if let Some(share) = state_agreement(ctx.atlas, ctx.mesh, by, source, exemplar_of) {
+        result.stats.set(Stat::StateAgreement, share);
+    }
 }

@@ -886,19 +886,11 @@ impl LappedRigid {
     /// With selection by attribute, the frame's state agreement
     /// ([`state::state_agreement`]) in its statistics.
     fn record_state_agreement(&self, ctx: &FrameContext<'_>, result: &mut FrameResult) {
-        let (Some(by), Some(source)) = (
-            self.multi.as_ref().and_then(|m| m.set.by.as_ref()),
-            result.source.as_deref(),
-        ) else {
+        let Some(by) = self.multi.as_ref().and_then(|m| m.set.by.as_ref()) else {
             return;
         };
         let by_id = self.exemplar_by_id();
-        if let Some(share) = state::state_agreement(ctx.atlas, ctx.mesh, by, source, |id| {
-            by_id.get(&id).copied()
-        }) {
-            use super::StatsExt;
-            result.stats.set(super::Stat::StateAgreement, share);
-        }
+        state::record_agreement(ctx, by, result, |id| by_id.get(&id).copied());
     }
 }
 
