@@ -210,6 +210,15 @@ fn bad_selections_are_one_line_errors() {
         "builtin:crust@0:0.5",
     ]);
     assert!(e.contains("--exemplar-select histogram"), "{e}");
+    let e = run(&[
+        "--exemplar-select",
+        "attribute",
+        "--exemplar",
+        "builtin:glow",
+        "--exemplar",
+        "builtin:crust",
+    ]);
+    assert!(e.contains("needs --select-by"), "{e}");
     // An attribute the input does not have: the file and the name.
     let e = run(&[
         "--select-by",

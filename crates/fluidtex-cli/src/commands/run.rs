@@ -352,6 +352,11 @@ fn select_by(config: &Config) -> Result<Option<SelectBy>> {
         if config.mismatch_rate.is_some() {
             bail!("mismatch_rate needs --select-by ATTR");
         }
+        if config.exemplar_select.as_deref() == Some("attribute") {
+            bail!(
+                "--exemplar-select attribute needs --select-by ATTR (the attribute to choose by)"
+            );
+        }
         return Ok(None);
     };
     if attribute.is_empty() {
