@@ -312,3 +312,49 @@ fn compare_reports_the_state_agreement_of_each_method() {
     let md = std::fs::read_to_string(plain.join("report.md")).unwrap();
     assert!(!md.contains("state agreement"));
 }
+
+#[test]
+fn a_killed_run_chosen_by_attribute_resumes_to_the_same_files() {
+    // The front crosses the grid while the run is killed after frame 4:
+    // the weights the mismatch lowered, the exemplar of every patch and the
+    // ranges must all come back from state.bin.
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = cooling_grid(&dir.path().join("in"), 10, |x, f| {
+        if x < -0.5 + f as f32 / 8.0 { 0.0 } else { 1.0 }
+    });
+    let args = |out: &Path| -> Vec<String> {
+        [
+            "run",
+            "--mesh",
+            mesh.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--atlas",
+            "128",
+            "--select-by",
+            "temperature",
+            "--mismatch-rate",
+            "4",
+            "--exemplar",
+            "builtin:glow@0.5:1",
+            "--exemplar",
+            "builtin:crust@0:0.5",
+        ]
+        .map(String::from)
+        .to_vec()
+    };
+    let reference = dir.path().join("reference");
+    ok(&args(&reference));
+    let killed = dir.path().join("killed");
+    let paused = spawn_paused(&args(&killed), &[("FLUIDTEX_TEST_PAUSE_AFTER_FRAME", "4")]);
+    assert_eq!(paused.line, "fluidtex-test: paused after frame 4");
+    paused.kill();
+    assert!(!killed.join("color.0005.png").exists());
+    let mut resume = args(&killed);
+    resume.push("--resume".into());
+    ok(&resume);
+    assert_same_outputs(&reference, &killed);
+    // The control: the state agreement changed over the run, so the
+    // frames after the kill are not trivially the same.
+    assert!(state_agreement(&reference, 5) < state_agreement(&reference, 9));
+}
