@@ -139,6 +139,22 @@ impl SelectBy {
         hit
     }
 
+    /// Per exemplar: whether its range holds the whole span of `values`,
+    /// so that it matches at every point of the surface and no point of
+    /// its patches needs a test this frame (most frames of a state change
+    /// are before or after it).
+    pub fn matching_everywhere(&self, values: &[f32]) -> Vec<bool> {
+        let (lo, hi) = values
+            .iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &x| {
+                (lo.min(x), hi.max(x))
+            });
+        self.ranges
+            .iter()
+            .map(|r| values.is_empty() || (r.holds(lo) && r.holds(hi)))
+            .collect()
+    }
+
     /// The probability of each exemplar for a new patch where the
     /// attribute reads x: among the deciding ranges, proportional to their
     /// depth at x, equal where every depth is 0 (a range's edge, a point
@@ -335,6 +351,26 @@ mod tests {
             }
             let drawn = s.draw(x, rng.random());
             assert!(s.matches(drawn, x));
+        }
+    }
+
+    #[test]
+    fn an_exemplar_matches_everywhere_only_when_its_range_holds_every_value() {
+        let s = ranges(&[(0.0, 0.5), (0.5, 1.0)]);
+        assert_eq!(s.matching_everywhere(&[0.6, 0.9, 1.0]), vec![false, true]);
+        assert_eq!(s.matching_everywhere(&[0.1, 0.5]), vec![true, false]);
+        assert_eq!(s.matching_everywhere(&[0.4, 0.6]), vec![false, false]);
+        assert_eq!(s.matching_everywhere(&[]), vec![true, true]);
+        // Every value of a span a range holds matches (seeded cases).
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(42);
+        for _ in 0..200 {
+            let v: Vec<f32> = (0..5).map(|_| rng.random_range(-0.2..1.2)).collect();
+            for (e, all) in s.matching_everywhere(&v).into_iter().enumerate() {
+                if all {
+                    assert!(v.iter().all(|&x| s.matches(e as u32, x)), "{v:?}");
+                }
+            }
         }
     }
 

@@ -116,17 +116,23 @@ impl Multi {
     /// Per vertex of `p`: whether its exemplar no longer matches the
     /// selecting attribute at the surface point nearest the vertex (within
     /// `reach`; farther vertices, and runs not selecting by attribute,
-    /// mismatch nowhere: empty).
+    /// mismatch nowhere: empty). `everywhere`: per exemplar, whether it
+    /// matches the whole surface this frame
+    /// ([`SelectBy::matching_everywhere`]); its patches are not tested.
     pub fn mismatched(
         &self,
         p: &Patch,
         mesh: &TriMesh,
         index: &SurfaceIndex,
         reach: f32,
+        everywhere: &[bool],
     ) -> Vec<bool> {
         let Some(by) = &self.set.by else {
             return Vec::new();
         };
+        if everywhere.get(p.exemplar as usize) == Some(&true) {
+            return Vec::new();
+        }
         let Some(values) = by.values(mesh) else {
             return Vec::new();
         };

@@ -884,18 +884,20 @@ impl Erosion {
             _ => None,
         };
         let mismatch = match (&self.multi, self.variant) {
-            (Some(m), Variant::Erode | Variant::Blend) => {
-                m.set.by.as_ref().map(|by| (m, by.mismatch_rate * dt))
-            }
+            (Some(m), Variant::Erode | Variant::Blend) => m.set.by.as_ref().map(|by| {
+                let everywhere =
+                    (by.values(ctx.mesh)).map_or_else(Vec::new, |v| by.matching_everywhere(v));
+                (m, by.mismatch_rate * dt, everywhere)
+            }),
             _ => None,
         };
         let older = self.transition_frames().saturating_sub(1) as usize;
         self.state.patches.par_iter_mut().for_each(|p| {
             p.remember_weights(older);
             p.update_weights(shape, max_drop);
-            if let Some((m, drop)) = mismatch {
-                let flags = m.mismatched(p, ctx.mesh, ctx.index, shape.radius);
-                p.lower_mismatched(&flags, drop);
+            if let Some((m, drop, everywhere)) = &mismatch {
+                let flags = m.mismatched(p, ctx.mesh, ctx.index, shape.radius, everywhere);
+                p.lower_mismatched(&flags, *drop);
             }
             if p.id >= first_new_id {
                 p.weight_before.clear();

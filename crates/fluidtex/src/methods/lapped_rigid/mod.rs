@@ -595,7 +595,11 @@ impl LappedRigid {
         };
         let drop = by.mismatch_rate * ctx.dt;
         let (mesh, index) = (ctx.mesh, ctx.index);
+        let everywhere = by.matching_everywhere(values);
         self.state.trackers.par_iter_mut().for_each(|t| {
+            if everywhere.get(t.exemplar as usize) == Some(&true) {
+                return;
+            }
             let mismatched = index.closest(t.position, radius).is_some_and(|h| {
                 !by.matches(t.exemplar, SelectBy::value_at(values, mesh, h.location))
             });
