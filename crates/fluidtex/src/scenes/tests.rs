@@ -37,7 +37,9 @@ fn scene(name: &str) -> analytic::AnalyticScene {
     analytic::by_name(name, small(name)).expect("analytic scene")
 }
 
-/// A scalar attribute of a mesh (panics when absent).
+/// A scalar attribute of a mesh (panics when absent); the SPH scenes
+/// carry them.
+#[cfg(feature = "sph")]
 fn scalar<'a>(m: &'a TriMesh, name: &str) -> &'a [f32] {
     match m.attributes.get(name) {
         Some(crate::mesh::Attribute::Scalar(v)) => v,
