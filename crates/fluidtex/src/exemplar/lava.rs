@@ -148,7 +148,7 @@ fn border_distance(seed: u64, x: f32, y: f32) -> f32 {
 }
 
 /// Tileable value noise in [0, 1] at uv `(u, v)` on a `lattice`² grid.
-fn noise(seed: u64, u: f32, v: f32, lattice: u32) -> f32 {
+pub(super) fn noise(seed: u64, u: f32, v: f32, lattice: u32) -> f32 {
     let (x, y) = (u * lattice as f32, v * lattice as f32);
     let (x0, y0) = (x.floor(), y.floor());
     let (fx, fy) = (smooth(x - x0), smooth(y - y0));
@@ -167,7 +167,7 @@ fn noise(seed: u64, u: f32, v: f32, lattice: u32) -> f32 {
 }
 
 /// The top 24 bits of `h` as a number in [0, 1).
-fn unit(h: u64) -> f32 {
+pub(super) fn unit(h: u64) -> f32 {
     ((h >> 40) & 0xFF_FFFF) as f32 / (1u32 << 24) as f32
 }
 
@@ -176,7 +176,7 @@ fn smooth(t: f32) -> f32 {
 }
 
 /// 0 at `a`, 1 at `b` (either order), smooth in between.
-fn smoothstep(a: f32, b: f32, x: f32) -> f32 {
+pub(super) fn smoothstep(a: f32, b: f32, x: f32) -> f32 {
     smooth(((x - a) / (b - a)).clamp(0.0, 1.0))
 }
 

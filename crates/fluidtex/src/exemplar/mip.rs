@@ -62,11 +62,14 @@ fn box_taps(n: u32, m: u32) -> Vec<Vec<(usize, f32)>> {
 
 /// The next coarser level of a `width × height` image of `stride` values
 /// per texel: each axis halved, rounding down, never below 1.
-pub(crate) fn downsample(
+/// By rows in parallel, or (`parallel` false) on the calling thread: the
+/// same values either way.
+fn downsample_with(
     data: &[f32],
     stride: usize,
     width: u32,
     height: u32,
+    parallel: bool,
 ) -> (Vec<f32>, u32, u32) {
     let (w2, h2) = ((width / 2).max(1), (height / 2).max(1));
     let (w, s) = (width as usize, stride);
@@ -77,39 +80,59 @@ pub(crate) fn downsample(
     let row2 = w2 as usize * s;
     // Horizontal pass into `height` rows of `w2` texels, then vertical.
     let mut across = vec![0.0f32; height as usize * row2];
-    across
-        .par_chunks_mut(row2)
-        .zip(data.par_chunks(w * s))
-        .for_each(|(out, row)| {
-            for (j, taps) in tx.iter().enumerate() {
-                let o = &mut out[j * s..(j + 1) * s];
-                for &(i, wt) in taps {
-                    for (o, &v) in o.iter_mut().zip(&row[i * s..(i + 1) * s]) {
-                        *o += wt * v;
-                    }
-                }
-            }
-        });
-    let mut out = vec![0.0f32; h2 as usize * row2];
-    out.par_chunks_mut(row2)
-        .zip(ty.par_iter())
-        .for_each(|(o, taps)| {
+    let horizontal = |(out, row): (&mut [f32], &[f32])| {
+        for (j, taps) in tx.iter().enumerate() {
+            let o = &mut out[j * s..(j + 1) * s];
             for &(i, wt) in taps {
-                for (o, &v) in o.iter_mut().zip(&across[i * row2..(i + 1) * row2]) {
+                for (o, &v) in o.iter_mut().zip(&row[i * s..(i + 1) * s]) {
                     *o += wt * v;
                 }
             }
-        });
+        }
+    };
+    if parallel {
+        (across.par_chunks_mut(row2).zip(data.par_chunks(w * s))).for_each(horizontal);
+    } else {
+        (across.chunks_mut(row2).zip(data.chunks(w * s))).for_each(horizontal);
+    }
+    let mut out = vec![0.0f32; h2 as usize * row2];
+    let vertical = |(o, taps): (&mut [f32], &Vec<(usize, f32)>)| {
+        for &(i, wt) in taps {
+            for (o, &v) in o.iter_mut().zip(&across[i * row2..(i + 1) * row2]) {
+                *o += wt * v;
+            }
+        }
+    };
+    if parallel {
+        (out.par_chunks_mut(row2).zip(ty.par_iter())).for_each(vertical);
+    } else {
+        (out.chunks_mut(row2).zip(ty.iter())).for_each(vertical);
+    }
     (out, w2, h2)
 }
 
 /// Every coarse level (1, 2, ... down to 1 × 1) of an interleaved image.
 pub(crate) fn build(data: &[f32], stride: usize, width: u32, height: u32) -> Vec<Level> {
+    build_with(data, stride, (width, height), true)
+}
+
+/// [`build`] on the calling thread: for a pyramid built lazily inside a
+/// parallel loop, where waiting on a parallel build could deadlock.
+pub(crate) fn build_serial(data: &[f32], stride: usize, size: (u32, u32)) -> Vec<Level> {
+    build_with(data, stride, size, false)
+}
+
+fn build_with(
+    data: &[f32],
+    stride: usize,
+    (width, height): (u32, u32),
+    parallel: bool,
+) -> Vec<Level> {
     let mut levels: Vec<Level> = Vec::new();
     let (mut w, mut h) = (width.max(1), height.max(1));
     while w > 1 || h > 1 {
         let fine = levels.last().map_or(data, |l| l.data.as_slice());
-        let (next, w2, h2) = downsample(fine, stride, w, h);
+        let (next, w2, h2) = downsample_with(fine, stride, w, h, parallel);
         levels.push(Level {
             lattice: Lattice::new(w2, h2),
             width: w2,

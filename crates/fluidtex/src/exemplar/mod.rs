@@ -23,6 +23,7 @@
 //! - [`tone`]: the per-channel mean and per-level variance the sampler
 //!   shows, the reference of the methods' tone matching.
 
+pub mod bubbles;
 pub mod channels;
 pub mod feature;
 pub mod lava;
@@ -30,18 +31,22 @@ pub mod mip;
 pub mod pebbles;
 mod sampling;
 pub mod select_by;
+pub mod sequence;
 pub mod set;
 pub mod tone;
 
 use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
 
 use thiserror::Error;
 
+pub use bubbles::builtin_bubbles;
 pub use feature::{DistanceParams, FeatureMap, FeatureMethod, FeatureOrigin};
 pub use lava::{LavaState, builtin_lava};
 pub use mip::mip_levels;
 pub use pebbles::builtin_pebbles;
 pub use select_by::{AttributeRange, SelectBy};
+pub use sequence::{ExemplarClock, SequenceBudget, SequenceFiles, is_sequence, load_sequence};
 pub use set::{ExemplarSelect, ExemplarSet, RegionImage};
 
 use crate::io::image_read::{self, ImageError};
@@ -117,6 +122,22 @@ pub enum ExemplarError {
         other: String,
         reason: String,
     },
+    /// An animated exemplar's frame is missing or its pattern is wrong.
+    #[error("{what}: {reason}")]
+    Sequence { what: String, reason: String },
+    #[error(
+        "{what}: {frames} frames take {} (mip pyramids included){}, over the {} budget for \
+         animated exemplars; use fewer or smaller frames, or raise --exemplar-memory",
+        mib(*needed), if *used > 0 { format!(" besides {} for the sequences before it", mib(*used)) } else { String::new() },
+        mib(*budget)
+    )]
+    Budget {
+        what: String,
+        frames: usize,
+        needed: u64,
+        used: u64,
+        budget: u64,
+    },
     #[error("{name} = {value} is outside [{min}, {max}]")]
     InvalidParameter {
         name: &'static str,
@@ -158,8 +179,24 @@ struct Packed {
     lattice: Lattice,
     stride: usize,
     data: Vec<f32>,
-    /// Levels 1, 2, ... of the mip pyramid of `data` ([`mip`]).
-    mips: Vec<mip::Level>,
+    /// Levels 1, 2, ... of the mip pyramid of `data` ([`mip`]): built with
+    /// the exemplar, or on first use for the frames of an animated one
+    /// ([`Exemplar::deferring_pyramid`]).
+    mips: OnceLock<Vec<mip::Level>>,
+    /// Number of coarse levels (known before they are built).
+    levels: usize,
+    /// Width and height of level 0.
+    size: (u32, u32),
+}
+
+impl Packed {
+    /// The pyramid, built here (one thread) if nobody built it yet: a
+    /// lookup inside a parallel loop must not wait on a parallel build.
+    #[inline(always)]
+    fn mips(&self) -> &[mip::Level] {
+        self.mips
+            .get_or_init(|| mip::build_serial(&self.data, self.stride, self.size))
+    }
 }
 
 impl Exemplar {
@@ -173,9 +210,43 @@ impl Exemplar {
                 .map(|c| c.texture.data.len())
                 .sum::<usize>()
             + self.feature.map.data.len()
-            + self.packed.data.len()
-            + self.packed.mips.iter().map(|l| l.data.len()).sum::<usize>();
-        4 * floats as u64
+            + self.packed.data.len();
+        4 * floats as u64 + self.pyramid_bytes()
+    }
+
+    /// Bytes of the mip pyramid, built or not (about a third of the
+    /// packed copy): what it holds once shown.
+    pub fn pyramid_bytes(&self) -> u64 {
+        let (mut w, mut h) = self.packed.size;
+        let mut floats = 0u64;
+        while w > 1 || h > 1 {
+            (w, h) = ((w / 2).max(1), (h / 2).max(1));
+            floats += u64::from(w) * u64::from(h) * self.packed.stride as u64;
+        }
+        4 * floats
+    }
+
+    /// Whether the mip pyramid is built (always, except for an exemplar
+    /// made by [`Exemplar::deferring_pyramid`] and not yet read filtered).
+    pub fn pyramid_built(&self) -> bool {
+        self.packed.mips.get().is_some()
+    }
+
+    /// Builds the mip pyramid now if it is not built, in parallel. Call it
+    /// outside parallel loops (the lookups build a missing one on one
+    /// thread, as a fallback).
+    pub fn build_pyramid(&self) {
+        let p = &self.packed;
+        p.mips
+            .get_or_init(|| mip::build(&p.data, p.stride, p.size.0, p.size.1));
+    }
+
+    /// The same exemplar with its mip pyramid dropped, to be built when it
+    /// is first read filtered ([`Exemplar::build_pyramid`]): the frames of
+    /// an animated exemplar, most of which a short run never shows.
+    pub fn deferring_pyramid(mut self) -> Exemplar {
+        self.packed.mips = OnceLock::new();
+        self
     }
 
     /// Assembles an exemplar, checking that every texture is non-empty,
@@ -210,7 +281,9 @@ impl Exemplar {
                 lattice: Lattice::new(1, 1),
                 stride: 0,
                 data: Vec::new(),
-                mips: Vec::new(),
+                mips: OnceLock::new(),
+                levels: 0,
+                size: (1, 1),
             },
         };
         e.pack();
@@ -268,10 +341,13 @@ impl Exemplar {
             }
         }
         let (w, h) = (self.colour.width, self.colour.height);
+        let mips = mip::build(&data, stride, w, h);
         self.packed = Packed {
             lattice: Lattice::new(w, h),
             stride,
-            mips: mip::build(&data, stride, w, h),
+            levels: mips.len(),
+            size: (w, h),
+            mips: OnceLock::from(mips),
             data,
         };
     }
@@ -395,25 +471,26 @@ impl Exemplar {
     #[inline(always)]
     fn levels_at(&self, lod: f32) -> (LevelRef<'_>, Option<(LevelRef<'_>, f32)>) {
         let p = &self.packed;
-        if lod.is_nan() || lod <= 0.0 || p.mips.is_empty() {
+        if lod.is_nan() || lod <= 0.0 || p.levels == 0 {
             return ((&p.data, p.lattice), None);
         }
-        let lod = lod.min(p.mips.len() as f32);
+        let mips = p.mips();
+        let lod = lod.min(mips.len() as f32);
         // `lod` is positive and at most the level count: the cast floors.
         let k = lod as usize;
         let t = lod - k as f32;
-        let level = |k: usize| match k.checked_sub(1).and_then(|i| p.mips.get(i)) {
+        let level = |k: usize| match k.checked_sub(1).and_then(|i| mips.get(i)) {
             Some(l) => (l.data.as_slice(), l.lattice),
             None => (p.data.as_slice(), p.lattice),
         };
-        let coarse = (t != 0.0 && k != p.mips.len()).then(|| (level(k + 1), t));
+        let coarse = (t != 0.0 && k != mips.len()).then(|| (level(k + 1), t));
         (level(k), coarse)
     }
 
     /// The coarsest mip level (1 × 1): the largest useful `lod`.
     #[inline]
     pub fn max_lod(&self) -> f32 {
-        self.packed.mips.len() as f32
+        self.packed.levels as f32
     }
 
     /// The exemplar with `filter` as its [`Exemplar::filter`].
@@ -432,6 +509,11 @@ impl Exemplar {
     pub fn size(&self) -> (u32, u32) {
         (self.colour.width, self.colour.height)
     }
+}
+
+/// Bytes as MiB with one decimal, for messages.
+fn mib(bytes: u64) -> String {
+    format!("{:.1} MiB", bytes as f64 / (1 << 20) as f64)
 }
 
 /// Texture invariants that [`Texture::from_data`] enforces but a struct

@@ -40,6 +40,7 @@ use glam::Vec3;
 
 use super::channels::exemplar_channels;
 pub use super::select_by::{AttributeRange, SelectBy};
+use super::sequence::ExemplarClock;
 use super::{Exemplar, ExemplarError, FeatureOrigin};
 use crate::mesh::{Attribute, TriMesh};
 use crate::surface::SurfacePoint;
@@ -157,10 +158,22 @@ impl RegionBox {
 
 /// The exemplars of a run, their target proportions and how new patches
 /// choose among them.
+///
+/// An animated exemplar ([`super::sequence`]) is one entry with several
+/// frames. The entries' frames lie side by side in one list of *slots*
+/// ([`ExemplarSet::exemplars`]): a patch stores its entry, chosen once,
+/// and reads the slot [`ExemplarSet::slot`] gives for the frame shown. A
+/// still entry has one slot, so without animation slot and entry agree.
 #[derive(Clone, Debug)]
 pub struct ExemplarSet {
+    /// Every entry's frames, entry after entry.
     exemplars: Vec<Arc<Exemplar>>,
-    /// File (or built-in) name of each, for messages.
+    /// Per entry, its first slot and its frame count.
+    first: Vec<u32>,
+    frames: Vec<u32>,
+    /// How animated entries advance.
+    pub clock: ExemplarClock,
+    /// File (or built-in) name of each entry, for messages.
     names: Vec<String>,
     /// Normalised weights (sum 1).
     weights: Vec<f32>,
@@ -175,6 +188,9 @@ impl ExemplarSet {
     pub fn single(exemplar: Arc<Exemplar>) -> ExemplarSet {
         ExemplarSet {
             exemplars: vec![exemplar],
+            first: vec![0],
+            frames: vec![1],
+            clock: ExemplarClock::default(),
             names: vec!["exemplar".into()],
             weights: vec![1.0],
             select: ExemplarSelect::Probability,
@@ -189,6 +205,21 @@ impl ExemplarSet {
     /// both).
     pub fn new(
         entries: Vec<(String, Arc<Exemplar>, f32)>,
+        select: ExemplarSelect,
+        region: Option<RegionImage>,
+    ) -> Result<ExemplarSet, ExemplarError> {
+        let entries = entries
+            .into_iter()
+            .map(|(name, e, w)| (name, vec![e], w))
+            .collect();
+        ExemplarSet::animated(entries, select, region)
+    }
+
+    /// Entries `(name, frames, weight)` of one frame (a still exemplar) or
+    /// several (an animated one); otherwise as [`ExemplarSet::new`], every
+    /// frame checked against the first entry's first.
+    pub fn animated(
+        entries: Vec<(String, Vec<Arc<Exemplar>>, f32)>,
         select: ExemplarSelect,
         region: Option<RegionImage>,
     ) -> Result<ExemplarSet, ExemplarError> {
@@ -213,48 +244,161 @@ impl ExemplarSet {
                 .collect::<Vec<_>>()
                 .join(", ")
         };
-        for (name, e, weight) in &entries {
+        let Some(first) = first.first() else {
+            return Err(ExemplarError::Layout {
+                what: first_name.clone(),
+                reason: "an animated exemplar without frames".into(),
+            });
+        };
+        for (name, frames, weight) in &entries {
             if !(weight.is_finite() && *weight > 0.0) {
                 return Err(ExemplarError::Weight {
                     what: name.clone(),
                     value: *weight,
                 });
             }
-            if layout(e) != layout(first) {
-                return Err(ExemplarError::Mismatch {
+            if frames.is_empty() {
+                return Err(ExemplarError::Layout {
                     what: name.clone(),
-                    other: first_name.clone(),
-                    reason: format!("channels {} differ from {}", describe(e), describe(first)),
+                    reason: "an animated exemplar without frames".into(),
                 });
             }
-            if given(e) != given(first) {
-                let says = |g: bool| if g { "a given" } else { "a derived" };
-                return Err(ExemplarError::Mismatch {
-                    what: name.clone(),
-                    other: first_name.clone(),
-                    reason: format!(
-                        "{} feature map where the other has {}",
-                        says(given(e)),
-                        says(given(first))
-                    ),
-                });
+            for e in frames {
+                if layout(e) != layout(first) {
+                    return Err(ExemplarError::Mismatch {
+                        what: name.clone(),
+                        other: first_name.clone(),
+                        reason: format!("channels {} differ from {}", describe(e), describe(first)),
+                    });
+                }
+                if given(e) != given(first) {
+                    let says = |g: bool| if g { "a given" } else { "a derived" };
+                    return Err(ExemplarError::Mismatch {
+                        what: name.clone(),
+                        other: first_name.clone(),
+                        reason: format!(
+                            "{} feature map where the other has {}",
+                            says(given(e)),
+                            says(given(first))
+                        ),
+                    });
+                }
             }
         }
         let total: f32 = entries.iter().map(|e| e.2).sum();
         let mut set = ExemplarSet {
             exemplars: Vec::with_capacity(entries.len()),
+            first: Vec::with_capacity(entries.len()),
+            frames: Vec::with_capacity(entries.len()),
+            clock: ExemplarClock::default(),
             names: Vec::with_capacity(entries.len()),
             weights: Vec::with_capacity(entries.len()),
             select,
             region,
             by: None,
         };
-        for (name, e, w) in entries {
+        for (name, frames, w) in entries {
             set.names.push(name);
-            set.exemplars.push(e);
+            set.first.push(set.exemplars.len() as u32);
+            set.frames.push(frames.len() as u32);
+            set.exemplars.extend(frames);
             set.weights.push(w / total);
         }
         Ok(set)
+    }
+
+    /// The same set advancing its animated entries by `clock`.
+    pub fn with_clock(mut self, clock: ExemplarClock) -> ExemplarSet {
+        self.clock = clock;
+        self
+    }
+
+    /// Whether an entry has more than one frame.
+    pub fn is_animated(&self) -> bool {
+        self.frames.iter().any(|&n| n > 1)
+    }
+
+    /// Frames of entry `entry` (1 for a still exemplar, 0 for no entry).
+    pub fn frame_count(&self, entry: u32) -> u32 {
+        self.frames.get(entry as usize).copied().unwrap_or(0)
+    }
+
+    /// The slots of entry `entry`'s frames (empty for no entry).
+    pub fn slots_of(&self, entry: u32) -> std::ops::Range<usize> {
+        let e = entry as usize;
+        match (self.first.get(e), self.frames.get(e)) {
+            (Some(&first), Some(&n)) => first as usize..(first + n) as usize,
+            _ => 0..0,
+        }
+    }
+
+    /// The slot ([`ExemplarSet::exemplars`]) a patch of entry `entry`,
+    /// keyed `key` (its id) in a run of `seed`, shows on fluid frame `t`:
+    /// exemplar frame ⌊t·rate + φ⌋ mod n ([`ExemplarClock`]). An unknown
+    /// entry reads slot 0.
+    #[inline]
+    pub fn slot(&self, entry: u32, seed: u64, key: u64, t: i32) -> u32 {
+        let e = entry as usize;
+        let (Some(&first), Some(&n)) = (self.first.get(e), self.frames.get(e)) else {
+            return 0;
+        };
+        if n <= 1 {
+            return first;
+        }
+        first + self.clock.frame(t, ExemplarClock::phase(seed, key, n), n)
+    }
+
+    /// Builds the mip pyramids of `slots` that are not built yet, in
+    /// parallel, before a parallel loop reads them (see
+    /// [`Exemplar::build_pyramid`]). Returns how many it built.
+    pub fn prepare(&self, slots: impl IntoIterator<Item = u32>) -> usize {
+        use rayon::prelude::*;
+        let mut wanted: Vec<u32> = slots
+            .into_iter()
+            .filter(|&s| {
+                self.exemplars
+                    .get(s as usize)
+                    .is_some_and(|e| !e.pyramid_built())
+            })
+            .collect();
+        wanted.sort_unstable();
+        wanted.dedup();
+        wanted
+            .par_iter()
+            .for_each(|&s| self.exemplars[s as usize].build_pyramid());
+        wanted.len()
+    }
+
+    /// One line per animated entry for the user, before the run: its
+    /// frames, rate and memory against `budget` bytes.
+    pub fn animation_summary(&self, budget: u64) -> Vec<String> {
+        let mib = |b: u64| b as f64 / (1 << 20) as f64;
+        (0..self.len() as u32)
+            .filter(|&e| self.frame_count(e) > 1)
+            .map(|e| {
+                let slots = &self.exemplars[self.slots_of(e)];
+                let bytes: u64 = slots.iter().map(|x| x.memory_bytes()).sum();
+                let (w, h) = slots.first().map_or((0, 0), |x| x.size());
+                format!(
+                    "animated exemplar {}: {} frames of {w}x{h}, {} exemplar frame(s) per \
+                     fluid frame, each patch at its own phase; {:.1} MiB with their mip \
+                     pyramids (built as each frame is first shown), budget {:.0} MiB",
+                    self.names[e as usize],
+                    slots.len(),
+                    self.clock.rate,
+                    mib(bytes),
+                    mib(budget)
+                )
+            })
+            .collect()
+    }
+
+    /// Bytes of the mip pyramids built so far.
+    pub fn built_pyramid_bytes(&self) -> u64 {
+        (self.exemplars.iter())
+            .filter(|e| e.pyramid_built())
+            .map(|e| e.pyramid_bytes())
+            .sum()
     }
 
     /// Selection by attribute: `by` gives one range per exemplar, and
@@ -275,12 +419,13 @@ impl ExemplarSet {
         Ok(self)
     }
 
+    /// Number of entries (an animated exemplar counts once).
     pub fn len(&self) -> usize {
-        self.exemplars.len()
+        self.names.len()
     }
 
     pub fn is_empty(&self) -> bool {
-        self.exemplars.is_empty()
+        self.names.is_empty()
     }
 
     /// The first exemplar: the channel layout every exemplar shares.
@@ -288,6 +433,7 @@ impl ExemplarSet {
         &self.exemplars[0]
     }
 
+    /// Every slot: the entries' frames side by side ([`ExemplarSet::slot`]).
     pub fn exemplars(&self) -> &[Arc<Exemplar>] {
         &self.exemplars
     }

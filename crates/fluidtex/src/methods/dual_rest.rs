@@ -83,14 +83,21 @@ impl DualRest {
         exemplar: Arc<Exemplar>,
         seed: u64,
     ) -> Result<DualRest, MethodError> {
+        let set = Arc::new(crate::exemplar::ExemplarSet::single(exemplar));
+        DualRest::with_exemplars(params, erosion, set, seed)
+    }
+
+    /// The baseline over the exemplars of `set` (one entry, still or
+    /// animated: each layer's patches show their own frames).
+    pub fn with_exemplars(
+        params: DualRestParams,
+        erosion: ErosionParams,
+        set: Arc<crate::exemplar::ExemplarSet>,
+        seed: u64,
+    ) -> Result<DualRest, MethodError> {
         params.validate()?;
-        let a = Erosion::with_variant(
-            Variant::Advect,
-            erosion.clone(),
-            Arc::clone(&exemplar),
-            seed,
-        )?;
-        let b = Erosion::with_variant(Variant::Advect, erosion, exemplar, seed ^ LAYER_B_SEED)?;
+        let a = Erosion::with_exemplars(Variant::Advect, erosion.clone(), Arc::clone(&set), seed)?;
+        let b = Erosion::with_exemplars(Variant::Advect, erosion, set, seed ^ LAYER_B_SEED)?;
         Ok(DualRest {
             params,
             layers: [a, b],

@@ -41,6 +41,8 @@ pub mod registry;
 pub mod tone;
 
 #[cfg(test)]
+mod animated_tests;
+#[cfg(test)]
 mod multi_tests;
 #[cfg(test)]
 mod selection_tests;

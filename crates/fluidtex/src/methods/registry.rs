@@ -155,6 +155,11 @@ impl MethodParams {
             .into());
         }
         let exemplar = Arc::clone(set.primary());
+        let frames = || {
+            set.slots_of(0)
+                .filter_map(|s| set.exemplars().get(s).cloned())
+                .collect()
+        };
         let erosion = |variant| -> Result<Box<dyn Method>, MethodError> {
             Ok(Box::new(Erosion::with_exemplars(
                 variant,
@@ -167,13 +172,19 @@ impl MethodParams {
             MethodKind::Erosion => erosion(Variant::Erode)?,
             MethodKind::Advect => erosion(Variant::Advect)?,
             MethodKind::BlendDeformable => erosion(Variant::Blend)?,
-            MethodKind::DualRest => Box::new(DualRest::new(
+            MethodKind::DualRest => Box::new(DualRest::with_exemplars(
                 self.dual_rest.clone(),
                 self.erosion.clone(),
-                exemplar,
+                Arc::clone(&set),
                 seed,
             )?),
             MethodKind::AtlasCheck => Box::new(AtlasCheck::new(self.atlas_check.clone())?),
+            MethodKind::Optimization if set.is_animated() => Box::new(Optimization::with_frames(
+                self.optimization.clone(),
+                frames(),
+                set.clock,
+                seed,
+            )?),
             MethodKind::Optimization => Box::new(Optimization::new(
                 self.optimization.clone(),
                 exemplar,

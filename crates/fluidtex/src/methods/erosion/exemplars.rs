@@ -27,22 +27,41 @@ use crate::provenance::{SOURCE_OUTSIDE as OUTSIDE, SOURCE_UNCOVERED as UNCOVERED
 use crate::surface::SurfacePoint;
 use crate::surface::bvh::SurfaceIndex;
 
-/// The exemplars of a multi-exemplar run and what the erosion derives from
-/// each (feature-map levels, erosion test).
+/// The exemplars of a multi-exemplar (or animated) run and what the
+/// erosion derives from each slot (feature-map levels, erosion test): a
+/// patch stores its entry ([`Patch::exemplar`]) and reads the slot of the
+/// frame shown ([`Multi::slot`]).
 pub struct Multi {
     pub set: Arc<ExemplarSet>,
+    /// One per slot ([`ExemplarSet::exemplars`]).
     pub levels: Vec<FeatureLevels>,
-    /// One per exemplar, built with the single test (r/S known).
+    /// One per slot, built with the single test (r/S known).
     pub tests: Vec<ErosionTest>,
     /// Where the region image lies, resolved on the first non-empty frame.
     pub region: Option<RegionBox>,
+    /// The run's seed (the patches' phases) and the fluid frame being
+    /// textured: which frame of an animated exemplar a patch shows.
+    pub seed: u64,
+    pub frame: i32,
 }
 
 /// What the fill reads per patch exemplar.
 pub struct MultiFill<'a> {
+    pub set: &'a ExemplarSet,
     pub exemplars: &'a [Arc<Exemplar>],
     pub features: Vec<FeatureLevelSampler<'a>>,
     pub tests: &'a [ErosionTest],
+    pub seed: u64,
+    pub frame: i32,
+}
+
+impl MultiFill<'_> {
+    /// The slot patch `p` reads this frame.
+    #[inline]
+    pub fn slot(&self, p: &Patch) -> usize {
+        self.set
+            .slot(p.exemplar, self.seed, u64::from(p.id), self.frame) as usize
+    }
 }
 
 /// The part of the state only a multi-exemplar run has, saved after the
@@ -55,7 +74,7 @@ pub struct MultiState {
 }
 
 impl Multi {
-    pub fn new(set: Arc<ExemplarSet>) -> Multi {
+    pub fn new(set: Arc<ExemplarSet>, seed: u64) -> Multi {
         let levels = set
             .exemplars()
             .iter()
@@ -66,16 +85,41 @@ impl Multi {
             levels,
             tests: Vec::new(),
             region: None,
+            seed,
+            frame: 0,
+        }
+    }
+
+    /// The slot patch `p` reads on the current frame.
+    #[inline]
+    pub fn slot(&self, p: &Patch) -> u32 {
+        self.set
+            .slot(p.exemplar, self.seed, u64::from(p.id), self.frame)
+    }
+
+    /// Builds the pyramids of the slots `patches` show this frame (an
+    /// animated exemplar builds each frame's when first shown).
+    pub fn prepare(&self, patches: &[Patch]) {
+        if self.set.is_animated() {
+            self.set.prepare(patches.iter().map(|p| self.slot(p)));
         }
     }
 
     /// The fill's view, for one frame.
     pub fn fill(&self) -> MultiFill<'_> {
         MultiFill {
+            set: &self.set,
             exemplars: self.set.exemplars(),
             features: self.levels.iter().map(FeatureLevels::samplers).collect(),
             tests: &self.tests,
+            seed: self.seed,
+            frame: self.frame,
         }
+    }
+
+    /// The slot of each patch id (ids up to `next_id`; unknown ids read 0).
+    pub fn slots_by_id(&self, patches: &[Patch], next_id: u32) -> Vec<u32> {
+        by_id_of(patches, next_id, |p| self.slot(p))
     }
 
     /// A chooser for this frame's new patches; with histogram steering its
@@ -217,10 +261,15 @@ pub fn coverage(patches: &[Patch], source: &[u32]) -> Coverage {
 
 /// Exemplar index by patch id (ids up to `next_id`; unknown ids read 0).
 pub fn by_id(patches: &[Patch], next_id: u32) -> Vec<u32> {
+    by_id_of(patches, next_id, |p| p.exemplar)
+}
+
+/// `of(p)` by patch id (ids up to `next_id`; unknown ids read 0).
+fn by_id_of(patches: &[Patch], next_id: u32, of: impl Fn(&Patch) -> u32) -> Vec<u32> {
     let mut out = vec![0u32; next_id as usize + 1];
     for p in patches {
         if let Some(slot) = out.get_mut(p.id as usize) {
-            *slot = p.exemplar;
+            *slot = of(p);
         }
     }
     out

@@ -313,7 +313,7 @@ impl FillContext<'_> {
             Some(m) => self
                 .patches
                 .get(i as usize)
-                .and_then(|p| m.exemplars.get(p.exemplar as usize))
+                .and_then(|p| m.exemplars.get(m.slot(p)))
                 .map_or(self.exemplar, |e| e),
         }
     }
@@ -334,7 +334,7 @@ impl FillContext<'_> {
         match self.multi {
             None => (self.feature, self.test),
             Some(m) => {
-                let e = self.patches.get(i as usize).map_or(0, |p| p.exemplar) as usize;
+                let e = self.patches.get(i as usize).map_or(0, |p| m.slot(p));
                 match (m.features.get(e), m.tests.get(e)) {
                     (Some(f), Some(&t)) => (f, t),
                     _ => (self.feature, self.test),

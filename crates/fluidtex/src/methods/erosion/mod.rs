@@ -200,10 +200,18 @@ impl Erosion {
         seed: u64,
     ) -> Result<Erosion, MethodError> {
         let mut e = Erosion::with_variant(variant, params, Arc::clone(set.primary()), seed)?;
-        if set.len() > 1 {
-            e.multi = Some(exemplars::Multi::new(set));
+        if set.len() > 1 || set.is_animated() {
+            e.multi = Some(exemplars::Multi::new(set, seed));
         }
         Ok(e)
+    }
+
+    /// The fluid frame being textured: which frame of an animated exemplar
+    /// each patch shows.
+    fn show_frame(&mut self, number: i32) {
+        if let Some(m) = &mut self.multi {
+            m.frame = number;
+        }
     }
 
     /// The patch state (for tests and statistics).
@@ -239,8 +247,14 @@ impl Erosion {
             Some(m) => m.set.exemplars(),
             None => std::slice::from_ref(&self.exemplar),
         };
-        self.tones
-            .get_or_insert_with(|| exemplars.iter().map(|e| ExemplarTone::of(e)).collect())
+        self.tones.get_or_insert_with(|| {
+            // Every frame of an animated exemplar is measured, so every
+            // pyramid is built here: in parallel, not one by one.
+            if let Some(m) = &self.multi {
+                m.set.prepare(0..exemplars.len() as u32);
+            }
+            exemplars.iter().map(|e| ExemplarTone::of(e)).collect()
+        })
     }
 
     /// Matches the tone of the composite in `out` as the parameters say
@@ -387,6 +401,7 @@ impl Method for Erosion {
             )));
         };
         let mut clock = StageClock::default();
+        self.show_frame(ctx.number);
         let (mut counts, carried) = self.restore(bytes)?;
         let setup = match carried {
             Some(carried) if !ctx.mesh.is_empty() => Some(FrameSetup {
@@ -638,6 +653,7 @@ impl Erosion {
         counts: &mut StepCounts,
         clock: &mut StageClock,
     ) -> Result<Option<FrameSetup>, MethodError> {
+        self.show_frame(ctx.number);
         if ctx.mesh.is_empty() {
             // Nothing to project onto: every patch goes.
             counts.deleted_before = self.state.patches.len();
@@ -700,10 +716,20 @@ impl Erosion {
             mut out,
             mut blended,
         } = texels;
+        // The resampling reads each patch's slot (the frame of an animated
+        // exemplar it shows), the statistics its exemplar.
         let by_id = self
             .multi
             .as_ref()
             .map(|_| exemplars::by_id(&self.state.patches, self.state.next_id));
+        let slots = self.multi.as_ref().map(|m| {
+            if m.set.is_animated() {
+                m.prepare(&self.state.patches);
+                m.slots_by_id(&self.state.patches, self.state.next_id)
+            } else {
+                by_id.clone().unwrap_or_default()
+            }
+        });
         // Contrast tone matching reads each texel's level.
         // So does a transition, which reads the earlier source at it.
         let levels = if self.levels_read
@@ -714,20 +740,20 @@ impl Erosion {
         } else {
             super::footprint::Levels::Drop
         };
-        let exemplar_lod = self.filter_footprint(&mut out, levels, by_id.as_deref());
+        let exemplar_lod = self.filter_footprint(&mut out, levels, slots.as_deref());
         clock.lap("exemplar filter");
         let in_transition = self.blend_transitions(
             &mut out,
             &blended.transitions,
             exemplar_lod.as_deref(),
-            by_id.as_deref(),
+            slots.as_deref(),
         );
         let in_transition = in_transition.map(|(layers, blended_texels)| {
             blended.layers = Some(layers);
             blended_texels
         });
         clock.lap("transition");
-        let tone = self.match_tone(&mut out, exemplar_lod.as_deref(), by_id.as_deref());
+        let tone = self.match_tone(&mut out, exemplar_lod.as_deref(), slots.as_deref());
         clock.lap("tone");
         let mut result = FrameResult {
             channels: crate::exemplar::channels::split_interleaved(
@@ -785,6 +811,9 @@ impl Erosion {
         // 3. Lapped (or blended) fill.
         let tolerance = LocateTolerance::for_radius(radius);
         let feature = self.feature_levels.samplers();
+        if let Some(m) = &self.multi {
+            m.prepare(&self.state.patches);
+        }
         let multi_fill = self.multi.as_ref().map(exemplars::Multi::fill);
         let mut blended = Blended::default();
         let exemplar = Arc::clone(&self.exemplar);
@@ -935,11 +964,13 @@ impl Erosion {
             .patches
             .par_iter_mut()
             .map(|p| {
-                let test = tests
-                    .and_then(|t| t.get(p.exemplar as usize))
-                    .copied()
-                    .unwrap_or(test);
-                p.prune_eroded(&test, shape, weights_can_rise, keep_earlier)
+                // Every frame of the patch's exemplar must erode a triangle.
+                let tests = (self.multi.as_ref())
+                    .zip(tests)
+                    .and_then(|(m, t)| t.get(m.set.slots_of(p.exemplar)))
+                    .filter(|t| !t.is_empty())
+                    .unwrap_or(std::slice::from_ref(&test));
+                p.prune_eroded_under(tests, shape, weights_can_rise, keep_earlier)
             })
             .sum()
     }

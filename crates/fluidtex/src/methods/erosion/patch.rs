@@ -553,6 +553,25 @@ impl Patch {
         weights_can_rise: bool,
         keep_earlier: bool,
     ) -> usize {
+        self.prune_eroded_under(
+            std::slice::from_ref(test),
+            shape,
+            weights_can_rise,
+            keep_earlier,
+        )
+    }
+
+    /// [`Patch::prune_eroded`] for a patch whose feature map changes from
+    /// frame to frame (an animated exemplar): a triangle goes only where
+    /// every one of `tests` (one per exemplar frame) erodes it, since any
+    /// of those frames may be the one it shows next.
+    pub fn prune_eroded_under(
+        &mut self,
+        tests: &[ErosionTest],
+        shape: &PatchShape,
+        weights_can_rise: bool,
+        keep_earlier: bool,
+    ) -> usize {
         if self.still || self.weight.len() != self.positions.len() {
             return 0;
         }
@@ -560,9 +579,13 @@ impl Patch {
         let n = self.positions.len();
         // Eroded at a frame's weights; a table of another length is a
         // frame the patch did not exist in.
+        let eroded = |uv: [Vec2; 3], w: [f32; 3]| {
+            tests
+                .iter()
+                .all(|test| test.triangle_verdict(uv, w) == Verdict::Eroded)
+        };
         let eroded_at = |weights: &[f32], t: &[u32; 3], uv: [Vec2; 3]| {
-            weights.len() != n
-                || test.triangle_verdict(uv, t.map(|v| weights[v as usize])) == Verdict::Eroded
+            weights.len() != n || eroded(uv, t.map(|v| weights[v as usize]))
         };
         let earlier = if keep_earlier {
             std::iter::once(&self.weight_before)
@@ -577,7 +600,7 @@ impl Patch {
             .map(|t| {
                 let uv = t.map(|v| self.rest[v as usize]);
                 let w = t.map(|v| self.weight[v as usize]);
-                test.triangle_verdict(uv, w) == Verdict::Eroded
+                eroded(uv, w)
                     && earlier.iter().all(|weights| eroded_at(weights, t, uv))
                     && (!weights_can_rise || {
                         let q = t.map(|v| self.positions[v as usize]);

@@ -64,13 +64,29 @@ pub struct Layer {
     pub id: u32,
     pub frame: Frame,
     pub fade: f32,
-    /// Index of the patch's exemplar (0 with one exemplar).
+    /// The slot the patch shows this frame: its exemplar's index, or
+    /// with an animated exemplar the frame its phase gives
+    /// ([`crate::exemplar::ExemplarSet::slot`]); 0 with one exemplar.
     pub exemplar: u32,
+}
+
+impl MultiComposite<'_> {
+    /// The slot tracker `id` of exemplar `entry` shows this frame.
+    pub fn slot(&self, entry: u32, id: u32) -> u32 {
+        self.set.slot(entry, self.seed, u64::from(id), self.frame)
+    }
 }
 
 /// What compositing reads per exemplar when there are several.
 pub struct MultiComposite<'a> {
+    /// Every slot of the set (each frame of an animated exemplar is one):
+    /// a layer's [`Layer::exemplar`] indexes these.
     pub exemplars: &'a [std::sync::Arc<Exemplar>],
+    pub set: &'a crate::exemplar::ExemplarSet,
+    /// The run's seed and the fluid frame: which frame of an animated
+    /// exemplar a tracker shows.
+    pub seed: u64,
+    pub frame: i32,
     pub features: Vec<FeatureSampler<'a>>,
     /// [`CompositeContext::base_lod`] of each exemplar (its own size).
     pub base_lods: Vec<Option<f32>>,

@@ -108,7 +108,9 @@ pub fn cover(
             id,
             frame: tracker.frame(inputs.exemplar_size),
             fade: tracker.fade,
-            exemplar: tracker.exemplar,
+            exemplar: template
+                .multi
+                .map_or(tracker.exemplar, |m| m.slot(tracker.exemplar, id)),
         }];
         let ctx = template.with_layers(&layer);
         let mut shown = composite_below(&ctx, rc, &mut pending, &mut uncovered, out);
@@ -184,7 +186,10 @@ fn force_seed(
         let values = &mut out.values[t * c..(t + 1) * c];
         let exemplar = ctx
             .multi
-            .and_then(|m| m.exemplars.get(tracker.exemplar as usize))
+            .and_then(|m| {
+                let slot = m.slot(tracker.exemplar, tracker.id);
+                m.exemplars.get(slot as usize)
+            })
             .map_or(ctx.exemplar, |e| &**e);
         exemplar.sample_all(0.5, 0.5, values);
         shown = 1.0;

@@ -422,7 +422,7 @@ impl LappedRigid {
         seed: u64,
     ) -> Result<LappedRigid, MethodError> {
         let mut m = LappedRigid::new(params, Arc::clone(set.primary()), seed)?;
-        if set.len() > 1 {
+        if set.len() > 1 || set.is_animated() {
             m.multi = Some(Multi { set, region: None });
         }
         Ok(m)
@@ -684,6 +684,12 @@ impl LappedRigid {
             radius,
             phi_max: self.params.phi_max.to_radians(),
         };
+        let slot = |t: &Tracker| match &self.multi {
+            Some(m) => m
+                .set
+                .slot(t.exemplar, self.seed, u64::from(t.id), ctx.number),
+            None => t.exemplar,
+        };
         let layers: Vec<Layer> = self
             .state
             .trackers
@@ -692,9 +698,14 @@ impl LappedRigid {
                 id: t.id,
                 frame: t.frame(exemplar_size),
                 fade: t.fade,
-                exemplar: t.exemplar,
+                exemplar: slot(t),
             })
             .collect();
+        if let Some(m) = &self.multi
+            && m.set.is_animated()
+        {
+            m.set.prepare(layers.iter().map(|l| l.exemplar));
+        }
         let receivers: Vec<Receivers> = layers.par_iter().map(|l| rc.receivers(&l.frame)).collect();
         let lists = composite::layer_lists(&receivers, mesh.triangle_count());
         counts.pairs = lists.len();
@@ -708,6 +719,9 @@ impl LappedRigid {
         let set = self.multi.as_ref().map(|m| Arc::clone(&m.set));
         let multi_composite = set.as_ref().map(|set| MultiComposite {
             exemplars: set.exemplars(),
+            set,
+            seed: self.seed,
+            frame: ctx.number,
             features: set
                 .exemplars()
                 .iter()

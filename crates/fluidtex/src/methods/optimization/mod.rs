@@ -339,6 +339,12 @@ pub struct Optimization {
     /// The exemplar level the last frame's atlas shows (see
     /// [`Optimization::atlas_output`]).
     last_lod: Option<f32>,
+    /// An animated exemplar's frames (empty for a still one), the clock
+    /// that picks the one shown and its index: the whole surface shows one
+    /// frame (phase 0), since the optimization has no patches to offset.
+    frames: Vec<Arc<Exemplar>>,
+    clock: crate::exemplar::ExemplarClock,
+    shown: usize,
 }
 
 impl Optimization {
@@ -357,7 +363,51 @@ impl Optimization {
             last_lattice: None,
             selecting: false,
             last_lod: None,
+            frames: Vec::new(),
+            clock: crate::exemplar::ExemplarClock::default(),
+            shown: 0,
         })
+    }
+
+    /// The method over an animated exemplar's `frames`: fluid frame t
+    /// synthesises from exemplar frame ⌊t·rate⌋ mod n, starting from the
+    /// texture carried from the frame before, so the surface's texture
+    /// evolves toward each new frame's neighbourhoods (a dynamic texture,
+    /// as in Kwatra et al.'s flow-guided synthesis, Sec. 6).
+    pub fn with_frames(
+        params: OptimizationParams,
+        frames: Vec<Arc<Exemplar>>,
+        clock: crate::exemplar::ExemplarClock,
+        seed: u64,
+    ) -> Result<Optimization, MethodError> {
+        let first = frames
+            .first()
+            .cloned()
+            .ok_or_else(|| MethodError::Input("an animated exemplar without frames".into()))?;
+        let mut m = Optimization::new(params, first, seed)?;
+        if frames.len() > 1 {
+            m.frames = frames;
+            m.clock = clock;
+        }
+        Ok(m)
+    }
+
+    /// Shows the exemplar frame of fluid frame `t`; true when it changed
+    /// (its search structures are then rebuilt as they are next needed).
+    fn show_frame(&mut self, t: i32) -> bool {
+        let n = self.frames.len() as u32;
+        if n <= 1 {
+            return false;
+        }
+        let k = self.clock.frame(t, 0.0, n) as usize;
+        if k == self.shown {
+            return false;
+        }
+        self.shown = k;
+        self.exemplar = Arc::clone(&self.frames[k]);
+        self.exemplar.build_pyramid();
+        self.search.clear();
+        true
     }
 
     /// The carried state (for tests).
@@ -861,7 +911,10 @@ impl Method for Optimization {
         let texels = u64::from(atlas.width) * u64::from(atlas.height);
         let points = (u64::from(self.params.points) * 9 / 4).min(2 * texels);
         super::MemoryModel {
-            fixed: (96 << 20) + 1800 * points + 2 * self.exemplar.memory_bytes(),
+            fixed: (96 << 20)
+                + 1800 * points
+                + 2 * self.exemplar.memory_bytes()
+                + self.frames.iter().map(|e| e.memory_bytes()).sum::<u64>(),
             // Where the fluid mesh is finer than the spacing its vertices
             // are the points (lattice step 1).
             per_triangle: 1000,
@@ -878,6 +931,8 @@ impl Method for Optimization {
 
     fn step(&mut self, ctx: &FrameContext<'_>) -> Result<FrameResult, MethodError> {
         let mut clock = StageClock::default();
+        // A new exemplar frame is synthesised even on a still surface.
+        let changed = self.show_frame(ctx.number);
         let mesh = ctx.mesh;
         let atlas = ctx.atlas;
         let k = self.exemplar.total_channels();
@@ -896,7 +951,9 @@ impl Method for Optimization {
         // 1. Points and hierarchy.
         let (h, spacing_rule) = self.spacing(mesh, atlas);
         let prev_lattice = match self.previous_lattice(ctx) {
-            Some(l) if is_still(ctx, velocity) => return Ok(self.still_frame(atlas, l, h, clock)),
+            Some(l) if is_still(ctx, velocity) && !changed => {
+                return Ok(self.still_frame(atlas, l, h, clock));
+            }
             other => other,
         };
         let m = steps_for(mesh, h);

@@ -111,6 +111,7 @@ impl Optimization {
             ));
         };
         let selected: Selected = postcard::from_bytes(bytes).map_err(state_error)?;
+        self.show_frame(ctx.number);
         let mut result = FrameResult {
             stats: (selected.stats.into_iter())
                 .map(|(k, v)| (k, v.value()))
