@@ -106,6 +106,17 @@ pub struct Config {
     /// falls; lapped-rigid: the fade a patch loses).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub mismatch_rate: Option<f32>,
+    /// Animated exemplars (an image sequence such as `bubbles.####.png`):
+    /// exemplar frames shown per fluid frame \[1]; each patch starts at
+    /// its own seeded phase.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub exemplar_rate: Option<f32>,
+    /// Animated exemplars: the memory, in MiB, their frames may take
+    /// together, mip pyramids included \[2048]; a sequence over it is
+    /// refused before the run. Not part of the fingerprint: it changes no
+    /// texture.
+    #[serde(skip_serializing)]
+    pub exemplar_memory: Option<u64>,
     /// `paper`: every departure from the papers that has a paper setting
     /// set to it (`docs/departures.md`); the file's keys and the flags win.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -422,6 +433,13 @@ pub struct RunFlags {
     /// With --select-by: how fast what no longer matches goes, per second [1]
     #[arg(long)]
     pub mismatch_rate: Option<f32>,
+    /// Animated exemplar (IMG a sequence such as bubbles.####.png, or
+    /// builtin:bubbles): exemplar frames per fluid frame [1]
+    #[arg(long)]
+    pub exemplar_rate: Option<f32>,
+    /// Animated exemplars: MiB their frames may take, pyramids included [2048]
+    #[arg(long, value_name = "MIB")]
+    pub exemplar_memory: Option<u64>,
     /// Several exemplars: how a new patch picks one [probability]
     #[arg(long, value_parser = names::<fluidtex::exemplar::ExemplarSelect>())]
     pub exemplar_select: Option<String>,
@@ -645,6 +663,8 @@ flag_keys! {
     exemplar_region => exemplar_region: some,
     select_by => select_by: some,
     mismatch_rate => mismatch_rate: some,
+    exemplar_rate => exemplar_rate: some,
+    exemplar_memory => exemplar_memory: some,
     preview_video => preview_video: on,
     prim => prim: some,
     preset => preset: some,
@@ -1199,11 +1219,13 @@ mod tests {
             flags: RunFlags,
         }
         let cmd = <Cli as clap::CommandFactory>::command();
-        // `preview_video` is never serialised (it is not part of the
-        // fingerprint), so it is put back to be compared like the others.
+        // `preview_video` and `exemplar_memory` are never serialised (they
+        // are not part of the fingerprint), so they are put back to be
+        // compared like the others.
         let json = |c: &Config| {
             let mut v = serde_json::to_value(c).expect("json");
             v["preview_video"] = serde_json::json!(c.preview_video);
+            v["exemplar_memory"] = serde_json::json!(c.exemplar_memory);
             v
         };
         let default = json(&Config::default());

@@ -6,10 +6,12 @@ use std::sync::Arc;
 use anyhow::{Context, Error, Result, anyhow, bail};
 use clap::Args;
 use fluidtex::atlas::AtlasParams;
+use fluidtex::exemplar::bubbles::BUBBLE_FRAMES;
 use fluidtex::exemplar::set::{AttributeRange, SelectBy};
 use fluidtex::exemplar::{
-    Exemplar, ExemplarFilter, ExemplarSelect, ExemplarSet, FeatureMethod, LavaState, RegionImage,
-    builtin_lava, builtin_pebbles,
+    Exemplar, ExemplarClock, ExemplarFilter, ExemplarSelect, ExemplarSet, FeatureMethod, LavaState,
+    RegionImage, SequenceBudget, SequenceFiles, builtin_bubbles, builtin_lava, builtin_pebbles,
+    is_sequence, load_sequence,
 };
 use fluidtex::io::ReadOptions;
 use fluidtex::methods::{Method, Stat, StatsExt};
@@ -219,8 +221,9 @@ fn feature_settings(config: &Config) -> Result<(FeatureMethod, ExemplarFilter)> 
     Ok((method, filter))
 }
 
-/// The exemplar the config names, or the built-in pebbles.
-pub fn build_exemplar(config: &Config) -> Result<Exemplar> {
+/// The exemplar the config names, or the built-in pebbles: its frames
+/// (one for a still image).
+fn build_exemplar_frames(config: &Config, budget: &mut Budget) -> Result<Vec<Exemplar>> {
     let (method, filter) = feature_settings(config)?;
     let channels: Vec<(String, PathBuf)> = config
         .channels
@@ -228,40 +231,82 @@ pub fn build_exemplar(config: &Config) -> Result<Exemplar> {
         .map(|(k, v)| (k.clone(), v.clone()))
         .collect();
     let seed = config.seed.unwrap_or(0);
-    let exemplar = match &config.exemplar {
-        Some(path) => load_exemplar(path, &channels, config.feature.as_deref(), method, seed)?,
+    let frames = match &config.exemplar {
+        Some(path) => {
+            let files = SequenceFiles {
+                colour: path,
+                channels: &channels,
+                feature: config.feature.as_deref(),
+            };
+            load_frames(&files, method, seed, budget)?
+        }
         None => {
             if !channels.is_empty() || config.feature.is_some() {
                 bail!(
                     "--channel and --feature need --exemplar (the built-in pebbles carry their own)"
                 );
             }
-            builtin_pebbles(BUILTIN_EXEMPLAR_SIZE, seed)
+            vec![builtin_pebbles(BUILTIN_EXEMPLAR_SIZE, seed)]
         }
     };
-    Ok(exemplar.with_filter(filter))
+    Ok(frames.into_iter().map(|e| e.with_filter(filter)).collect())
 }
 
 /// Prefix of the built-in exemplars' names (`builtin:glow`).
 pub const BUILTIN_PREFIX: &str = "builtin:";
 
-/// The built-in exemplars by name: the pebbles of the demo and the two
-/// lava states of selection by temperature.
-pub const BUILTIN_EXEMPLARS: &[&str] = &["pebbles", "glow", "crust"];
+/// The built-in exemplars by name: the pebbles of the demo, the two lava
+/// states of selection by temperature and the animated bubbles.
+pub const BUILTIN_EXEMPLARS: &[&str] = &["pebbles", "glow", "crust", "bubbles"];
 
-/// The exemplar at `path`, or the built-in one `builtin:NAME` names (which
-/// carries its own feature map and has no extra channels).
-fn load_exemplar(
-    path: &std::path::Path,
-    channels: &[(String, PathBuf)],
-    feature: Option<&std::path::Path>,
+/// Texels per side of the built-in bubbles' frames: 16 frames at 512²
+/// would hold 130 MiB for a demo.
+const BUBBLES_SIZE: u32 = 256;
+
+/// What the animated exemplars may still take ([`SequenceBudget`]), as the
+/// entries are loaded one after another.
+struct Budget {
+    limit: SequenceBudget,
+    used: u64,
+}
+
+impl Budget {
+    fn of(config: &Config) -> Budget {
+        Budget {
+            limit: config
+                .exemplar_memory
+                .map_or_else(SequenceBudget::default, |mib| SequenceBudget {
+                    bytes: mib.saturating_mul(1 << 20),
+                }),
+            used: 0,
+        }
+    }
+}
+
+/// The frames of one exemplar: a sequence (`bubbles.####.png`, within the
+/// budget), a built-in (`builtin:NAME`, which carries its own feature map
+/// and has no extra channels) or one image.
+fn load_frames(
+    files: &SequenceFiles<'_>,
     method: FeatureMethod,
     seed: u64,
-) -> Result<Exemplar> {
+    budget: &mut Budget,
+) -> Result<Vec<Exemplar>> {
+    let path = files.colour;
+    if is_sequence(path) {
+        let (frames, bytes) = load_sequence(files, method, budget.limit, budget.used)?;
+        budget.used += bytes;
+        return Ok(frames);
+    }
     let Some(name) = path.to_str().and_then(|p| p.strip_prefix(BUILTIN_PREFIX)) else {
-        return Ok(Exemplar::load(path, channels, feature, method)?);
+        return Ok(vec![Exemplar::load(
+            path,
+            files.channels,
+            files.feature,
+            method,
+        )?]);
     };
-    if !channels.is_empty() || feature.is_some() {
+    if !files.channels.is_empty() || files.feature.is_some() {
         bail!(
             "{}: a built-in exemplar carries its own feature map and no extra channels",
             path.display()
@@ -269,9 +314,14 @@ fn load_exemplar(
     }
     let size = BUILTIN_EXEMPLAR_SIZE;
     Ok(match name {
-        "pebbles" => builtin_pebbles(size, seed),
-        "glow" => builtin_lava(LavaState::Glow, size, seed),
-        "crust" => builtin_lava(LavaState::Crust, size, seed),
+        "pebbles" => vec![builtin_pebbles(size, seed)],
+        "glow" => vec![builtin_lava(LavaState::Glow, size, seed)],
+        "crust" => vec![builtin_lava(LavaState::Crust, size, seed)],
+        "bubbles" => {
+            let frames = builtin_bubbles(BUBBLES_SIZE, BUBBLE_FRAMES, seed);
+            budget.used += frames.iter().map(Exemplar::memory_bytes).sum::<u64>();
+            frames
+        }
         _ => bail!(
             "{}: no such built-in exemplar; available: {}",
             path.display(),
@@ -285,14 +335,33 @@ fn load_exemplar(
 }
 
 /// The exemplars the config names: `exemplars` (several per surface) or
-/// the one exemplar of [`build_exemplar`].
+/// the one exemplar of [`build_exemplar_frames`]; animated ones advance at the
+/// config's `exemplar_rate`.
 pub fn build_exemplar_set(config: &Config) -> Result<ExemplarSet> {
+    let set = build_exemplar_entries(config)?;
+    let set = match config.exemplar_rate {
+        Some(_) if !set.is_animated() => bail!(
+            "--exemplar-rate needs an animated exemplar (an image sequence such as \
+             bubbles.####.png, or builtin:bubbles)"
+        ),
+        Some(rate) => set.with_clock(ExemplarClock::new(rate)?),
+        None => set,
+    };
+    // Stated before the first frame: what the frames take, and the budget.
+    for line in set.animation_summary(Budget::of(config).limit.bytes) {
+        eprintln!("{line}");
+    }
+    Ok(set)
+}
+
+fn build_exemplar_entries(config: &Config) -> Result<ExemplarSet> {
     let select = match config.exemplar_select.as_deref() {
         None => ExemplarSelect::default(),
         Some(name) => {
             ExemplarSelect::parse_named("exemplar selection", name).map_err(Error::msg)?
         }
     };
+    let mut budget = Budget::of(config);
     if config.exemplars.is_empty() {
         if config.select_by.is_some() {
             bail!(
@@ -303,7 +372,20 @@ pub fn build_exemplar_set(config: &Config) -> Result<ExemplarSet> {
         if config.exemplar_region.is_some() {
             bail!("--exemplar-region needs several exemplars (--exemplar IMG:WEIGHT, repeated)");
         }
-        return Ok(ExemplarSet::single(Arc::new(build_exemplar(config)?)));
+        let mut frames = build_exemplar_frames(config, &mut budget)?;
+        if frames.len() == 1 {
+            return Ok(ExemplarSet::single(Arc::new(frames.remove(0))));
+        }
+        let name = config
+            .exemplar
+            .as_ref()
+            .map_or_else(|| "exemplar".into(), |p| p.display().to_string());
+        let frames = frames.into_iter().map(Arc::new).collect();
+        return Ok(ExemplarSet::animated(
+            vec![(name, frames, 1.0)],
+            ExemplarSelect::default(),
+            None,
+        )?);
     }
     if config.exemplar.is_some() || !config.channels.is_empty() || config.feature.is_some() {
         bail!(
@@ -312,6 +394,7 @@ pub fn build_exemplar_set(config: &Config) -> Result<ExemplarSet> {
         );
     }
     let (method, filter) = feature_settings(config)?;
+    let seed = config.seed.unwrap_or(0);
     let mut entries = Vec::with_capacity(config.exemplars.len());
     for e in &config.exemplars {
         let channels: Vec<(String, PathBuf)> = e
@@ -319,11 +402,18 @@ pub fn build_exemplar_set(config: &Config) -> Result<ExemplarSet> {
             .iter()
             .map(|(k, v)| (k.clone(), v.clone()))
             .collect();
-        let seed = config.seed.unwrap_or(0);
-        let exemplar = load_exemplar(&e.path, &channels, e.feature.as_deref(), method, seed)?;
+        let files = SequenceFiles {
+            colour: &e.path,
+            channels: &channels,
+            feature: e.feature.as_deref(),
+        };
+        let frames = load_frames(&files, method, seed, &mut budget)?;
         entries.push((
             e.path.display().to_string(),
-            Arc::new(exemplar.with_filter(filter)),
+            frames
+                .into_iter()
+                .map(|x| Arc::new(x.with_filter(filter)))
+                .collect(),
             e.weight.unwrap_or(1.0),
         ));
     }
@@ -331,7 +421,7 @@ pub fn build_exemplar_set(config: &Config) -> Result<ExemplarSet> {
         Some(path) => Some(RegionImage::load(path)?),
         None => None,
     };
-    let set = ExemplarSet::new(entries, select, region)?;
+    let set = ExemplarSet::animated(entries, select, region)?;
     match select_by(config)? {
         Some(by) => Ok(set.with_select_by(by)?),
         None => Ok(set),
@@ -448,18 +538,22 @@ mod tests {
     #[test]
     fn exemplar_filter_is_trilinear_unless_asked_otherwise() {
         let with = |value: Option<&str>| {
-            build_exemplar(&Config {
+            build_exemplar_set(&Config {
                 exemplar_filter: value.map(str::to_string),
                 ..Default::default()
             })
         };
-        assert_eq!(with(None).expect("valid").filter, ExemplarFilter::Trilinear);
+        let filter = |set: ExemplarSet| set.primary().filter;
         assert_eq!(
-            with(Some("trilinear")).expect("valid").filter,
+            filter(with(None).expect("valid")),
             ExemplarFilter::Trilinear
         );
         assert_eq!(
-            with(Some("none")).expect("valid").filter,
+            filter(with(Some("trilinear")).expect("valid")),
+            ExemplarFilter::Trilinear
+        );
+        assert_eq!(
+            filter(with(Some("none")).expect("valid")),
             ExemplarFilter::Unfiltered
         );
         let err = with(Some("bicubic")).expect_err("unknown filter");
