@@ -269,6 +269,7 @@ def main():
         ob.data.materials.append(m)
     report["render_seconds"] = {k: round(v, 2) for k, v in times.items()}
     report["state"] = select_by_attribute(a, s)
+    report["animated"] = animated_exemplar(a, s)
     print("fluidtex-addon-test: " + json.dumps(report), flush=True)
 
 
@@ -306,6 +307,44 @@ def select_by_attribute(a, s):
     out["state_agreement"] = agreement
     s.select_by = ""
     return out
+
+
+def animated_exemplar(a, s):
+    """An animated exemplar through the panel's fields: a grid at rest
+    textured with builtin:bubbles at half a frame per frame; returns
+    whether the patch view (the sources) stayed put while the colour
+    changed, frame to frame, and what fluidtex said of the sequence."""
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=24, y_subdivisions=24, size=1.0)
+    grid = bpy.context.active_object
+    me = grid.data
+    vel = me.attributes.new("velocity", "FLOAT_VECTOR", "POINT")
+    vel.data.foreach_set("vector", [0.0] * (3 * len(me.vertices)))
+    s.use_scene_range = False
+    s.frame_start, s.frame_end = 1, 3
+    s.velocity_auto = False
+    s.velocity_scale = 1.0
+    s.work_dir = os.path.join(a.work, "animated")
+    s.select_by = ""
+    s.exemplar = "builtin:bubbles"
+    s.exemplar_rate = 0.5
+    with bpy.context.temp_override(active_object=grid, object=grid):
+        check(bpy.ops.fluidtex.texture_liquid() == {"FINISHED"}, "Texture with bubbles")
+    out_dir = os.path.join(a.work, "animated", "out")
+
+    def read(name):
+        with open(os.path.join(out_dir, name), "rb") as f:
+            return f.read()
+
+    with open(os.path.join(a.work, "animated", "fluidtex.log")) as f:
+        said = [line.strip() for line in f if line.startswith("animated exemplar")]
+    s.exemplar = ""
+    return {
+        # Rate 0.5: frames 2 and 3 show different exemplar frames for
+        # about half the patches; the sources never move at rest.
+        "patches_same": read("patches.0002.png") == read("patches.0003.png"),
+        "colour_differs": read("color.0002.png") != read("color.0003.png"),
+        "said": said,
+    }
 
 
 try:

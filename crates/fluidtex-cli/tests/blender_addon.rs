@@ -178,6 +178,17 @@ fn blender_addon_textures_a_baked_liquid_and_renders_it() {
         let a = a.as_f64().unwrap();
         assert!(a > 0.8, "state agreement {a}");
     }
+    // An animated exemplar from the panel: the rate reaches fluidtex, which
+    // states the sequence before the run, and on a liquid at rest the
+    // sources stay while the colour animates.
+    let animated = &report["animated"];
+    let said = animated["said"][0].as_str().unwrap_or_default();
+    assert!(
+        said.contains("builtin:bubbles: 16 frames") && said.contains("0.5 exemplar frame"),
+        "{animated}"
+    );
+    assert_eq!(animated["patches_same"], true, "{animated}");
+    assert_eq!(animated["colour_differs"], true, "{animated}");
     // The velocity scale fitted to the surface's motion: Mantaflow's
     // attribute is not in world units per second (a sweep on this bake put
     // the best factor at 0.42-0.55), and with it the texture rides the flow

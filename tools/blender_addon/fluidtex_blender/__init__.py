@@ -99,9 +99,22 @@ class FluidtexSettings(bpy.types.PropertyGroup):
     method: EnumProperty(name="Method", items=METHODS, default="erosion")
     exemplar: StringProperty(
         name="Exemplar",
-        description="Texture image (PNG, JPEG, EXR); empty: the built-in pebbles",
+        description=(
+            "Texture image (PNG, JPEG, EXR), an image sequence that animates (bubbles.####.png), "
+            "or builtin:bubbles, builtin:glow, builtin:crust; empty: the built-in pebbles"
+        ),
         subtype="FILE_PATH",
         default="",
+    )
+    exemplar_rate: FloatProperty(
+        name="Exemplar rate",
+        description=(
+            "Animated exemplar (an image sequence or builtin:bubbles): exemplar frames shown per "
+            "frame of liquid; each patch starts at its own phase"
+        ),
+        default=1.0,
+        min=-1000.0,
+        max=1000.0,
     )
     atlas: IntProperty(name="Atlas size", description="Atlas width = height in texels", default=1024, min=16, max=16384)
     radius: FloatProperty(
@@ -142,13 +155,13 @@ class FluidtexSettings(bpy.types.PropertyGroup):
     )
     state_exemplar_a: StringProperty(
         name="Exemplar A",
-        description="Image path, or builtin:glow, builtin:crust, builtin:pebbles",
+        description="Image path or image sequence (####), or builtin:glow, builtin:crust, builtin:pebbles, builtin:bubbles",
         default="builtin:glow",
     )
     state_range_a: FloatVectorProperty(name="Range A", size=2, default=(0.5, 1.0))
     state_exemplar_b: StringProperty(
         name="Exemplar B",
-        description="Image path, or builtin:glow, builtin:crust, builtin:pebbles",
+        description="Image path or image sequence (####), or builtin:glow, builtin:crust, builtin:pebbles, builtin:bubbles",
         default="builtin:crust",
     )
     state_range_b: FloatVectorProperty(name="Range B", size=2, default=(0.0, 0.5))
@@ -312,13 +325,40 @@ def evaluate_scalar(ob, depsgraph, frame, name):
         ob_eval.to_mesh_clear()
 
 
+def exemplar_path(path):
+    """An exemplar as fluidtex reads it: built-ins by name, files absolute."""
+    return path if path.startswith("builtin:") else bpy.path.abspath(path)
+
+
+def is_animated(path):
+    """Whether fluidtex reads `path` as an animated exemplar: a frame token
+    (#, $F or %d) or the built-in bubbles."""
+    return path == "builtin:bubbles" or any(t in path for t in ("#", "$F", "%0", "%d"))
+
+
+def exemplar_args(settings):
+    """fluidtex's exemplar flags: by attribute, or the one exemplar; with
+    the rate when one of them is animated (fluidtex refuses it otherwise)."""
+    if settings.select_by:
+        args = state_args(settings)
+        paths = [settings.state_exemplar_a, settings.state_exemplar_b]
+    elif settings.exemplar:
+        args = ["--exemplar", exemplar_path(settings.exemplar)]
+        paths = [settings.exemplar]
+    else:
+        return []
+    if any(is_animated(p) for p in paths):
+        args += ["--exemplar-rate", f"{settings.exemplar_rate:g}"]
+    return args
+
+
 def state_args(settings):
     """fluidtex's flags of the selection by attribute (empty when off)."""
     if not settings.select_by:
         return []
 
     def exemplar(path, r):
-        path = path if path.startswith("builtin:") else bpy.path.abspath(path)
+        path = exemplar_path(path)
         if not (r[0] <= r[1]):
             raise FluidtexError(f"{path}: range {r[0]:g} to {r[1]:g} has its low end above its high end")
         return f"{path}@{r[0]:g}:{r[1]:g}"
@@ -432,10 +472,7 @@ def texture_job(context, ob, settings):
         "--fps", str(fps),
         "--quiet",
     ]  # fmt: skip
-    if settings.select_by:
-        args += state_args(settings)
-    elif settings.exemplar:
-        args += ["--exemplar", bpy.path.abspath(settings.exemplar)]
+    args += exemplar_args(settings)
     if settings.radius > 0:
         args += ["--radius", str(settings.radius)]
     log_path = os.path.join(work, "fluidtex.log")
@@ -787,6 +824,10 @@ class FLUIDTEX_PT_panel(bpy.types.Panel):
         col = layout.column()
         col.prop(s, "method")
         col.prop(s, "exemplar")
+        if is_animated(s.exemplar) or (
+            s.select_by and (is_animated(s.state_exemplar_a) or is_animated(s.state_exemplar_b))
+        ):
+            col.prop(s, "exemplar_rate")
         col.prop(s, "select_by")
         if s.select_by:
             box = col.box()

@@ -348,6 +348,21 @@ impl ExemplarSet {
         first + self.clock.frame(t, ExemplarClock::phase(seed, key, n), n)
     }
 
+    /// The slot whose feature map shapes the patch (its erosion and mask)
+    /// for its whole life: the frame its phase starts at, ⌊φ⌋. Fixed, so
+    /// a fluid at rest keeps every source while the colour animates.
+    #[inline]
+    pub fn feature_slot(&self, entry: u32, seed: u64, key: u64) -> u32 {
+        let e = entry as usize;
+        let (Some(&first), Some(&n)) = (self.first.get(e), self.frames.get(e)) else {
+            return 0;
+        };
+        if n <= 1 {
+            return first;
+        }
+        first + ExemplarClock::phase(seed, key, n) as u32 % n
+    }
+
     /// Builds the mip pyramids of `slots` that are not built yet, in
     /// parallel, before a parallel loop reads them (see
     /// [`Exemplar::build_pyramid`]). Returns how many it built.

@@ -10,19 +10,40 @@ use glam::Vec3;
 
 use super::registry::{MethodKind, MethodParams};
 use super::{FrameResult, Method, MethodError};
-use crate::exemplar::{Exemplar, ExemplarClock, ExemplarSelect, ExemplarSet};
+use crate::exemplar::{
+    Exemplar, ExemplarClock, ExemplarSelect, ExemplarSet, FeatureMap, FeatureOrigin,
+};
 use crate::methods::test_clip::{Clip, grey_exemplar, grid, scene};
 use crate::methods::tone::Tone;
 use crate::provenance::{SOURCE_OUTSIDE, SOURCE_UNCOVERED};
+use crate::texture::Texture;
 
 /// Grey levels of the frames of the test sequence: each frame is flat, so
 /// a texel's value says which frame its patch shows.
 const LEVELS: [f32; 4] = [0.1, 0.35, 0.6, 0.85];
 
+/// One flat frame per level, each with its own feature map (so patch
+/// outlines would move at rest if the erosion read the frame shown).
 fn frames(levels: &[f32]) -> Vec<Arc<Exemplar>> {
     levels
         .iter()
-        .map(|&v| Arc::new(grey_exemplar(16, move |_, _| v).deferring_pyramid()))
+        .enumerate()
+        .map(|(k, &v)| {
+            let e = grey_exemplar(16, move |_, _| v);
+            let feature = Texture::from_data(
+                16,
+                16,
+                1,
+                (0..256u32)
+                    .map(|i| ((i % 16) * 3 + (i / 16) * 5 + k as u32 * 7) % 16)
+                    .map(|f| f as f32 / 15.0)
+                    .collect(),
+            )
+            .expect("feature texture");
+            let feature = FeatureMap::new(feature, FeatureOrigin::Builtin, "frame").expect("map");
+            let e = Exemplar::new(e.colour, e.colour_format, Vec::new(), feature).expect("frame");
+            Arc::new(e.deferring_pyramid())
+        })
         .collect()
 }
 

@@ -62,6 +62,14 @@ impl MultiFill<'_> {
         self.set
             .slot(p.exemplar, self.seed, u64::from(p.id), self.frame) as usize
     }
+
+    /// The slot whose feature map and erosion test shape patch `p`
+    /// ([`ExemplarSet::feature_slot`]).
+    #[inline]
+    pub fn feature_slot(&self, p: &Patch) -> usize {
+        self.set
+            .feature_slot(p.exemplar, self.seed, u64::from(p.id)) as usize
+    }
 }
 
 /// The part of the state only a multi-exemplar run has, saved after the
@@ -95,6 +103,13 @@ impl Multi {
     pub fn slot(&self, p: &Patch) -> u32 {
         self.set
             .slot(p.exemplar, self.seed, u64::from(p.id), self.frame)
+    }
+
+    /// The slot whose feature map and erosion test shape patch `p`.
+    #[inline]
+    pub fn feature_slot(&self, p: &Patch) -> u32 {
+        self.set
+            .feature_slot(p.exemplar, self.seed, u64::from(p.id))
     }
 
     /// Builds the pyramids of the slots `patches` show this frame (an

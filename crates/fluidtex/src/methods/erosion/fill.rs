@@ -334,7 +334,10 @@ impl FillContext<'_> {
         match self.multi {
             None => (self.feature, self.test),
             Some(m) => {
-                let e = self.patches.get(i as usize).map_or(0, |p| m.slot(p));
+                let e = self
+                    .patches
+                    .get(i as usize)
+                    .map_or(0, |p| m.feature_slot(p));
                 match (m.features.get(e), m.tests.get(e)) {
                     (Some(f), Some(&t)) => (f, t),
                     _ => (self.feature, self.test),

@@ -964,13 +964,12 @@ impl Erosion {
             .patches
             .par_iter_mut()
             .map(|p| {
-                // Every frame of the patch's exemplar must erode a triangle.
-                let tests = (self.multi.as_ref())
+                let test = (self.multi.as_ref())
                     .zip(tests)
-                    .and_then(|(m, t)| t.get(m.set.slots_of(p.exemplar)))
-                    .filter(|t| !t.is_empty())
-                    .unwrap_or(std::slice::from_ref(&test));
-                p.prune_eroded_under(tests, shape, weights_can_rise, keep_earlier)
+                    .and_then(|(m, t)| t.get(m.feature_slot(p) as usize))
+                    .copied()
+                    .unwrap_or(test);
+                p.prune_eroded(&test, shape, weights_can_rise, keep_earlier)
             })
             .sum()
     }

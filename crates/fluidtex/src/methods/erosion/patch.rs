@@ -553,25 +553,6 @@ impl Patch {
         weights_can_rise: bool,
         keep_earlier: bool,
     ) -> usize {
-        self.prune_eroded_under(
-            std::slice::from_ref(test),
-            shape,
-            weights_can_rise,
-            keep_earlier,
-        )
-    }
-
-    /// [`Patch::prune_eroded`] for a patch whose feature map changes from
-    /// frame to frame (an animated exemplar): a triangle goes only where
-    /// every one of `tests` (one per exemplar frame) erodes it, since any
-    /// of those frames may be the one it shows next.
-    pub fn prune_eroded_under(
-        &mut self,
-        tests: &[ErosionTest],
-        shape: &PatchShape,
-        weights_can_rise: bool,
-        keep_earlier: bool,
-    ) -> usize {
         if self.still || self.weight.len() != self.positions.len() {
             return 0;
         }
@@ -579,11 +560,7 @@ impl Patch {
         let n = self.positions.len();
         // Eroded at a frame's weights; a table of another length is a
         // frame the patch did not exist in.
-        let eroded = |uv: [Vec2; 3], w: [f32; 3]| {
-            tests
-                .iter()
-                .all(|test| test.triangle_verdict(uv, w) == Verdict::Eroded)
-        };
+        let eroded = |uv: [Vec2; 3], w: [f32; 3]| test.triangle_verdict(uv, w) == Verdict::Eroded;
         let eroded_at = |weights: &[f32], t: &[u32; 3], uv: [Vec2; 3]| {
             weights.len() != n || eroded(uv, t.map(|v| weights[v as usize]))
         };

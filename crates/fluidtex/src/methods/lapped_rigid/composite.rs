@@ -68,12 +68,21 @@ pub struct Layer {
     /// with an animated exemplar the frame its phase gives
     /// ([`crate::exemplar::ExemplarSet::slot`]); 0 with one exemplar.
     pub exemplar: u32,
+    /// The slot whose feature map shapes the patch's mask, fixed for its
+    /// life ([`crate::exemplar::ExemplarSet::feature_slot`]); `exemplar`
+    /// without animation.
+    pub feature: u32,
 }
 
 impl MultiComposite<'_> {
     /// The slot tracker `id` of exemplar `entry` shows this frame.
     pub fn slot(&self, entry: u32, id: u32) -> u32 {
         self.set.slot(entry, self.seed, u64::from(id), self.frame)
+    }
+
+    /// The slot whose feature map shapes tracker `id`'s mask.
+    pub fn feature_slot(&self, entry: u32, id: u32) -> u32 {
+        self.set.feature_slot(entry, self.seed, u64::from(id))
     }
 }
 
@@ -238,8 +247,8 @@ impl<'a> CompositeContext<'a> {
         let (exemplar, feature, base_lod) = match self.multi {
             None => (self.exemplar, &self.feature, self.base_lod),
             Some(m) => {
-                let e = layer.exemplar as usize;
-                match (m.exemplars.get(e), m.features.get(e), m.base_lods.get(e)) {
+                let (e, f) = (layer.exemplar as usize, layer.feature as usize);
+                match (m.exemplars.get(e), m.features.get(f), m.base_lods.get(e)) {
                     (Some(x), Some(f), Some(&b)) => (&**x, f, b),
                     _ => (self.exemplar, &self.feature, self.base_lod),
                 }

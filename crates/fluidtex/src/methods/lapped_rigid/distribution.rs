@@ -111,6 +111,9 @@ pub fn cover(
             exemplar: template
                 .multi
                 .map_or(tracker.exemplar, |m| m.slot(tracker.exemplar, id)),
+            feature: template
+                .multi
+                .map_or(tracker.exemplar, |m| m.feature_slot(tracker.exemplar, id)),
         }];
         let ctx = template.with_layers(&layer);
         let mut shown = composite_below(&ctx, rc, &mut pending, &mut uncovered, out);

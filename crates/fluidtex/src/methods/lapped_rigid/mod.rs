@@ -690,6 +690,10 @@ impl LappedRigid {
                 .slot(t.exemplar, self.seed, u64::from(t.id), ctx.number),
             None => t.exemplar,
         };
+        let feature_slot = |t: &Tracker| match &self.multi {
+            Some(m) => m.set.feature_slot(t.exemplar, self.seed, u64::from(t.id)),
+            None => t.exemplar,
+        };
         let layers: Vec<Layer> = self
             .state
             .trackers
@@ -699,6 +703,7 @@ impl LappedRigid {
                 frame: t.frame(exemplar_size),
                 fade: t.fade,
                 exemplar: slot(t),
+                feature: feature_slot(t),
             })
             .collect();
         if let Some(m) = &self.multi

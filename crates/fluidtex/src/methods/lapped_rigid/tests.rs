@@ -252,6 +252,7 @@ fn the_falloff_at_a_texel_equals_its_formula() {
             },
             fade: 1.0,
             exemplar: 0,
+            feature: 0,
         }];
         let ctx = composite::CompositeContext {
             mesh: &mesh,
