@@ -11,41 +11,6 @@ use std::path::{Path, PathBuf};
 
 use common::*;
 
-/// Writes `frames` ASCII PLY frames of a flat 12×12 grid at rest with a
-/// per-vertex `temperature` of `t(x, frame)`; returns the pattern.
-fn cooling_grid(dir: &Path, frames: usize, t: impl Fn(f32, usize) -> f32) -> PathBuf {
-    std::fs::create_dir_all(dir).unwrap();
-    let n = 12usize;
-    for f in 0..frames {
-        let mut ply = String::new();
-        let verts = (n + 1) * (n + 1);
-        ply.push_str(&format!(
-            "ply\nformat ascii 1.0\nelement vertex {verts}\nproperty float x\nproperty float y\n\
-             property float z\nproperty float vx\nproperty float vy\nproperty float vz\n\
-             property float temperature\nelement face {}\nproperty list uchar int vertex_indices\n\
-             end_header\n",
-            2 * n * n
-        ));
-        for j in 0..=n {
-            for i in 0..=n {
-                let x = i as f32 / n as f32 - 0.5;
-                let y = j as f32 / n as f32 - 0.5;
-                ply.push_str(&format!("{x} {y} 0 0 0 0 {}\n", t(x, f)));
-            }
-        }
-        let w = n + 1;
-        for j in 0..n {
-            for i in 0..n {
-                let a = j * w + i;
-                ply.push_str(&format!("3 {a} {} {}\n", a + 1, a + w + 1));
-                ply.push_str(&format!("3 {a} {} {}\n", a + w + 1, a + w));
-            }
-        }
-        std::fs::write(dir.join(format!("fluid.{f:04}.ply")), ply).unwrap();
-    }
-    dir.join("fluid.####.ply")
-}
-
 /// Frames of the run: 1/rate = 6 frames, and margin for the new patches.
 const FRAMES: usize = 16;
 

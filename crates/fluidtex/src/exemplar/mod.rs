@@ -20,6 +20,10 @@
 //!   whether methods use it ([`ExemplarFilter`]).
 //! - [`set`]: several exemplars on one surface, with the patch's choice
 //!   among them ([`ExemplarSet`], [`ExemplarSelect`]).
+//! - [`sequence`]: animated exemplars, an image sequence whose frame each
+//!   patch shows by its own phase ([`ExemplarClock`]), loaded within a
+//!   memory budget stated up front, their pyramids built when first shown;
+//!   [`bubbles`] is a procedural one.
 //! - [`tone`]: the per-channel mean and per-level variance the sampler
 //!   shows, the reference of the methods' tone matching.
 

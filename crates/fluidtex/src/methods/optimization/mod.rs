@@ -384,6 +384,7 @@ impl Optimization {
             .first()
             .cloned()
             .ok_or_else(|| MethodError::Input("an animated exemplar without frames".into()))?;
+        first.build_pyramid();
         let mut m = Optimization::new(params, first, seed)?;
         if frames.len() > 1 {
             m.frames = frames;
