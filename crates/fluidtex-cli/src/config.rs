@@ -114,8 +114,8 @@ pub struct Config {
     /// Animated exemplars: the memory, in MiB, their frames may take
     /// together, mip pyramids included \[2048]; a sequence over it is
     /// refused before the run. Not part of the fingerprint: it changes no
-    /// texture.
-    #[serde(skip_serializing)]
+    /// texture ([`Config::fingerprint`] leaves it out).
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub exemplar_memory: Option<u64>,
     /// `paper`: every departure from the papers that has a paper setting
     /// set to it (`docs/departures.md`); the file's keys and the flags win.
@@ -349,6 +349,8 @@ impl Config {
         let mut c = self.clone();
         c.out = None;
         c.frames = None;
+        // A budget changes no texture: a resume may raise it.
+        c.exemplar_memory = None;
         let json = serde_json::to_string(&c).unwrap_or_default();
         // FNV-1a, 64 bit: stable across platforms and versions, unlike std's hasher.
         let mut h: u64 = 0xcbf2_9ce4_8422_2325;
@@ -1043,7 +1045,12 @@ mod tests {
         let mut b = a.clone();
         b.out = Some("elsewhere".into());
         b.frames = Some("0-100".into());
+        // The animated exemplars' budget changes no texture either.
+        b.exemplar_memory = Some(64);
         assert_eq!(a.fingerprint(), b.fingerprint());
+        b.exemplar_rate = Some(0.5);
+        assert_ne!(a.fingerprint(), b.fingerprint());
+        b.exemplar_rate = None;
         b.erosion.epsilon = 0.2;
         assert_ne!(a.fingerprint(), b.fingerprint());
     }
@@ -1219,13 +1226,11 @@ mod tests {
             flags: RunFlags,
         }
         let cmd = <Cli as clap::CommandFactory>::command();
-        // `preview_video` and `exemplar_memory` are never serialised (they
-        // are not part of the fingerprint), so they are put back to be
-        // compared like the others.
+        // `preview_video` is never serialised (it is not part of the
+        // fingerprint), so it is put back to be compared like the others.
         let json = |c: &Config| {
             let mut v = serde_json::to_value(c).expect("json");
             v["preview_video"] = serde_json::json!(c.preview_video);
-            v["exemplar_memory"] = serde_json::json!(c.exemplar_memory);
             v
         };
         let default = json(&Config::default());
