@@ -273,15 +273,22 @@ def main():
     print("fluidtex-addon-test: " + json.dumps(report), flush=True)
 
 
-def select_by_attribute(a, s):
-    """Exemplars chosen by a mesh attribute: a grid at rest whose left
-    half is hot (temperature 1) and right half cold (0); returns the state
-    agreement per frame, and the message of a missing attribute."""
+def grid_at_rest():
+    """A 24 x 24 grid with a zero velocity attribute: a liquid at rest."""
     bpy.ops.mesh.primitive_grid_add(x_subdivisions=24, y_subdivisions=24, size=1.0)
     grid = bpy.context.active_object
     me = grid.data
     vel = me.attributes.new("velocity", "FLOAT_VECTOR", "POINT")
     vel.data.foreach_set("vector", [0.0] * (3 * len(me.vertices)))
+    return grid
+
+
+def select_by_attribute(a, s):
+    """Exemplars chosen by a mesh attribute: a grid at rest whose left
+    half is hot (temperature 1) and right half cold (0); returns the state
+    agreement per frame, and the message of a missing attribute."""
+    grid = grid_at_rest()
+    me = grid.data
     temp = me.attributes.new("temperature", "FLOAT", "POINT")
     temp.data.foreach_set("value", [1.0 if v.co.x < 0 else 0.0 for v in me.vertices])
     s.use_scene_range = False
@@ -314,11 +321,7 @@ def animated_exemplar(a, s):
     textured with builtin:bubbles at half a frame per frame; returns
     whether the patch view (the sources) stayed put while the colour
     changed, frame to frame, and what fluidtex said of the sequence."""
-    bpy.ops.mesh.primitive_grid_add(x_subdivisions=24, y_subdivisions=24, size=1.0)
-    grid = bpy.context.active_object
-    me = grid.data
-    vel = me.attributes.new("velocity", "FLOAT_VECTOR", "POINT")
-    vel.data.foreach_set("vector", [0.0] * (3 * len(me.vertices)))
+    grid = grid_at_rest()
     s.use_scene_range = False
     s.frame_start, s.frame_end = 1, 3
     s.velocity_auto = False

@@ -14,12 +14,9 @@
 //! Everything is a function of texel, frame and seed: bit-identical on any
 //! thread count.
 
-use rayon::prelude::*;
-
-use super::lava::{noise, smoothstep, unit};
-use super::{Exemplar, FeatureMap, FeatureOrigin, SampleFormat};
+use super::Exemplar;
+use super::lava::{noise, procedural, smoothstep, unit};
 use crate::seed::mix;
-use crate::texture::Texture;
 
 /// Bubbles per side of the exemplar.
 const CELLS: u32 = 7;
@@ -52,32 +49,7 @@ pub fn builtin_bubbles(size: u32, frames: u32, seed: u64) -> Vec<Exemplar> {
 
 /// One frame at cycle time `time` ∈ [0, 1).
 fn bubble_frame(size: u32, time: f32, seed: u64) -> Exemplar {
-    let n = size as usize;
-    let texels: Vec<([f32; 3], f32)> = (0..n * n)
-        .into_par_iter()
-        .map(|i| {
-            let u = ((i % n) as f32 + 0.5) / size as f32;
-            let v = ((i / n) as f32 + 0.5) / size as f32;
-            texel(seed, time, u, v)
-        })
-        .collect();
-    let colour = Texture {
-        width: size,
-        height: size,
-        channels: 3,
-        data: texels.iter().flat_map(|(c, _)| *c).collect(),
-    };
-    let feature = FeatureMap {
-        map: Texture {
-            width: size,
-            height: size,
-            channels: 1,
-            data: texels.iter().map(|(_, f)| *f).collect(),
-        },
-        origin: FeatureOrigin::Builtin,
-    };
-    // Sizes match and values are finite and in [0, 1] by construction.
-    Exemplar::assemble(colour, SampleFormat::U8, Vec::new(), feature)
+    procedural(size, |u, v| texel(seed, time, u, v))
 }
 
 /// Colour and feature value at uv `(u, v)` at cycle time `time`.

@@ -64,13 +64,23 @@ crate::named!(LavaState {
 /// both states share the crack network of `seed`.
 pub fn builtin_lava(state: LavaState, size: u32, seed: u64) -> Exemplar {
     let size = size.clamp(SIZE_RANGE.0, SIZE_RANGE.1);
+    procedural(size, |u, v| texel(state, seed, u, v))
+}
+
+/// A `size²` exemplar of 3 colour channels stored as 8-bit and a feature
+/// map, drawn by `texel(u, v)` (colour, feature value, both in [0, 1]) at
+/// every texel centre, in parallel: the lava and bubble generators.
+pub(super) fn procedural(
+    size: u32,
+    texel: impl Fn(f32, f32) -> ([f32; 3], f32) + Sync,
+) -> Exemplar {
     let n = size as usize;
     let texels: Vec<([f32; 3], f32)> = (0..n * n)
         .into_par_iter()
         .map(|i| {
             let u = ((i % n) as f32 + 0.5) / size as f32;
             let v = ((i / n) as f32 + 0.5) / size as f32;
-            texel(state, seed, u, v)
+            texel(u, v)
         })
         .collect();
     let colour = Texture {

@@ -71,12 +71,6 @@ fn plane_at_rest(frames: usize) -> Clip {
     Clip::from_meshes(meshes, 96)
 }
 
-fn run(method: &mut dyn Method, clip: &Clip) -> Vec<FrameResult> {
-    (0..clip.meshes.len())
-        .map(|k| method.step(&clip.ctx(k)).expect("step"))
-        .collect()
-}
-
 /// Every covered texel of `r` (frame `t`, one source per texel) shows the
 /// level of exemplar frame ⌊t·rate + φ⌋ mod n of its patch; returns how
 /// many texels were checked.
@@ -113,7 +107,7 @@ fn each_patch_shows_the_frame_of_its_phase_and_the_rate() {
     for rate in [1.0, 0.5, -1.0, 2.5] {
         for kind in [MethodKind::Erosion, MethodKind::Advect] {
             let mut m = build(&params, kind, animated(&LEVELS, rate), 7);
-            let results = run(m.as_mut(), &clip);
+            let results = clip.run(m.as_mut());
             for (t, r) in results.iter().enumerate() {
                 let checked = check_frames_per_patch(r, t as i32, rate, 7);
                 assert!(checked > 1000, "{kind} rate {rate}: only {checked} texels");
@@ -140,7 +134,7 @@ fn a_fluid_at_rest_keeps_its_sources_while_the_texture_animates() {
         MethodKind::DualRest,
     ] {
         let mut m = build(&MethodParams::default(), kind, animated(&LEVELS, 1.0), 3);
-        let results = run(m.as_mut(), &clip);
+        let results = clip.run(m.as_mut());
         for k in 2..results.len() {
             let (a, b) = (&results[k - 1], &results[k]);
             assert_eq!(a.source, b.source, "{kind}: frame {k} moved its sources");
@@ -164,7 +158,7 @@ fn a_fluid_at_rest_keeps_its_sources_while_the_texture_animates() {
             ((x * 7 + y * 3) % 16) as f32 / 16.0
         })));
         let mut m = build(&MethodParams::default(), kind, still, 3);
-        let results = run(m.as_mut(), &clip);
+        let results = clip.run(m.as_mut());
         assert_eq!(
             results[3].channels, results[4].channels,
             "{kind}: a still exemplar at rest changed"
@@ -192,7 +186,7 @@ fn pyramids_are_built_for_the_frames_shown_only() {
     params.erosion.radius_fraction = 0.3;
     params.erosion.radius_edges = 0.0;
     let mut m = build(&params, MethodKind::Erosion, set, 5);
-    let results = run(m.as_mut(), &clip);
+    let results = clip.run(m.as_mut());
     let built = shown.iter().filter(|e| e.pyramid_built()).count();
     // Exactly the frames some patch showed, read off the atlas.
     let mut seen: Vec<u32> = Vec::new();
@@ -229,18 +223,9 @@ fn pyramids_are_built_for_the_frames_shown_only() {
 fn one_and_two_threads_and_a_resume_give_identical_frames() {
     let clip = scene("enright", 16, 4, 64);
     let kinds = [MethodKind::Erosion, MethodKind::LappedRigid];
-    let go = |threads: usize, kind: MethodKind| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .expect("pool");
-        pool.install(|| {
-            let mut m = build(&MethodParams::default(), kind, animated(&LEVELS, 1.0), 4);
-            let results = run(m.as_mut(), &clip);
-            results
-                .into_iter()
-                .map(|r| (r.channels, r.source))
-                .collect::<Vec<_>>()
+    let go = |threads, kind| {
+        clip.run_on_threads(threads, || {
+            build(&MethodParams::default(), kind, animated(&LEVELS, 1.0), 4)
         })
     };
     for kind in kinds {
@@ -249,6 +234,7 @@ fn one_and_two_threads_and_a_resume_give_identical_frames() {
             one == go(2, kind),
             "{kind}: thread count changed the frames"
         );
+        let one = one.0;
         // Resumed after frame 1: no phase is saved, yet the same frames.
         let mut a = build(&MethodParams::default(), kind, animated(&LEVELS, 1.0), 4);
         for k in 0..2 {
@@ -277,7 +263,7 @@ fn optimization_synthesises_each_frame_from_the_frame_shown() {
     params.optimization.passes_after_first = 1;
     let levels = [0.2, 0.8];
     let mut m = build(&params, MethodKind::Optimization, animated(&levels, 1.0), 2);
-    let results = run(m.as_mut(), &clip);
+    let results = clip.run(m.as_mut());
     // Texels outside the charts read 0; both levels are well above it.
     let mean = |r: &FrameResult| {
         let covered: Vec<f32> = (r.channels[0].data.iter())

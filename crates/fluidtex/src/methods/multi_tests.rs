@@ -73,12 +73,6 @@ fn small_patches() -> MethodParams {
     p
 }
 
-fn run(method: &mut dyn Method, clip: &Clip) -> Vec<FrameResult> {
-    (0..clip.meshes.len())
-        .map(|k| method.step(&clip.ctx(k)).expect("step"))
-        .collect()
-}
-
 /// Share of covered texels showing exemplar 1 (white), per frame, from the
 /// method's statistics, checked against the colour channel itself.
 fn white_shares(results: &[FrameResult]) -> Vec<f64> {
@@ -138,7 +132,7 @@ fn enright_30_70_by_probability_and_by_histogram() {
             let (mut means, mut errors) = (Vec::new(), Vec::new());
             for seed in seeds.clone() {
                 let mut m = build(kind, black_white(select), seed);
-                let v = white_shares(&run(m.as_mut(), &clip));
+                let v = white_shares(&clip.run(m.as_mut()));
                 let mae = v.iter().map(|x| (x - 0.7).abs()).sum::<f64>() / v.len() as f64;
                 println!(
                     "{kind} {select:?} seed {seed}: white share {:.3} (mean abs error per frame \
@@ -350,22 +344,8 @@ fn state_round_trip_keeps_exemplar_ids() {
 #[test]
 fn one_and_two_threads_give_identical_frames() {
     let clip = scene("enright", 20, 3, 96);
-    let go = |threads: usize, kind: MethodKind, select: ExemplarSelect| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .expect("pool");
-        pool.install(|| {
-            let mut m = build(kind, black_white(select), 4);
-            let results = run(m.as_mut(), &clip);
-            (
-                results
-                    .into_iter()
-                    .map(|r| (r.channels, r.source))
-                    .collect::<Vec<_>>(),
-                m.save_state().expect("state"),
-            )
-        })
+    let go = |threads, kind, select| {
+        clip.run_on_threads(threads, || build(kind, black_white(select), 4))
     };
     for kind in [MethodKind::Erosion, MethodKind::LappedRigid] {
         for select in [ExemplarSelect::Probability, ExemplarSelect::Histogram] {

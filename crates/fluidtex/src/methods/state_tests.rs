@@ -90,12 +90,6 @@ fn build(kind: MethodKind, set: ExemplarSet) -> Box<dyn Method> {
         .expect("builds")
 }
 
-fn run(method: &mut dyn Method, clip: &Clip) -> Vec<FrameResult> {
-    (0..clip.meshes.len())
-        .map(|k| method.step(&clip.ctx(k)).expect("step"))
-        .collect()
-}
-
 /// Mean colour of the covered texels: the share of glow shown (1 all
 /// glow, 0 all crust).
 fn glow_share(r: &FrameResult) -> f64 {
@@ -116,7 +110,7 @@ fn the_cold_exemplar_takes_over_progressively_and_then_holds_still() {
     let clip = cooling_plane();
     for kind in [MethodKind::Erosion, MethodKind::LappedRigid] {
         let mut m = build(kind, crust_and_glow(RATE));
-        let results = run(m.as_mut(), &clip);
+        let results = clip.run(m.as_mut());
         let glow: Vec<f64> = results.iter().map(glow_share).collect();
         println!(
             "{kind}: glow share per frame % {:?}",
@@ -182,7 +176,7 @@ fn without_the_mismatch_rule_old_patches_keep_their_glow() {
     // showing glow where the surface went cold.
     let clip = cooling_plane();
     let mut m = build(MethodKind::Erosion, crust_and_glow_drawn());
-    let results = run(m.as_mut(), &clip);
+    let results = clip.run(m.as_mut());
     let last = glow_share(&results[FRAMES - 1]);
     assert!(last > 0.2, "the control shows {last} glow at the end");
 }
@@ -192,7 +186,7 @@ fn a_slower_mismatch_rate_takes_longer() {
     let clip = cooling_plane();
     let frames_to_settle = |rate: f32| {
         let mut m = build(MethodKind::Erosion, crust_and_glow(rate));
-        let glow: Vec<f64> = run(m.as_mut(), &clip).iter().map(glow_share).collect();
+        let glow: Vec<f64> = clip.run(m.as_mut()).iter().map(glow_share).collect();
         glow.iter().position(|&g| g < 0.05).unwrap_or(FRAMES)
     };
     let (fast, slow) = (frames_to_settle(RATE), frames_to_settle(RATE / 3.0));
@@ -206,23 +200,7 @@ fn a_slower_mismatch_rate_takes_longer() {
 #[test]
 fn one_and_two_threads_give_identical_frames() {
     let clip = cooling_plane();
-    let go = |threads: usize, kind: MethodKind| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .expect("pool");
-        pool.install(|| {
-            let mut m = build(kind, crust_and_glow(RATE));
-            let results = run(m.as_mut(), &clip);
-            (
-                results
-                    .into_iter()
-                    .map(|r| (r.channels, r.source))
-                    .collect::<Vec<_>>(),
-                m.save_state().expect("state"),
-            )
-        })
-    };
+    let go = |threads, kind| clip.run_on_threads(threads, || build(kind, crust_and_glow(RATE)));
     for kind in [MethodKind::Erosion, MethodKind::LappedRigid] {
         assert!(go(1, kind) == go(2, kind), "{kind}");
     }
@@ -338,7 +316,7 @@ fn switches_the_state_forces_count_as_forced() {
     let clip = cooling_plane();
     let mut m = build(MethodKind::Erosion, crust_and_glow(RATE));
     m.set_renewal_read(true);
-    let results = run(m.as_mut(), &clip);
+    let results = clip.run(m.as_mut());
     let (mut with_state, mut without_state) = (0usize, 0usize);
     let mut switched = 0usize;
     for k in 1..FRAMES {

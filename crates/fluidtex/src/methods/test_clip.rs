@@ -4,7 +4,7 @@
 
 use glam::Vec3;
 
-use super::{FrameContext, PreviousFrame};
+use super::{FrameContext, FrameResult, Method, PreviousFrame};
 use crate::atlas::{Atlas, AtlasParams};
 use crate::mesh::{Topology, TriMesh};
 use crate::surface::SurfaceIndex;
@@ -36,6 +36,34 @@ impl Clip {
         }
     }
 
+    /// Every frame of the clip through `method`, in order.
+    pub(crate) fn run(&self, method: &mut dyn Method) -> Vec<FrameResult> {
+        (0..self.meshes.len())
+            .map(|k| method.step(&self.ctx(k)).expect("step"))
+            .collect()
+    }
+
+    /// The clip through the method `build` makes, on a pool of `threads`:
+    /// each frame's channels and sources, and the state saved at the end
+    /// (what must not depend on the thread count).
+    pub(crate) fn run_on_threads(
+        &self,
+        threads: usize,
+        build: impl FnOnce() -> Box<dyn Method> + Send,
+    ) -> (Vec<ChannelsAndSources>, Vec<u8>) {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("pool");
+        pool.install(|| {
+            let mut m = build();
+            let frames = (self.run(m.as_mut()).into_iter())
+                .map(|r| (r.channels, r.source))
+                .collect();
+            (frames, m.save_state().expect("state"))
+        })
+    }
+
     /// The context of frame `k` (numbered from 0, at 24 fps), with frame
     /// k − 1 as the previous one.
     pub(crate) fn ctx(&self, k: usize) -> FrameContext<'_> {
@@ -54,6 +82,9 @@ impl Clip {
         }
     }
 }
+
+/// A frame's channels and per-texel sources.
+pub(crate) type ChannelsAndSources = (Vec<crate::texture::Texture>, Option<Vec<u32>>);
 
 /// The first `frames` frames of built-in scene `name` at `resolution`.
 pub(crate) fn scene(name: &str, resolution: u32, frames: i32, atlas: u32) -> Clip {
