@@ -320,7 +320,7 @@ def animated_exemplar(a, s):
     """An animated exemplar through the panel's fields: a grid at rest
     textured with builtin:bubbles at half a frame per frame; returns
     whether the patch view (the sources) stayed put while the colour
-    changed, frame to frame, and what fluidtex said of the sequence."""
+    changed, frame to frame, and the command the add-on ran."""
     grid = grid_at_rest()
     s.use_scene_range = False
     s.frame_start, s.frame_end = 1, 3
@@ -339,7 +339,7 @@ def animated_exemplar(a, s):
             return f.read()
 
     with open(os.path.join(a.work, "animated", "fluidtex.log")) as f:
-        said = [line.strip() for line in f if line.startswith("animated exemplar")]
+        said = [line.strip() for line in f if line.startswith("$ ")]
     s.exemplar = ""
     return {
         # Rate 0.5: frames 2 and 3 show different exemplar frames for

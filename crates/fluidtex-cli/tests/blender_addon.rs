@@ -178,13 +178,13 @@ fn blender_addon_textures_a_baked_liquid_and_renders_it() {
         let a = a.as_f64().unwrap();
         assert!(a > 0.8, "state agreement {a}");
     }
-    // An animated exemplar from the panel: the rate reaches fluidtex, which
-    // states the sequence before the run, and on a liquid at rest the
-    // sources stay while the colour animates.
+    // An animated exemplar from the panel: the exemplar and its rate reach
+    // fluidtex (the log starts with the command), and on a liquid at rest
+    // the sources stay while the colour animates.
     let animated = &report["animated"];
-    let said = animated["said"][0].as_str().unwrap_or_default();
+    let command = animated["said"][0].as_str().unwrap_or_default();
     assert!(
-        said.contains("builtin:bubbles: 16 frames") && said.contains("0.5 exemplar frame"),
+        command.contains("--exemplar builtin:bubbles") && command.contains("--exemplar-rate 0.5"),
         "{animated}"
     );
     assert_eq!(animated["patches_same"], true, "{animated}");

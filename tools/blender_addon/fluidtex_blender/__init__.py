@@ -40,6 +40,7 @@ bl_info = {
 }
 
 import os
+import shlex
 import shutil
 import struct
 import subprocess
@@ -478,6 +479,9 @@ def texture_job(context, ob, settings):
     log_path = os.path.join(work, "fluidtex.log")
     started = time.time()
     with open(log_path, "w") as log:
+        # The command first: the log then says what was run, to rerun it by hand.
+        log.write("$ " + shlex.join(args) + "\n")
+        log.flush()
         proc = subprocess.Popen(args, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
         while proc.poll() is None:
             done = finished_frames(out, started)

@@ -108,12 +108,17 @@ pub fn execute(
     max_memory: Option<u64>,
     phase: Phase,
 ) -> Result<()> {
-    let mut method = build_method(config)?;
+    let mut notes = Vec::new();
+    let mut method = build_method_noting(config, &mut notes)?;
     let mut job = build_job(config, out.clone(), resume)?;
     job.max_memory = max_memory;
     job.phase = phase;
     let total = source.frames().len() as u64;
     let progress = Progress::new(total, method.name(), quiet);
+    // Stated before the first frame: what animated exemplars take.
+    for note in &notes {
+        progress.info(note);
+    }
     let mut estimated = None;
     let mut observer = |e: Event<'_>| match e {
         Event::Start { number, .. } => progress.set_message(format!("frame {number}")),
@@ -347,11 +352,13 @@ pub fn build_exemplar_set(config: &Config) -> Result<ExemplarSet> {
         Some(rate) => set.with_clock(ExemplarClock::new(rate)?),
         None => set,
     };
-    // Stated before the first frame: what the frames take, and the budget.
-    for line in set.animation_summary(Budget::of(config).limit.bytes) {
-        eprintln!("{line}");
-    }
     Ok(set)
+}
+
+/// What a run says of its animated exemplars before the first frame:
+/// their frames, rate and memory against the budget.
+fn animation_notes(set: &ExemplarSet, config: &Config) -> Vec<String> {
+    set.animation_summary(Budget::of(config).limit.bytes)
 }
 
 fn build_exemplar_entries(config: &Config) -> Result<ExemplarSet> {
@@ -487,10 +494,18 @@ fn select_by(config: &Config) -> Result<Option<SelectBy>> {
 /// The method the config names, its parameters checked before the
 /// exemplar is read.
 pub fn build_method(config: &Config) -> Result<Box<dyn Method>> {
+    build_method_noting(config, &mut Vec::new())
+}
+
+/// [`build_method`], adding to `notes` what the run should say of its
+/// exemplars before the first frame.
+fn build_method_noting(config: &Config, notes: &mut Vec<String>) -> Result<Box<dyn Method>> {
     config
         .method_params()
         .build_set(config.method_kind(), config.seed.unwrap_or(0), || {
-            build_exemplar_set(config)
+            let set = build_exemplar_set(config)?;
+            notes.extend(animation_notes(&set, config));
+            Ok(set)
         })
 }
 
