@@ -51,15 +51,7 @@ impl ExemplarTone {
     /// exemplar, not per frame).
     pub fn of(exemplar: &Exemplar) -> ExemplarTone {
         let c = exemplar.total_channels();
-        let data = &exemplar.packed.data;
-        let texels = (data.len() / c.max(1)).max(1) as f64;
-        let mut mean = vec![0.0f64; c];
-        for texel in data.chunks_exact(c.max(1)) {
-            for (m, &v) in mean.iter_mut().zip(texel) {
-                *m += f64::from(v);
-            }
-        }
-        mean.iter_mut().for_each(|m| *m /= texels);
+        let mean = ExemplarTone::means_of(exemplar).mean;
         let points = r2_points(TONE_SAMPLES);
         let top = exemplar.max_lod();
         let steps = (top / TONE_LOD_STEP).ceil() as usize;
@@ -88,6 +80,25 @@ impl ExemplarTone {
         ExemplarTone {
             mean,
             variance_by_lod,
+        }
+    }
+
+    /// The means alone, from level 0 (no variance table, so no mip
+    /// pyramid is read): all that mean matching and transitions use.
+    pub fn means_of(exemplar: &Exemplar) -> ExemplarTone {
+        let c = exemplar.total_channels();
+        let data = &exemplar.packed.data;
+        let texels = (data.len() / c.max(1)).max(1) as f64;
+        let mut mean = vec![0.0f64; c];
+        for texel in data.chunks_exact(c.max(1)) {
+            for (m, &v) in mean.iter_mut().zip(texel) {
+                *m += f64::from(v);
+            }
+        }
+        mean.iter_mut().for_each(|m| *m /= texels);
+        ExemplarTone {
+            mean,
+            variance_by_lod: Vec::new(),
         }
     }
 

@@ -181,8 +181,8 @@ fn pyramids_are_built_for_the_frames_shown_only() {
     let per_frame = shown[0].pyramid_bytes();
     assert!(per_frame > 0);
     assert!(shown.iter().all(|e| !e.pyramid_built()), "built before use");
+    // The defaults (mean tone matching reads no pyramid).
     let mut params = MethodParams::default();
-    params.erosion.tone = Tone::Off;
     params.erosion.radius_fraction = 0.3;
     params.erosion.radius_edges = 0.0;
     let mut m = build(&params, MethodKind::Erosion, set, 5);
@@ -217,6 +217,19 @@ fn pyramids_are_built_for_the_frames_shown_only() {
         "every pyramid was built for {} frames shown",
         seen.len()
     );
+    // The control: contrast matching measures every frame at every level,
+    // so it builds all 64 pyramids on its first frame.
+    let all = frames(&levels);
+    let set = ExemplarSet::animated(
+        vec![("grey.####.png".into(), all.clone(), 1.0)],
+        ExemplarSelect::Probability,
+        None,
+    )
+    .expect("one layout");
+    params.erosion.tone = Tone::Match;
+    let mut m = build(&params, MethodKind::Erosion, set, 5);
+    m.step(&clip.ctx(0)).expect("step");
+    assert!(all.iter().all(|e| e.pyramid_built()));
 }
 
 #[test]

@@ -241,13 +241,24 @@ impl Erosion {
         ErosionTest::with_reach(feature, self.params.epsilon, reach)
     }
 
-    /// Each exemplar's statistics, measured once.
+    /// Each exemplar's statistics, measured once: the means for mean
+    /// matching and transitions, the variance by level too for contrast
+    /// matching (which reads every mip pyramid).
     pub(super) fn exemplar_tones(&mut self) -> &[ExemplarTone] {
         let exemplars = match &self.multi {
             Some(m) => m.set.exemplars(),
             None => std::slice::from_ref(&self.exemplar),
         };
+        let contrast = self.variant == Variant::Erode && self.params.tone == Tone::Match;
         self.tones.get_or_insert_with(|| {
+            if !contrast {
+                // No pyramid is read: an animated exemplar's frames keep
+                // theirs unbuilt until a patch shows them.
+                return exemplars
+                    .iter()
+                    .map(|e| ExemplarTone::means_of(e))
+                    .collect();
+            }
             // Every frame of an animated exemplar is measured, so every
             // pyramid is built here: in parallel, not one by one.
             if let Some(m) = &self.multi {
