@@ -320,15 +320,31 @@ impl ExemplarSet {
 
     /// Frames of entry `entry` (1 for a still exemplar, 0 for no entry).
     pub fn frame_count(&self, entry: u32) -> u32 {
-        self.frames.get(entry as usize).copied().unwrap_or(0)
+        self.span(entry).map_or(0, |(_, n)| n)
     }
 
     /// The slots of entry `entry`'s frames (empty for no entry).
     pub fn slots_of(&self, entry: u32) -> std::ops::Range<usize> {
+        self.span(entry)
+            .map_or(0..0, |(first, n)| first as usize..(first + n) as usize)
+    }
+
+    /// Entry `entry`'s first slot and frame count.
+    #[inline]
+    fn span(&self, entry: u32) -> Option<(u32, u32)> {
         let e = entry as usize;
-        match (self.first.get(e), self.frames.get(e)) {
-            (Some(&first), Some(&n)) => first as usize..(first + n) as usize,
-            _ => 0..0,
+        Some((*self.first.get(e)?, *self.frames.get(e)?))
+    }
+
+    /// The slot of the frame `frame(φ, n)` of entry `entry` for the patch
+    /// keyed `key` (its phase φ); the entry's one slot when it is still,
+    /// slot 0 for no entry.
+    #[inline]
+    fn slot_by(&self, entry: u32, seed: u64, key: u64, frame: impl Fn(f64, u32) -> u32) -> u32 {
+        match self.span(entry) {
+            None => 0,
+            Some((first, n)) if n <= 1 => first,
+            Some((first, n)) => first + frame(ExemplarClock::phase(seed, key, n), n),
         }
     }
 
@@ -338,14 +354,7 @@ impl ExemplarSet {
     /// entry reads slot 0.
     #[inline]
     pub fn slot(&self, entry: u32, seed: u64, key: u64, t: i32) -> u32 {
-        let e = entry as usize;
-        let (Some(&first), Some(&n)) = (self.first.get(e), self.frames.get(e)) else {
-            return 0;
-        };
-        if n <= 1 {
-            return first;
-        }
-        first + self.clock.frame(t, ExemplarClock::phase(seed, key, n), n)
+        self.slot_by(entry, seed, key, |phase, n| self.clock.frame(t, phase, n))
     }
 
     /// The slot whose feature map shapes the patch (its erosion and mask)
@@ -353,14 +362,8 @@ impl ExemplarSet {
     /// a fluid at rest keeps every source while the colour animates.
     #[inline]
     pub fn feature_slot(&self, entry: u32, seed: u64, key: u64) -> u32 {
-        let e = entry as usize;
-        let (Some(&first), Some(&n)) = (self.first.get(e), self.frames.get(e)) else {
-            return 0;
-        };
-        if n <= 1 {
-            return first;
-        }
-        first + ExemplarClock::phase(seed, key, n) as u32 % n
+        // φ < n, so ⌊φ⌋ is a frame.
+        self.slot_by(entry, seed, key, |phase, n| (phase as u32).min(n - 1))
     }
 
     /// Builds the mip pyramids of `slots` that are not built yet, in

@@ -47,28 +47,36 @@ pub struct Multi {
 
 /// What the fill reads per patch exemplar.
 pub struct MultiFill<'a> {
-    pub set: &'a ExemplarSet,
     pub exemplars: &'a [Arc<Exemplar>],
     pub features: Vec<FeatureLevelSampler<'a>>,
     pub tests: &'a [ErosionTest],
-    pub seed: u64,
-    pub frame: i32,
+    /// Per patch id, for an animated set: the slot shown this frame and
+    /// the feature slot, looked up once per frame rather than hashed per
+    /// texel. Empty without animation (slot = entry).
+    slots: Vec<u32>,
+    feature_slots: Vec<u32>,
+    multi: &'a Multi,
 }
 
 impl MultiFill<'_> {
     /// The slot patch `p` reads this frame.
     #[inline]
     pub fn slot(&self, p: &Patch) -> usize {
-        self.set
-            .slot(p.exemplar, self.seed, u64::from(p.id), self.frame) as usize
+        match self.slots.get(p.id as usize) {
+            Some(&s) => s as usize,
+            // A patch created after the table (the update's): computed.
+            None => self.multi.slot(p) as usize,
+        }
     }
 
     /// The slot whose feature map and erosion test shape patch `p`
     /// ([`ExemplarSet::feature_slot`]).
     #[inline]
     pub fn feature_slot(&self, p: &Patch) -> usize {
-        self.set
-            .feature_slot(p.exemplar, self.seed, u64::from(p.id)) as usize
+        match self.feature_slots.get(p.id as usize) {
+            Some(&s) => s as usize,
+            None => self.multi.feature_slot(p) as usize,
+        }
     }
 }
 
@@ -112,23 +120,28 @@ impl Multi {
             .feature_slot(p.exemplar, self.seed, u64::from(p.id))
     }
 
-    /// Builds the pyramids of the slots `patches` show this frame (an
-    /// animated exemplar builds each frame's when first shown).
-    pub fn prepare(&self, patches: &[Patch]) {
-        if self.set.is_animated() {
-            self.set.prepare(patches.iter().map(|p| self.slot(p)));
-        }
-    }
-
-    /// The fill's view, for one frame.
-    pub fn fill(&self) -> MultiFill<'_> {
+    /// The fill's view of one frame over `patches` (ids below `next_id`):
+    /// with an animated set, the slots each patch reads, their pyramids
+    /// built (each frame's when first shown).
+    pub fn fill(&self, patches: &[Patch], next_id: u32) -> MultiFill<'_> {
+        let (slots, feature_slots) = if self.set.is_animated() {
+            let slots = self.slots_by_id(patches, next_id);
+            self.set.prepare(
+                patches
+                    .iter()
+                    .filter_map(|p| slots.get(p.id as usize).copied()),
+            );
+            (slots, by_id_of(patches, next_id, |p| self.feature_slot(p)))
+        } else {
+            (Vec::new(), Vec::new())
+        };
         MultiFill {
-            set: &self.set,
             exemplars: self.set.exemplars(),
             features: self.levels.iter().map(FeatureLevels::samplers).collect(),
             tests: &self.tests,
-            seed: self.seed,
-            frame: self.frame,
+            slots,
+            feature_slots,
+            multi: self,
         }
     }
 

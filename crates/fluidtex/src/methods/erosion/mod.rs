@@ -735,8 +735,14 @@ impl Erosion {
             .map(|_| exemplars::by_id(&self.state.patches, self.state.next_id));
         let slots = self.multi.as_ref().map(|m| {
             if m.set.is_animated() {
-                m.prepare(&self.state.patches);
-                m.slots_by_id(&self.state.patches, self.state.next_id)
+                let slots = m.slots_by_id(&self.state.patches, self.state.next_id);
+                m.set.prepare(
+                    self.state
+                        .patches
+                        .iter()
+                        .filter_map(|p| slots.get(p.id as usize).copied()),
+                );
+                slots
             } else {
                 by_id.clone().unwrap_or_default()
             }
@@ -822,10 +828,8 @@ impl Erosion {
         // 3. Lapped (or blended) fill.
         let tolerance = LocateTolerance::for_radius(radius);
         let feature = self.feature_levels.samplers();
-        if let Some(m) = &self.multi {
-            m.prepare(&self.state.patches);
-        }
-        let multi_fill = self.multi.as_ref().map(exemplars::Multi::fill);
+        let multi_fill =
+            (self.multi.as_ref()).map(|m| m.fill(&self.state.patches, self.state.next_id));
         let mut blended = Blended::default();
         let exemplar = Arc::clone(&self.exemplar);
         let fluid = fill::FluidTriangles::new(mesh);
