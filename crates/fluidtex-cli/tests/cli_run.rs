@@ -486,6 +486,12 @@ fn scene_then_run_with_erosion_covers_every_texel() {
             (forced + unforced - share).abs() < 1e-9,
             "frame {f}: {forced} + {unforced} against {share}"
         );
+        // Of the unforced, those whose earlier patch still shows the point.
+        let shown = stats["switch_unforced_shown_share"].as_f64().unwrap();
+        assert!(
+            (0.0..=unforced).contains(&shown),
+            "frame {f}: {shown} of {unforced}"
+        );
         assert!(stats["holder_distorted_share"].as_f64().unwrap() <= 1.0);
         // The same points by region: all of this sphere's are bulk.
         let regions = &stats["switch_by_region"];

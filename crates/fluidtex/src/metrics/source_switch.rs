@@ -29,7 +29,7 @@
 //! only one way would halve it for the method that leaves holes.
 
 use super::{MetricsError, SOURCE_OUTSIDE, SOURCE_UNCOVERED};
-use crate::provenance::{RENEWAL_DISTORTED, RENEWAL_UNKNOWN, renewal_forced, renewal_unforced};
+use crate::provenance::{RENEWAL_DISTORTED, RENEWAL_SHOWN, RENEWAL_UNKNOWN, renewal_forced, renewal_unforced};
 
 /// Source switches of one frame pair.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -119,6 +119,11 @@ pub struct SwitchCauses {
     pub forced: usize,
     /// Of those, switched and unforced.
     pub unforced: usize,
+    /// Of the unforced, those whose previous patch still shows the point by
+    /// the method's own reckoning ([`crate::provenance::RENEWAL_SHOWN`]):
+    /// the velocity carried the point across a border that the method's
+    /// own advection of the patch did not, so no patch was renewed there.
+    pub unforced_shown: usize,
     /// Of those, points whose previous patch is past δ_max at t+1, switched
     /// or not: on a run that never renews a patch (advect) this is the
     /// *renewal floor*, the share of the surface the distortion bound
@@ -143,6 +148,11 @@ impl SwitchCauses {
     /// unforced / covered (NaN when no renewal is known).
     pub fn unforced_share(&self) -> f64 {
         self.share(self.unforced)
+    }
+
+    /// unforced_shown / covered (NaN when no renewal is known).
+    pub fn unforced_shown_share(&self) -> f64 {
+        self.share(self.unforced_shown)
     }
 
     /// distorted / covered (NaN when no renewal is known).
@@ -184,6 +194,7 @@ pub fn switch_causes(
         if a != b {
             out.forced += usize::from(renewal_forced(r));
             out.unforced += usize::from(renewal_unforced(r));
+            out.unforced_shown += usize::from(renewal_unforced(r) && r & RENEWAL_SHOWN != 0);
         }
     }
     Ok(out)
@@ -239,9 +250,13 @@ mod tests {
                 covered: 7,
                 forced: 2,
                 unforced: 3,
+                unforced_shown: 1,
                 distorted: 2,
             }
         );
+        // Of the unforced switches (points 2, 3, 8), point 3's previous
+        // patch still shows it; point 5's does too, but it did not switch.
+        assert_eq!(c.unforced_shown_share(), 1.0 / 7.0);
         assert_eq!(c.forced_share(), 2.0 / 7.0);
         assert_eq!(c.unforced_share(), 3.0 / 7.0);
         assert_eq!(c.distorted_share(), 2.0 / 7.0);

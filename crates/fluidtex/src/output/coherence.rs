@@ -157,6 +157,7 @@ fn record(
     if c.causes.covered > 0 {
         stats.switch_forced_share = Some(c.causes.forced_share());
         stats.switch_unforced_share = Some(c.causes.unforced_share());
+        stats.switch_unforced_shown_share = Some(c.causes.unforced_shown_share());
         stats.holder_distorted_share = Some(c.causes.distorted_share());
     }
     stats.colour_follow_ratio = Some(c.follow_ratio());

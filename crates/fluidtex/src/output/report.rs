@@ -49,6 +49,12 @@ pub struct FrameStats {
     /// within δ_max there: switches the method chose, not the flow.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub switch_unforced_share: Option<f64>,
+    /// Of those, the share whose patch of the frame before still shows the
+    /// point by the method's own advection: the velocity carried the point
+    /// across a border the patch's own advection did not (a disagreement
+    /// between the two carries, no renewal).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub switch_unforced_shown_share: Option<f64>,
     /// The share whose patch of the frame before is past δ_max there,
     /// switched or not; on `advect`, which never renews, the share of the
     /// surface the distortion bound would renew (the renewal floor).
