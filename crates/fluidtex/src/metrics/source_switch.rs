@@ -29,7 +29,9 @@
 //! only one way would halve it for the method that leaves holes.
 
 use super::{MetricsError, SOURCE_OUTSIDE, SOURCE_UNCOVERED};
-use crate::provenance::{RENEWAL_DISTORTED, RENEWAL_SHOWN, RENEWAL_UNKNOWN, renewal_forced, renewal_unforced};
+use crate::provenance::{
+    RENEWAL_DISTORTED, RENEWAL_SHOWN, RENEWAL_UNKNOWN, renewal_forced, renewal_unforced,
+};
 
 /// Source switches of one frame pair.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -136,6 +136,7 @@ struct Prepared {
 }
 
 /// A chart's outline at one scale and quarter turn, in grid cells.
+#[derive(PartialEq)]
 struct Profile {
     /// Cell rows `lo[i]..hi[i]` of cell column i may hold texels (lo ≥ hi:
     /// none).
@@ -383,9 +384,20 @@ fn place(profiles: &[Vec<Profile>], order: &[usize], grid: Grid) -> Option<(Vec<
         // score and, among equals, the smallest x; the smallest score, then
         // the smaller quarter turn, wins: the choice the turns made one after
         // the other would make, whatever the thread count.
-        let found: Vec<Option<(i32, i32, i32)>> = profiles[c]
+        // A turn whose outline equals an earlier turn's (a small or
+        // symmetric chart) would land where that one does and lose the tie
+        // to it: it is not searched.
+        let turns = &profiles[c];
+        let found: Vec<Option<(i32, i32, i32)>> = turns
             .par_iter()
-            .map(|prof| lowest_place(prof, &space, grid))
+            .enumerate()
+            .map(|(q, prof)| {
+                if turns[..q].contains(prof) {
+                    None
+                } else {
+                    lowest_place(prof, &space, grid)
+                }
+            })
             .collect();
         let best = found
             .iter()
@@ -551,32 +563,33 @@ impl Space {
         // Each step lifts the outline just clear of a run that blocks it,
         // and every lower offset up to there is blocked by that same run,
         // so the result is the lowest fit whatever the column order; the
-        // order starts at `hint`, the column that last ended a search.
+        // order starts at `hint`, the column that last ended a search. The
+        // search ends once every column in turn, since the last lift, found
+        // nothing in the way.
         let n = prof.lo.len();
-        let first = (*hint).min(n - 1);
+        let mut i = (*hint).min(n - 1);
+        let mut clear = 0;
         let mut y = start;
-        loop {
-            let mut moved = false;
-            for i in (first..n).chain(0..first) {
-                let (lo, hi) = (prof.lo[i], prof.hi[i]);
-                if lo >= hi {
-                    continue;
-                }
+        while clear < n {
+            let (lo, hi) = (prof.lo[i], prof.hi[i]);
+            if lo < hi {
                 let runs = &self.occupied[x as usize + i];
                 let k = runs.partition_point(|&(_, e)| e <= y + lo);
                 if k < runs.len() && runs[k].0 < y + hi {
                     y = runs[k].1 - lo;
-                    moved = true;
                     if y >= bound {
                         *hint = i;
                         return y;
                     }
+                    // The column may meet its next run at the new offset.
+                    clear = 0;
+                    continue;
                 }
             }
-            if !moved {
-                return y;
-            }
+            clear += 1;
+            i = if i + 1 == n { 0 } else { i + 1 };
         }
+        y
     }
 }
 
