@@ -514,6 +514,9 @@ pub struct RunFlags {
     /// Split patch edges longer than this many median edge lengths of the frame (0: never, the paper) [2]
     #[arg(long)]
     pub split_edges: Option<f32>,
+    /// Erosion: after each frame a patch keeps only the triangles within this fraction of r of a texel it showed; the rest, hidden under older patches, go (0: keep them, the paper) [0.1]
+    #[arg(long)]
+    pub hidden_reach: Option<f32>,
     /// Distortion at which erosion starts: Q_T = 1 below it, then falls linearly to 0 at δ_max [1.5; 1: the paper's Eq. 1]
     #[arg(long)]
     pub delta_onset: Option<f32>,
@@ -686,6 +689,7 @@ flag_keys! {
     orientation => erosion.orientation: value,
     radius_edges => erosion.radius_edges: value,
     split_edges => erosion.split_edges: value,
+    hidden_reach => erosion.hidden_reach: value,
     tone => erosion.tone: value,
     transition => erosion.transition: value,
     patch_region => erosion.patch_region: value,

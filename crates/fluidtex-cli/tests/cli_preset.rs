@@ -65,6 +65,8 @@ fn the_paper_preset_changes_each_method_and_only_what_the_ledger_lists() {
         "footprint",
         "--split-edges",
         "2",
+        "--hidden-reach",
+        "0.1",
         "--tone",
         "mean",
         "--exemplar-filter",

@@ -701,6 +701,7 @@ impl Erosion {
         clock: &mut StageClock,
     ) -> Texels {
         let mut out = self.fill_buffers(ctx.atlas);
+        let shape = setup.as_ref().map(|s| s.shape);
         let mut blended = match setup {
             Some(setup) => self.fill_and_cover(ctx, &setup, &mut out, counts, clock),
             None => Blended::default(),
@@ -711,6 +712,9 @@ impl Erosion {
             ids.extend(blended.transitions.iter().map(|e| e.patch_id));
         }
         counts.unused = self.delete_unused(&out, kept.as_deref());
+        if let Some(shape) = shape {
+            counts.pruned += self.prune_hidden(&out, &blended, &shape);
+        }
         clock.lap("delete");
         Texels { out, blended }
     }
@@ -985,6 +989,72 @@ impl Erosion {
                     .copied()
                     .unwrap_or(test);
                 p.prune_eroded(&test, shape, weights_can_rise, keep_earlier)
+            })
+            .sum()
+    }
+
+    /// Drops, after the frame's fill, the triangles of each patch that lie
+    /// farther than `hidden_reach` × r (in its rest space) from every texel
+    /// it showed ([`Patch::prune_hidden`]); returns how many went. Only the
+    /// eroding method, and not the patches a transition still shows as an
+    /// earlier source.
+    ///
+    /// Not in the paper, which keeps a patch whole until it shows nothing.
+    /// A new patch goes under every older one, so most of its disc starts
+    /// hidden; on a splashing liquid, where hundreds of patches are made
+    /// per frame, those hidden parts piled up to 6–7 layers of patch
+    /// triangles per surface triangle, each advected, split and located
+    /// every frame. When an older patch erodes there later, a hidden part
+    /// would show a patch that has been stretched all the while; without
+    /// it the update makes a fresh one there instead. On frames 2–48 of a
+    /// Mantaflow splash (atlas 1024, default radius), a reach of 0.1 r
+    /// halved the patch triangles (6.7 → 3.3 per surface triangle), cut the
+    /// fill by 39 % and lowered the switch share (46.5 % → 44.4 %), with
+    /// 36 % more patches made per frame.
+    fn prune_hidden(&mut self, out: &FillBuffers, blended: &Blended, shape: &PatchShape) -> usize {
+        let reach = self.params.hidden_reach;
+        if self.variant != Variant::Erode || !self.prune_eroded || reach <= 0.0 {
+            return 0;
+        }
+        let cell = reach * shape.radius / shape.exemplar_size;
+        let patches = &mut self.state.patches;
+        let max_id = patches.iter().map(|p| p.id as usize).max().unwrap_or(0);
+        let mut index = vec![u32::MAX; max_id + 1];
+        for (i, p) in patches.iter().enumerate() {
+            index[p.id as usize] = i as u32;
+        }
+        let of_source = |s: u32| {
+            crate::provenance::patch_of(s)
+                .and_then(|id| index.get(id as usize))
+                .filter(|&&i| i != u32::MAX)
+                .map(|&i| i as usize)
+        };
+        let mut shown: Vec<Vec<(i32, i32)>> = vec![Vec::new(); patches.len()];
+        for (&s, &uv) in out.source.iter().zip(&out.uv) {
+            if let Some(i) = of_source(s) {
+                let c = patch::rest_cell(uv, cell);
+                // Neighbouring texels mostly share a cell.
+                if shown[i].last() != Some(&c) {
+                    shown[i].push(c);
+                }
+            }
+        }
+        let mut whole = vec![false; patches.len()];
+        for t in &blended.transitions {
+            if let Some(&i) = index.get(t.patch_id as usize).filter(|&&i| i != u32::MAX) {
+                whole[i as usize] = true;
+            }
+        }
+        patches
+            .par_iter_mut()
+            .zip(shown.par_iter_mut())
+            .zip(whole.par_iter())
+            .map(|((p, cells), &whole)| {
+                if whole {
+                    0
+                } else {
+                    p.prune_hidden(cells, cell)
+                }
             })
             .sum()
     }

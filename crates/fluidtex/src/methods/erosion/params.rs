@@ -71,6 +71,12 @@ pub struct ErosionParams {
     /// curved surface whose middle leaves the surface, so its coverage
     /// flickers as the fluid is re-meshed (see [`super::patch::Patch::refine`]).
     pub split_edges: f32,
+    /// After each frame, a patch keeps only the triangles within about this
+    /// fraction of r (in its rest space) of a texel it showed \[0.1]; the
+    /// rest lie hidden under older patches and go (0: every triangle is
+    /// kept until the patch shows nothing, as in the paper). See
+    /// `Erosion::prune_hidden`.
+    pub hidden_reach: f32,
     /// Per frame, each channel's mean over the covered texels is moved to
     /// the exemplar's \[mean]; `match` also matches its contrast to the
     /// exemplar's as shown (see [`crate::methods::tone`]): the
@@ -235,6 +241,7 @@ impl Default for ErosionParams {
             up_axis: [0.0, 1.0, 0.0],
             radius_edges: 4.0,
             split_edges: 2.0,
+            hidden_reach: 0.1,
             tone: Tone::Mean,
             transition: 0,
             patch_region: PatchRegion::Connected,
@@ -305,6 +312,7 @@ impl ErosionParams {
                 "0 or [0.5, 1000]",
             )?;
         }
+        check_range("hidden_reach", self.hidden_reach, 0.0, 10.0, "[0, 10]")?;
         let axis = glam::Vec3::from(self.up_axis);
         if !axis.is_finite() || axis.length() < 1e-6 {
             return Err(MethodError::InvalidParameter {

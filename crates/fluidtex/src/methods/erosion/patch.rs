@@ -77,6 +77,12 @@ pub const MAX_SPLIT_ROUNDS: usize = 6;
 /// distance of Sec. 4, r/4).
 pub const GAP_FRACTION: f32 = 0.25;
 
+/// The rest-space cell of side `cell` that holds `uv`
+/// ([`Patch::prune_hidden`]).
+pub fn rest_cell(uv: Vec2, cell: f32) -> (i32, i32) {
+    ((uv.x / cell).floor() as i32, (uv.y / cell).floor() as i32)
+}
+
 /// Where one patch vertex goes over a frame interval: a function of its
 /// position alone (and of the flow, the next surface and the shape, the
 /// same for every patch of a frame).
@@ -583,6 +589,40 @@ impl Patch {
                         let q = t.map(|v| self.positions[v as usize]);
                         distortion(uv.map(|p| p * s), q).delta >= shape.delta_max as f64
                     })
+            })
+            .collect();
+        self.prune(&dead)
+    }
+
+    /// Drops the triangles that lie away from what the patch showed
+    /// ([`Erosion::prune_hidden`](super::Erosion)): `shown` holds the rest-space cells
+    /// ([`rest_cell`], side `cell`) of the texels it showed on this frame
+    /// (sorted here); a triangle is kept when its rest-space bounding box,
+    /// grown by one cell, meets one of them. So every triangle that holds a
+    /// shown texel stays, and every one farther than two cells from all of
+    /// them goes. A still patch is skipped (a fluid at rest keeps its
+    /// state to the bit). Returns how many went.
+    pub fn prune_hidden(&mut self, shown: &mut Vec<(i32, i32)>, cell: f32) -> usize {
+        if self.still || cell.is_nan() || cell <= 0.0 {
+            return 0;
+        }
+        shown.sort_unstable();
+        shown.dedup();
+        let near = |x0: i32, x1: i32, y0: i32, y1: i32| {
+            // The cells of column x within y0..=y1 lie together in `shown`.
+            (x0..=x1).any(|x| {
+                let k = shown.partition_point(|&c| c < (x, y0));
+                k < shown.len() && shown[k].0 == x && shown[k].1 <= y1
+            })
+        };
+        let dead: Vec<bool> = self
+            .triangles
+            .iter()
+            .map(|t| {
+                let uv = t.map(|v| self.rest[v as usize]);
+                let (lo, hi) = (uv[0].min(uv[1]).min(uv[2]), uv[0].max(uv[1]).max(uv[2]));
+                let (a, b) = (rest_cell(lo, cell), rest_cell(hi, cell));
+                !near(a.0 - 1, b.0 + 1, a.1 - 1, b.1 + 1)
             })
             .collect();
         self.prune(&dead)

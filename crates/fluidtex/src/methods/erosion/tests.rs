@@ -1739,6 +1739,41 @@ fn patch_cost_follows_the_surface_not_the_history() {
 }
 
 #[test]
+fn hidden_parts_of_patches_go_and_every_texel_stays_covered() {
+    // The vortex renews patches all along its shear: each new patch goes
+    // under the older ones, and most of its disc is hidden there.
+    let c = scene("vortex", 16, 24, 128);
+    let run = |reach: f32| {
+        let params = ErosionParams {
+            hidden_reach: reach,
+            ..ErosionParams::default()
+        };
+        let mut method = Erosion::new(params, exemplar(), 3).expect("params");
+        (0..c.meshes.len())
+            .map(|k| {
+                let r = method.step(&c.ctx(k)).expect("step");
+                assert_eq!(r.stats["uncovered_texels"], 0, "reach {reach}, frame {k}");
+                r.stats["patch_triangles"].as_u64().expect("triangles")
+            })
+            .collect::<Vec<u64>>()
+    };
+    let pruned = run(0.1);
+    // Control: the paper keeps every triangle until the patch shows nothing.
+    let whole = run(0.0);
+    let (a, b): (u64, u64) = (pruned[4..].iter().sum(), whole[4..].iter().sum());
+    assert!(
+        10 * a < 8 * b,
+        "patch triangles from frame 4 on: {a} pruned against {b} kept whole"
+    );
+    assert!(
+        pruned[0] < whole[0],
+        "the first frame's hidden parts go: {} against {}",
+        pruned[0],
+        whole[0]
+    );
+}
+
+#[test]
 fn pruning_drops_exactly_the_wholly_eroded_triangles_and_keeps_the_border() {
     let mesh = grid(20, 0.1);
     let s = shape(0.5);
@@ -1795,6 +1830,82 @@ fn pruning_drops_exactly_the_wholly_eroded_triangles_and_keeps_the_border() {
         assert_eq!(patch.prune_eroded(&test, &s, false, false), 0);
     }
     assert!(pruned_any > 100, "{pruned_any}");
+}
+
+/// The smallest Chebyshev distance from `p` to triangle `t`'s rest-space
+/// bounding box (0 inside it).
+fn box_distance(p: Vec2, t: [Vec2; 3]) -> f32 {
+    let lo = t[0].min(t[1]).min(t[2]);
+    let hi = t[0].max(t[1]).max(t[2]);
+    let d = (lo - p).max(p - hi).max(Vec2::ZERO);
+    d.x.max(d.y)
+}
+
+#[test]
+fn hidden_pruning_keeps_what_was_shown_and_drops_what_lies_two_cells_away() {
+    let mesh = grid(20, 0.1);
+    let s = shape(0.5);
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(11);
+    let (mut dropped, mut kept_near) = (0, 0);
+    for case in 0..20 {
+        let at = SurfacePoint::new(rng.random_range(300..500), [0.2, 0.3, 0.5]);
+        let mut patch = create_on(&mesh, at, &s, rng.random::<f32>() * 6.0);
+        let before = patch.clone();
+        let cell = 0.02 + 0.08 * rng.random::<f32>();
+        // Shown texels: a few random points inside random triangles.
+        let shown: Vec<Vec2> = (0..rng.random_range(1..6))
+            .map(|_| {
+                let t = before.triangles[rng.random_range(0..before.triangles.len())];
+                let (a, b) = (rng.random::<f32>(), rng.random::<f32>());
+                let (a, b) = if a + b > 1.0 {
+                    (1.0 - a, 1.0 - b)
+                } else {
+                    (a, b)
+                };
+                let q = t.map(|v| before.rest[v as usize]);
+                q[0] + (q[1] - q[0]) * a + (q[2] - q[0]) * b
+            })
+            .collect();
+        let mut cells: Vec<(i32, i32)> = shown.iter().map(|&p| patch::rest_cell(p, cell)).collect();
+        let removed = patch.prune_hidden(&mut cells, cell);
+        let after: Vec<[Vec3; 3]> = (patch.triangles.iter())
+            .map(|t| t.map(|v| patch.positions[v as usize]))
+            .collect();
+        let mut expect_removed = 0;
+        for t in &before.triangles {
+            let rest = t.map(|v| before.rest[v as usize]);
+            let corners = t.map(|v| before.positions[v as usize]);
+            let d = (shown.iter().map(|&p| box_distance(p, rest))).fold(f32::INFINITY, f32::min);
+            let kept = after.contains(&corners);
+            // Holding a shown texel (or within a cell of one): kept; more
+            // than two cells from all of them: dropped.
+            if d <= cell {
+                assert!(
+                    kept,
+                    "case {case}: a triangle {d} from a shown texel went (cell {cell})"
+                );
+                kept_near += 1;
+            }
+            if d > 2.0 * cell {
+                assert!(
+                    !kept,
+                    "case {case}: a triangle {d} from every shown texel stayed (cell {cell})"
+                );
+            }
+            expect_removed += usize::from(!kept);
+        }
+        assert_eq!(removed, expect_removed, "case {case}");
+        assert_eq!(removed, before.triangles.len() - after.len(), "case {case}");
+        dropped += removed;
+        // Pruning again with the same texels removes nothing; a still
+        // patch is never pruned.
+        let mut cells: Vec<(i32, i32)> = shown.iter().map(|&p| patch::rest_cell(p, cell)).collect();
+        assert_eq!(patch.prune_hidden(&mut cells, cell), 0, "case {case}");
+        let mut still = before.clone();
+        still.still = true;
+        assert_eq!(still.prune_hidden(&mut Vec::new(), cell), 0, "case {case}");
+    }
+    assert!(dropped > 1000 && kept_near > 20, "{dropped} {kept_near}");
 }
 
 #[test]
