@@ -13,7 +13,8 @@ pub(super) struct StepCounts {
     pub(super) created: usize,
     pub(super) forced: usize,
     pub(super) candidate_pairs: usize,
-    /// Patch triangles dropped as wholly eroded for good.
+    /// Patch triangles dropped: wholly eroded for good, or hidden away from
+    /// what their patch showed (`hidden_reach`).
     pub(super) pruned: usize,
     /// Patches no texel used.
     pub(super) unused: usize,
