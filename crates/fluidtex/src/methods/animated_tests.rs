@@ -47,14 +47,18 @@ fn frames(levels: &[f32]) -> Vec<Arc<Exemplar>> {
         .collect()
 }
 
-fn animated(levels: &[f32], rate: f32) -> ExemplarSet {
+/// One animated entry of `frames`, at the default rate.
+fn animated_of(frames: Vec<Arc<Exemplar>>) -> ExemplarSet {
     ExemplarSet::animated(
-        vec![("grey.####.png".into(), frames(levels), 1.0)],
+        vec![("grey.####.png".into(), frames, 1.0)],
         ExemplarSelect::Probability,
         None,
     )
     .expect("one layout")
-    .with_clock(ExemplarClock::new(rate).expect("rate"))
+}
+
+fn animated(levels: &[f32], rate: f32) -> ExemplarSet {
+    animated_of(frames(levels)).with_clock(ExemplarClock::new(rate).expect("rate"))
 }
 
 fn build(params: &MethodParams, kind: MethodKind, set: ExemplarSet, seed: u64) -> Box<dyn Method> {
@@ -172,12 +176,7 @@ fn pyramids_are_built_for_the_frames_shown_only() {
     let clip = plane_at_rest(2);
     let levels: Vec<f32> = (0..64).map(|k| k as f32 / 64.0).collect();
     let shown = frames(&levels);
-    let set = ExemplarSet::animated(
-        vec![("grey.####.png".into(), shown.clone(), 1.0)],
-        ExemplarSelect::Probability,
-        None,
-    )
-    .expect("one layout");
+    let set = animated_of(shown.clone());
     let per_frame = shown[0].pyramid_bytes();
     assert!(per_frame > 0);
     assert!(shown.iter().all(|e| !e.pyramid_built()), "built before use");
@@ -220,12 +219,7 @@ fn pyramids_are_built_for_the_frames_shown_only() {
     // The control: contrast matching measures every frame at every level,
     // so it builds all 64 pyramids on its first frame.
     let all = frames(&levels);
-    let set = ExemplarSet::animated(
-        vec![("grey.####.png".into(), all.clone(), 1.0)],
-        ExemplarSelect::Probability,
-        None,
-    )
-    .expect("one layout");
+    let set = animated_of(all.clone());
     params.erosion.tone = Tone::Match;
     let mut m = build(&params, MethodKind::Erosion, set, 5);
     m.step(&clip.ctx(0)).expect("step");

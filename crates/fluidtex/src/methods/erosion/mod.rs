@@ -1029,15 +1029,28 @@ impl Erosion {
                 .filter(|&&i| i != u32::MAX)
                 .map(|&i| i as usize)
         };
-        let mut shown: Vec<Vec<(i32, i32)>> = vec![Vec::new(); patches.len()];
-        for (&s, &uv) in out.source.iter().zip(&out.uv) {
-            if let Some(i) = of_source(s) {
-                let c = patch::rest_cell(uv, cell);
-                // Neighbouring texels mostly share a cell.
-                if shown[i].last() != Some(&c) {
-                    shown[i].push(c);
+        // Per block of texels in parallel, in order: (patch, cell) of each
+        // covered texel, a run of equal pairs kept once (neighbouring
+        // texels mostly share both). Each patch sorts its cells after.
+        const BLOCK: usize = 1 << 16;
+        let pairs: Vec<(usize, (i32, i32))> = (out.source.par_chunks(BLOCK))
+            .zip(out.uv.par_chunks(BLOCK))
+            .flat_map_iter(|(sources, uvs)| {
+                let mut block: Vec<(usize, (i32, i32))> = Vec::new();
+                for (&s, &uv) in sources.iter().zip(uvs) {
+                    if let Some(i) = of_source(s) {
+                        let pair = (i, patch::rest_cell(uv, cell));
+                        if block.last() != Some(&pair) {
+                            block.push(pair);
+                        }
+                    }
                 }
-            }
+                block
+            })
+            .collect();
+        let mut shown: Vec<Vec<(i32, i32)>> = vec![Vec::new(); patches.len()];
+        for (i, c) in pairs {
+            shown[i].push(c);
         }
         let mut whole = vec![false; patches.len()];
         for t in &blended.transitions {
