@@ -5,7 +5,8 @@
 //! **Pipeline** ([`Atlas::build`]):
 //! 1. segmentation into disc-like charts ([`crate::param::charts`]),
 //! 2. LSCM per chart, split until injective ([`crate::param::flatten`]),
-//!    charts in parallel,
+//!    charts in parallel; charts too long for the atlas cut into pieces
+//!    ([`crate::param::cut`]),
 //! 3. packing with a gutter and a scale search ([`crate::param::pack`]),
 //! 4. rasterization into row spans grouped in bands ([`rasterize`]).
 //!
@@ -45,6 +46,7 @@ use thiserror::Error;
 
 use crate::mesh::{Topology, TriMesh};
 use crate::param::charts::{ChartParams, segment};
+use crate::param::cut::{cut_long, max_chart_length};
 use crate::param::flatten::{FlatChart, flatten_chart};
 use crate::param::pack::{PackError, PackParams, normalised, pack};
 use crate::texture::Texture;
@@ -274,10 +276,23 @@ impl Atlas {
         timings.segmentation = clock.elapsed();
 
         let clock = Instant::now();
+        let max_len = max_chart_length(mesh.area(), params.width, params.height);
         let flat: Vec<FlatChart> = seg
             .charts
             .par_iter()
-            .flat_map_iter(|c| flatten_chart(&mesh.positions, &mesh.triangles, c, &params.charts))
+            .flat_map_iter(|c| {
+                let pieces = flatten_chart(&mesh.positions, &mesh.triangles, c, &params.charts);
+                match max_len {
+                    Some(len) => {
+                        let mut cut = Vec::with_capacity(pieces.len());
+                        for p in pieces {
+                            cut_long(p, len, &mut cut);
+                        }
+                        cut
+                    }
+                    None => pieces,
+                }
+            })
             .collect();
         timings.lscm = clock.elapsed();
 

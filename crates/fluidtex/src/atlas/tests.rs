@@ -228,6 +228,45 @@ fn liquid_blob_meets_the_fill_and_stretch_targets() {
     assert!(stats.p50 >= 1.0 && stats.p50 <= stats.p95 && stats.p95 <= stats.max);
 }
 
+/// A flat `length × width` grid of half-unit squares (two triangles each)
+/// in the z = 0 plane.
+fn flat_grid(length: u32, width: u32) -> TriMesh {
+    let (nx, ny) = (2 * length, 2 * width);
+    let mut positions = Vec::new();
+    for j in 0..=ny {
+        for i in 0..=nx {
+            positions.push(Vec3::new(i as f32 * 0.5, j as f32 * 0.5, 0.0));
+        }
+    }
+    let id = |i: u32, j: u32| j * (nx + 1) + i;
+    let mut triangles = Vec::new();
+    for j in 0..ny {
+        for i in 0..nx {
+            triangles.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+            triangles.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+        }
+    }
+    TriMesh::new(positions, triangles)
+}
+
+#[test]
+fn a_long_strip_is_cut_so_that_it_does_not_cap_the_scale() {
+    // One flat 64 × 1 chart: packed whole, its length would hold the scale
+    // at (256 − margin) / 64 ≈ 3.9 texels per unit and fill 1.5 % of the
+    // atlas. Cut into pieces no longer than √(64 / 0.75) ≈ 9.2 it packs as
+    // a stack of short strips.
+    let mesh = flat_grid(64, 1);
+    let atlas = build(&mesh, 256);
+    assert_valid(&mesh, &atlas, 4);
+    assert!(atlas.chart_count >= 8, "{} charts", atlas.chart_count);
+    assert!(atlas.scale > 4.0 * 256.0 / 64.0, "scale {}", atlas.scale);
+    let stats = atlas.stretch_stats(&mesh).expect("same mesh");
+    assert!(stats.fill_ratio > 0.4, "fill {}", stats.fill_ratio);
+    // Control: an 8 × 8 square of the same area is shorter than the bound
+    // and stays one chart.
+    assert_eq!(build(&flat_grid(8, 8), 256).chart_count, 1);
+}
+
 #[test]
 fn stretch_stats_detect_a_stretched_parameterization() {
     // Control for the stretch target: the same atlas measured against a

@@ -5,11 +5,13 @@
 //!   and for atlas charts.
 //! - [`charts`] — segmentation of a mesh into disc-like charts.
 //! - [`flatten`] — LSCM per chart, injectivity check, splitting of folds.
+//! - [`cut`] — cutting charts too long for the atlas into pieces.
 //! - [`pack`] — packing flattened charts into a texel rectangle.
 //!
 //! All solves run in `f64`; inputs and outputs are `f32` geometry.
 
 pub mod charts;
+pub mod cut;
 pub mod flatten;
 pub mod lscm;
 pub mod pack;

@@ -725,56 +725,80 @@ fn half_turn(p: &Profile, gutter: i32) -> Profile {
     finish_profile(lo, hi, rows, gutter)
 }
 
+/// A chart's minimum-area bounding rectangle: `dir` is its longer side's
+/// direction in the chart's uv, `lo` the rectangle's corner and `size` its
+/// sides (longer first) in the turned frame of [`MinAreaRect::turn`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct MinAreaRect {
+    pub dir: DVec2,
+    pub lo: DVec2,
+    pub size: DVec2,
+}
+
+impl MinAreaRect {
+    /// Rotating calipers, brute force over the hull edges of the chart's
+    /// used uv points (hulls are small).
+    pub(crate) fn of(chart: &FlatChart) -> MinAreaRect {
+        let pts: Vec<DVec2> = chart.uv.iter().map(|p| p.as_dvec2()).collect();
+        let used = used_points(&pts, &chart.local_triangles);
+        let hull = convex_hull(&used);
+        let mut best_dir = DVec2::X;
+        let mut best_area = f64::INFINITY;
+        for i in 0..hull.len() {
+            let e = hull[(i + 1) % hull.len()] - hull[i];
+            let len = e.length();
+            if len <= 0.0 {
+                continue;
+            }
+            let d = e / len;
+            let (mut a0, mut a1, mut b0, mut b1) = (
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+            );
+            for p in &hull {
+                let (a, b) = (p.dot(d), d.perp_dot(*p));
+                a0 = a0.min(a);
+                a1 = a1.max(a);
+                b0 = b0.min(b);
+                b1 = b1.max(b);
+            }
+            let area = (a1 - a0) * (b1 - b0);
+            if area < best_area {
+                best_area = area;
+                best_dir = if a1 - a0 >= b1 - b0 { d } else { d.perp() };
+            }
+        }
+        let rot = |p: DVec2| DVec2::new(p.dot(best_dir), best_dir.perp_dot(p));
+        let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+        for &p in &used {
+            lo = lo.min(rot(p));
+            hi = hi.max(rot(p));
+        }
+        if !lo.is_finite() {
+            lo = DVec2::ZERO;
+            hi = DVec2::ZERO;
+        }
+        MinAreaRect {
+            dir: best_dir,
+            lo,
+            size: hi - lo,
+        }
+    }
+
+    /// A uv point in the rectangle's frame: the longer side along +x, the
+    /// corner at the origin (a proper rotation, so orientation is kept).
+    pub(crate) fn turn(&self, p: DVec2) -> DVec2 {
+        DVec2::new(p.dot(self.dir), self.dir.perp_dot(p)) - self.lo
+    }
+}
+
 /// Turns a chart to its minimum-area bounding rectangle, longer side along
 /// x, origin at the rectangle's corner.
 fn prepare(chart: &FlatChart) -> Prepared {
-    let pts: Vec<DVec2> = chart.uv.iter().map(|p| p.as_dvec2()).collect();
-    let used = used_points(&pts, &chart.local_triangles);
-    let hull = convex_hull(&used);
-    // Rotating calipers, brute force over hull edges (hulls are small).
-    let mut best_dir = DVec2::X;
-    let mut best_area = f64::INFINITY;
-    for i in 0..hull.len() {
-        let e = hull[(i + 1) % hull.len()] - hull[i];
-        let len = e.length();
-        if len <= 0.0 {
-            continue;
-        }
-        let d = e / len;
-        let (mut a0, mut a1, mut b0, mut b1) = (
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-        );
-        for p in &hull {
-            let (a, b) = (p.dot(d), d.perp_dot(*p));
-            a0 = a0.min(a);
-            a1 = a1.max(a);
-            b0 = b0.min(b);
-            b1 = b1.max(b);
-        }
-        let area = (a1 - a0) * (b1 - b0);
-        if area < best_area {
-            best_area = area;
-            best_dir = if a1 - a0 >= b1 - b0 { d } else { d.perp() };
-        }
-    }
-    // Rotation taking best_dir to +x (a proper rotation keeps orientation).
-    let rot = |p: DVec2| DVec2::new(p.dot(best_dir), best_dir.perp_dot(p));
-    let mut uv: Vec<DVec2> = pts.iter().map(|&p| rot(p)).collect();
-    let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
-    for &p in &used {
-        lo = lo.min(rot(p));
-        hi = hi.max(rot(p));
-    }
-    if !lo.is_finite() {
-        lo = DVec2::ZERO;
-        hi = DVec2::ZERO;
-    }
-    for p in &mut uv {
-        *p -= lo;
-    }
+    let rect = MinAreaRect::of(chart);
+    let uv: Vec<DVec2> = chart.uv.iter().map(|p| rect.turn(p.as_dvec2())).collect();
     let area = chart
         .local_triangles
         .iter()
@@ -786,7 +810,7 @@ fn prepare(chart: &FlatChart) -> Prepared {
     Prepared {
         uv,
         boundary: boundary_edges(&chart.local_triangles),
-        size: hi - lo,
+        size: rect.size,
         area,
     }
 }
