@@ -18,7 +18,8 @@ use fluidtex::methods::erosion::{
 };
 use fluidtex::methods::lapped_rigid::LappedRigidParams;
 use fluidtex::methods::lapped_rigid::distribution::Placement as RigidPlacement;
-use fluidtex::methods::optimization::{Histogram, OptimizationParams};
+use fluidtex::methods::lapped_rigid::falloff::FalloffAt;
+use fluidtex::methods::optimization::{Histogram, OptimizationParams, Search};
 use fluidtex::methods::registry::{MethodKind, MethodParams};
 use fluidtex::methods::tone::Tone;
 use fluidtex::named::Named;
@@ -263,6 +264,12 @@ impl Config {
                 "seed_texel",
                 toml::Value::try_from(r.seed_texel)?,
             ),
+            (
+                "lapped_rigid",
+                "falloff_at",
+                toml::Value::try_from(r.falloff_at)?,
+            ),
+            ("optimization", "search", toml::Value::try_from(o.search)?),
             (
                 "optimization",
                 "relaxation",
@@ -580,6 +587,9 @@ pub struct RunFlags {
     /// optimization: passes on carried frames, the last N of --sizes [2]
     #[arg(long)]
     pub passes_after_first: Option<u32>,
+    /// optimization: exemplar search, a PCA k-d tree over a subsample (pca) or every candidate over the whole window (exact, the paper's; slow) [pca]
+    #[arg(long, value_parser = named::<Search>())]
+    pub search: Option<Search>,
     /// optimization: the search compares a G x G subsample of each neighbourhood [9]
     #[arg(long)]
     pub search_grid: Option<u32>,
@@ -710,6 +720,7 @@ flag_keys! {
     levels_after_first => optimization.levels_after_first: value,
     sizes => optimization.sizes: value,
     passes_after_first => optimization.passes_after_first: value,
+    search => optimization.search: value,
     search_grid => optimization.search_grid: value,
     rerank => optimization.rerank: value,
     iterations => optimization.iterations: value,
@@ -741,6 +752,7 @@ flag_keys! {
     rigid.rigid_sink_fade_rate => lapped_rigid.sink_fade_rate: value,
     rigid.rigid_placement => lapped_rigid.placement: value,
     rigid.rigid_seed_texel => lapped_rigid.seed_texel: value,
+    rigid.rigid_falloff_at => lapped_rigid.falloff_at: value,
 }
 
 /// Flags applied by hand in [`RunFlags::apply`] (their value is parsed
@@ -933,6 +945,9 @@ pub struct RigidFlags {
     /// lapped-rigid: a seed texel its patch leaves short is closed anyway (forced) or left to later trackers (paper) [forced]
     #[arg(long, value_parser = named::<SeedTexel>())]
     pub rigid_seed_texel: Option<SeedTexel>,
+    /// lapped-rigid: the alpha falloff's angle per texel from its interpolated normal (texel) or per receiver vertex, alphas interpolated (vertex, the paper) [texel]
+    #[arg(long, value_parser = named::<FalloffAt>())]
+    pub rigid_falloff_at: Option<FalloffAt>,
 }
 
 #[cfg(test)]

@@ -340,6 +340,7 @@ fn documented_elsewhere(flag: &str) -> bool {
             "levels",
             "levels-after-first",
             "sizes",
+            "search",
             "search-grid",
             "rerank",
             "iterations",

@@ -410,14 +410,18 @@ pub const DEPARTURES: &[Departure] = &[
         what: "Where the alpha falloff is evaluated.",
         ours: "Per texel, from the angle of the interpolated vertex normal, so a patch is opaque \
                at its own tracker.",
-        paper_setting: "Per receiver vertex, the alphas interpolated linearly. No paper setting \
-                        yet.",
-        key: None,
-        flag: None,
-        preset: "",
-        effect: "Not measured. With per-vertex alphas on meshes coarse for ψ, new patches missed \
-                 their seed texel and vanished and came back every frame.",
-        measure: "None yet: needs a switch.",
+        paper_setting: "Per receiver vertex, the alphas interpolated linearly (`falloff_at = \
+                        vertex`).",
+        key: Some("lapped_rigid.falloff_at"),
+        flag: Some("--rigid-falloff-at vertex"),
+        preset: "lapped_rigid.falloff_at = \"vertex\"",
+        effect: "With per-vertex alphas on meshes coarse for ψ, new patches missed their seed \
+                 texel and vanished and came back every frame (before the seed texel was \
+                 forced). On one triangle whose corners lie 0°, 0° and 70° from the frame \
+                 normal the centroid's alpha is 2/3 per vertex and 1 per texel (unit test \
+                 `the_papers_falloff_interpolates_the_vertex_alphas`).",
+        measure: "`fluidtex compare --scenes vortex --methods lapped-rigid --out cmp`, without \
+                  and with `--config P`, P: `lapped_rigid.falloff_at = \"vertex\"`",
     },
     Departure {
         method: "lapped-rigid",
@@ -536,15 +540,21 @@ pub const DEPARTURES: &[Departure] = &[
         ours: "`search_grid = 9`: PCA to 8 dimensions and a k-d tree over a 9 × 9 subsample of \
                each w × w neighbourhood, colour channels only, `rerank` candidates re-ranked by \
                full distance.",
-        paper_setting: "The full w × w neighbourhood, accelerated by hierarchical clustering. \
-                        Not selectable: `search_grid` is at most 15.",
-        key: Some("optimization.search_grid"),
-        flag: None,
-        preset: "",
+        paper_setting: "The full w × w neighbourhood, accelerated by hierarchical clustering; \
+                        `search = \"exact\"` compares the full neighbourhood with every \
+                        candidate (the optimum the clustering approximates).",
+        key: Some("optimization.search"),
+        flag: Some("--search exact"),
+        preset: "optimization.search = \"exact\"",
         effect: "Against a brute-force scan (pebbles, 9 × 9 window): exact in the reduced \
                  space; re-ranked matches within 5 % of the full-space optimum (measured \
-                 1.000).",
-        measure: "`cargo test -p fluidtex --lib accelerated_search_matches_brute_force`",
+                 1.000). The exact search costs 36× the time on 3 `differential-rotation` \
+                 frames at atlas 64 (20.8 s against 0.58 s, 2 cores); a `vortex` frame at 512² \
+                 had not finished after 10 minutes (5 s with ours), so its report cells are \
+                 not measured.",
+        measure: "`cargo test -p fluidtex --lib accelerated_search_matches_brute_force` and \
+                  `exact_search_finds_the_full_window_optimum`; `fluidtex run --method \
+                  optimization --atlas 64 --search exact` against `--search pca`",
     },
     Departure {
         method: "optimization",
@@ -780,10 +790,15 @@ pub const AS_PUBLISHED: &[(&str, &str)] = &[
         "The paper's passes, 33², 17², 9² (Sec. V-B).",
     ),
     (
+        "optimization.search_grid",
+        "No paper counterpart: the subsample the PCA search compares (see \
+         `optimization.search`); unused by the paper's exact search.",
+    ),
+    (
         "optimization.rerank",
         "No paper counterpart: candidates of the search that stands in for the paper's (see \
-         `optimization.search_grid`); 16 costs twice the k-d tree time for the same `vortex` \
-         report cells.",
+         `optimization.search`); 16 costs twice the k-d tree time for the same `vortex` \
+         report cells; unused by the exact search.",
     ),
     (
         "optimization.centre_spacing",

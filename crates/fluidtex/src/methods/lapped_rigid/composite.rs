@@ -28,7 +28,7 @@
 
 use glam::{Vec2, Vec3};
 
-use super::falloff::{PatchMask, angle_between, falloff};
+use super::falloff::{FalloffAt, PatchMask, angle_between, falloff};
 use super::receivers::Receivers;
 use super::trackers::Frame;
 use crate::atlas::Atlas;
@@ -109,6 +109,8 @@ pub struct CompositeContext<'a> {
     /// ψ_{α=1} and ψ_{α=0} (radians).
     pub opaque: f32,
     pub transparent: f32,
+    /// Where the falloff's angle is taken (per texel or per vertex).
+    pub falloff_at: FalloffAt,
     pub layers: &'a [Layer],
     pub exemplar: &'a Exemplar,
     pub mask: &'a PatchMask,
@@ -124,6 +126,15 @@ pub struct CompositeContext<'a> {
     /// (for the mask) and base level; `None`: `exemplar`, `feature` and
     /// `base_lod` for every layer.
     pub multi: Option<&'a MultiComposite<'a>>,
+}
+
+/// Where a texel lies for the alpha falloff: its smooth normal (the
+/// interpolated vertex normal) and its place on its fluid triangle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Shading {
+    pub normal: Vec3,
+    pub triangle: u32,
+    pub bary: [f32; 3],
 }
 
 /// The heaviest layer of a texel so far.
@@ -204,23 +215,53 @@ impl<'a> CompositeContext<'a> {
         if s == Vec3::ZERO { n } else { s }
     }
 
-    /// The alpha falloff of layer `i` at a texel of smooth normal `shading`.
+    /// Where the texel at `bary` on fluid triangle `f` (unit normal `n`)
+    /// lies for the falloff.
     #[inline]
-    pub fn falloff_alpha(&self, i: u32, shading: Vec3) -> f32 {
+    pub fn shading(&self, f: u32, bary: [f32; 3], n: Vec3) -> Shading {
+        Shading {
+            normal: self.texel_normal(f, bary, n),
+            triangle: f,
+            bary,
+        }
+    }
+
+    /// The alpha falloff of layer `i` at a texel: from the angle of its
+    /// smooth normal, or (`FalloffAt::Vertex`, the paper's) the falloffs
+    /// of its triangle's vertex normals interpolated at the texel.
+    #[inline]
+    pub fn falloff_alpha(&self, i: u32, at: &Shading) -> f32 {
         let frame = &self.layers[i as usize].frame;
-        falloff(
-            angle_between(shading, frame.normal),
-            self.opaque,
-            self.transparent,
-        )
+        let of = |normal: Vec3| {
+            falloff(
+                angle_between(normal, frame.normal),
+                self.opaque,
+                self.transparent,
+            )
+        };
+        match self.falloff_at {
+            FalloffAt::Texel => of(at.normal),
+            FalloffAt::Vertex => {
+                let t = self.mesh.triangles[at.triangle as usize];
+                (0..3)
+                    .map(|k| {
+                        let vn = self.vertex_normals.get(t[k] as usize).copied();
+                        // A vertex without a normal takes the texel's.
+                        let vn = vn.filter(|v| *v != Vec3::ZERO).unwrap_or(at.normal);
+                        at.bary[k] * of(vn)
+                    })
+                    .sum()
+            }
+        }
     }
 
     /// Composites layer `i` under what `sum` holds, at surface point `x`
-    /// (smooth normal `shading`, on a fluid triangle of unit normal `n`).
+    /// (lying as `shading` says, on a fluid triangle of unit normal `n`).
     /// Returns the layer's contribution (0 when it shows nothing here).
     ///
-    /// The falloff angle is taken between the frame's normal and the
-    /// *interpolated* vertex normal, not by interpolating per-vertex alphas:
+    /// By default the falloff angle is taken between the frame's normal and
+    /// the *interpolated* vertex normal, not by interpolating per-vertex
+    /// alphas (`FalloffAt::Vertex`, the paper's):
     /// the same at vertices, but a patch is then exactly opaque at its own
     /// tracker (θ = 0 there), so a new patch always covers the texel that
     /// created it, also on meshes too coarse for ψ (where a corner's normal
@@ -231,7 +272,7 @@ impl<'a> CompositeContext<'a> {
     pub fn add_layer(
         &self,
         i: u32,
-        shading: Vec3,
+        shading: &Shading,
         x: Vec3,
         n: Vec3,
         sum: &mut TexelSum,
@@ -371,7 +412,7 @@ impl CompositeContext<'_> {
         let c = rows.channels;
         let values = &mut rows.values[t * c..(t + 1) * c];
         values.fill(0.0);
-        let shading = self.texel_normal(texel.triangle, texel.bary, texel.n);
+        let shading = self.shading(texel.triangle, texel.bary, texel.n);
         for &i in list {
             // A texel is complete once it reaches coverage: a patch the
             // update adds below it later in this frame never reaches it
@@ -379,7 +420,7 @@ impl CompositeContext<'_> {
             if sum.alpha >= self.coverage {
                 break;
             }
-            let wgt = self.add_layer(i, shading, texel.p, texel.n, sum, values, sample);
+            let wgt = self.add_layer(i, &shading, texel.p, texel.n, sum, values, sample);
             if wgt > 0.0 {
                 result.used.push(i);
             }

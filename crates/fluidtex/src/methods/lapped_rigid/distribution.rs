@@ -161,8 +161,8 @@ fn composite_below(
             let t = u.texel as usize;
             let x = a * u.bary[0] + b * u.bary[1] + cc * u.bary[2];
             let values = &mut out.values[t * c..(t + 1) * c];
-            let shading = ctx.texel_normal(f, u.bary, n);
-            shown += ctx.add_layer(0, shading, x, n, &mut u.sum, values, &mut sample);
+            let shading = ctx.shading(f, u.bary, n);
+            shown += ctx.add_layer(0, &shading, x, n, &mut u.sum, values, &mut sample);
             let complete = u.sum.alpha >= ctx.coverage;
             if complete {
                 close(ctx, u, out);

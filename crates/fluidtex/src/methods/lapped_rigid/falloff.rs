@@ -22,6 +22,24 @@ use glam::Vec2;
 use crate::exemplar::feature::FeatureSampler;
 use crate::texture::{Texture, Wrap};
 
+/// Where the alpha falloff's angle is taken.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FalloffAt {
+    /// At each texel, from its interpolated vertex normal: a patch is
+    /// opaque at its own tracker (θ = 0 there), however coarse the mesh.
+    #[default]
+    Texel,
+    /// The paper's (Sec. 3.2.1): per receiver vertex, from the vertex
+    /// normal, and the vertices' alphas interpolated across each triangle.
+    Vertex,
+}
+
+crate::named!(FalloffAt {
+    Texel => "texel",
+    Vertex => "vertex",
+});
+
 /// The alpha of a receiver vertex whose normal makes angle `theta`
 /// (radians) with the frame's normal: 1 up to `opaque`, 0 from
 /// `transparent` on, linear between (`opaque` < `transparent`).

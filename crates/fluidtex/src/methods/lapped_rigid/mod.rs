@@ -94,6 +94,12 @@ pub struct LappedRigidParams {
     /// vertices farther are transparent (stretch 2 at 60°). Requires
     /// ψ_{α=1} < ψ_{α=0} < φ_max.
     pub alpha_transparent: f32,
+    /// Where the falloff's angle is taken \[texel]: at each texel from its
+    /// interpolated normal, or per receiver vertex with the alphas
+    /// interpolated (`vertex`, Sec. 3.2.1). See [`falloff::FalloffAt`].
+    /// Left out of the settings at its default.
+    #[serde(skip_serializing_if = "crate::methods::is_default")]
+    pub falloff_at: falloff::FalloffAt,
     /// A tracker farther than this fraction of r from the next surface after
     /// advection has left it and is deleted \[1/4] (erosion's removal
     /// distance); 0: never, the tracker goes to the closest surface point
@@ -167,6 +173,7 @@ impl Default for LappedRigidParams {
             sink_fade_rate: 1.0,
             placement: distribution::Placement::First,
             seed_texel: SeedTexel::Forced,
+            falloff_at: falloff::FalloffAt::Texel,
         }
     }
 }
@@ -739,6 +746,7 @@ impl LappedRigid {
             vertex_normals: ctx.normals,
             opaque: self.params.alpha_opaque.to_radians(),
             transparent: self.params.alpha_transparent.to_radians(),
+            falloff_at: self.params.falloff_at,
             layers: &layers,
             exemplar: &exemplar,
             mask: &mask,

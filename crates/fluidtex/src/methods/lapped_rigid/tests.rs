@@ -259,6 +259,7 @@ fn the_falloff_at_a_texel_equals_its_formula() {
             vertex_normals: &normals,
             opaque: psi1.to_radians(),
             transparent: psi0.to_radians(),
+            falloff_at: falloff::FalloffAt::Texel,
             layers: &layers,
             exemplar: &ex,
             mask: &mask,
@@ -270,11 +271,11 @@ fn the_falloff_at_a_texel_equals_its_formula() {
         };
         let mut sum = composite::TexelSum::default();
         let (mut values, mut sample) = (vec![0.0; 3], vec![0.0; 3]);
-        let shading = ctx.texel_normal(0, [1.0 / 3.0; 3], Vec3::Z);
-        assert_eq!(shading, Vec3::Z);
+        let shading = ctx.shading(0, [1.0 / 3.0; 3], Vec3::Z);
+        assert_eq!(shading.normal, Vec3::Z);
         let w = ctx.add_layer(
             0,
-            shading,
+            &shading,
             layers[0].frame.origin,
             Vec3::Z,
             &mut sum,
@@ -290,6 +291,69 @@ fn the_falloff_at_a_texel_equals_its_formula() {
         };
         assert!((w - want).abs() < 1e-4, "{deg}°: {w} != {want}");
     }
+}
+
+#[test]
+fn the_papers_falloff_interpolates_the_vertex_alphas() {
+    // One triangle whose corner normals lie 0°, 0° and 70° from the frame
+    // normal (ψ = 30°, 60°: vertex alphas 1, 1, 0). Per vertex (the
+    // paper's) the alpha at barycentrics b is b₀ + b₁; per texel it is the
+    // falloff of the interpolated normal's angle, 1 at the centroid, where
+    // that normal is 22° from the frame's.
+    let mesh = TriMesh::new(vec![Vec3::ZERO, Vec3::X, Vec3::Y], vec![[0, 1, 2]]);
+    let tilt = 70f32.to_radians();
+    let normals = vec![Vec3::Z, Vec3::Z, Vec3::new(tilt.sin(), 0.0, tilt.cos())];
+    let ex = exemplar();
+    let mask = PatchMask::Derived {
+        reach: 0.4,
+        feature_weight: 0.2,
+        softness: 0.2,
+    };
+    let layers = [composite::Layer {
+        id: 0,
+        frame: Frame {
+            origin: Vec3::new(0.3, 0.3, 0.0),
+            tangent: Vec3::X,
+            binormal: Vec3::Y,
+            normal: Vec3::Z,
+            exemplar_size: 1.0,
+        },
+        fade: 1.0,
+        exemplar: 0,
+        feature: 0,
+    }];
+    let ctx = |falloff_at| composite::CompositeContext {
+        mesh: &mesh,
+        vertex_normals: &normals,
+        opaque: 30f32.to_radians(),
+        transparent: 60f32.to_radians(),
+        falloff_at,
+        layers: &layers,
+        exemplar: &ex,
+        mask: &mask,
+        feature: ex.feature.sampler(),
+        base_lod: None,
+        coverage: 0.99,
+        keep_weight: 0.0,
+        multi: None,
+    };
+    let (texel, vertex) = (
+        ctx(falloff::FalloffAt::Texel),
+        ctx(falloff::FalloffAt::Vertex),
+    );
+    for bary in [
+        [1.0 / 3.0; 3],
+        [0.5, 0.25, 0.25],
+        [0.1, 0.1, 0.8],
+        [0.0, 0.0, 1.0],
+    ] {
+        let at = vertex.shading(0, bary, Vec3::Z);
+        let a = vertex.falloff_alpha(0, &at);
+        assert!((a - (bary[0] + bary[1])).abs() < 1e-5, "{bary:?}: {a}");
+    }
+    let centre = texel.shading(0, [1.0 / 3.0; 3], Vec3::Z);
+    assert_eq!(texel.falloff_alpha(0, &centre), 1.0);
+    assert!((vertex.falloff_alpha(0, &centre) - 2.0 / 3.0).abs() < 1e-5);
 }
 
 /// A method holding two opaque-centred trackers on a flat grid at rest.

@@ -91,8 +91,15 @@ pub struct OptimizationParams {
     /// 7–8 s; the `vortex` report cells stay as they were). `sizes.len()`
     /// restores the paper's.
     pub passes_after_first: u32,
+    /// How the exemplar is searched \[pca]: `pca` compares a g × g
+    /// subsample (`search_grid`) reduced by PCA in a k-d tree, `exact` the
+    /// whole w × w neighbourhood against every candidate (Sec. V-B; slow).
+    /// See [`search`]. Left out of the settings at `pca`.
+    #[serde(skip_serializing_if = "crate::methods::is_default")]
+    pub search: Search,
     /// Search grid g: the pixel neighbourhood compared is a g × g
-    /// subsample of the w × w one \[9] (odd, 3..=15).
+    /// subsample of the w × w one \[9] (odd, 3..=15). Unused by
+    /// `search = "exact"`.
     pub search_grid: u32,
     /// Candidates taken from the PCA k-d tree and re-ranked by full SSD \[8]
     /// (16 costs twice the k-d tree time for the same report cells on the
@@ -147,6 +154,7 @@ impl Default for OptimizationParams {
             levels_after_first: 1,
             sizes: vec![33, 17, 9],
             passes_after_first: 2,
+            search: Search::Pca,
             search_grid: 9,
             rerank: 8,
             iterations: 3,
@@ -247,6 +255,24 @@ impl OptimizationParams {
         Ok(())
     }
 }
+
+/// How the nearest exemplar neighbourhood is found ([`search`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Search {
+    /// A g × g subsample of the window, reduced to 8 dimensions by PCA, in
+    /// a k-d tree; `rerank` candidates re-ranked by full SSD.
+    #[default]
+    Pca,
+    /// The whole w × w window against every candidate by SSD: the search
+    /// the paper's hierarchical clustering approximates.
+    Exact,
+}
+
+crate::named!(Search {
+    Pca => "pca",
+    Exact => "exact",
+});
 
 /// What the averaging step's result becomes before the next search.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -437,13 +463,20 @@ impl Optimization {
                     // A window never wider than the working exemplar.
                     let limit = (ex.width.min(ex.height) - 1) | 1;
                     let width = w.min(limit).max(3);
+                    let grid = match params.search {
+                        Search::Pca => params.search_grid.min(width),
+                        Search::Exact => width,
+                    };
                     let window = Window {
                         width,
-                        grid: params.search_grid.min(width),
+                        grid,
                         texel,
                         relaxation: params.relaxation,
                     };
-                    SearchIndex::new(&ex, window, params.rerank as usize)
+                    match params.search {
+                        Search::Pca => SearchIndex::new(&ex, window, params.rerank as usize),
+                        Search::Exact => SearchIndex::exact(&ex, window),
+                    }
                 })
                 .collect();
             LevelSearch {

@@ -20,6 +20,14 @@
 //! in the reduced space, and re-ranking in the full space recovers most of
 //! what the reduction loses; [`SearchIndex::brute_force`] is the reference
 //! the tests compare with.
+//!
+//! **The paper's search** (`search = "exact"`, [`SearchIndex::exact`]):
+//! the whole w × w neighbourhood (33² × 3 = 3 267 numbers for the widest
+//! pass), compared with every candidate by SSD, no reduction. The paper
+//! accelerates this search by hierarchical clustering, an approximation of
+//! it; the exact scan is what that clustering approximates, and slow: a
+//! query costs w² × 3 × (exemplar texels) operations, about 50 M for the
+//! widest pass over a 128² working exemplar.
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use std::num::NonZeroUsize;
@@ -240,9 +248,43 @@ impl SearchIndex {
         index
     }
 
-    /// The reduced coordinates of a full search vector.
+    /// The index of the paper's search (`search = "exact"`): no reduction
+    /// and no tree, every query scans every candidate's full vector
+    /// (`window.grid` should then be `window.width`: the whole w × w
+    /// neighbourhood). The vectors are kept when they fit in
+    /// [`FULL_VECTORS_LIMIT`] floats (33 × 33 × 3 over a 128² exemplar:
+    /// 53 M), gathered per query otherwise.
+    pub fn exact(ex: &WorkingExemplar, window: Window) -> SearchIndex {
+        use rayon::prelude::*;
+        let side = window.grid as usize;
+        let dims = side * side * ex.colour;
+        let n = ex.candidates();
+        let mut full = Vec::new();
+        if n * dims <= FULL_VECTORS_LIMIT {
+            full = vec![0.0f32; n * dims];
+            full.par_chunks_mut(dims)
+                .enumerate()
+                .for_each(|(i, v)| candidate_vector(ex, window, i as u32, v));
+        }
+        SearchIndex {
+            window,
+            dims,
+            mean: Vec::new(),
+            basis: Vec::new(),
+            tree: None,
+            reduced: Vec::new(),
+            full,
+            rerank: 1,
+        }
+    }
+
+    /// The reduced coordinates of a full search vector (zeros for an
+    /// [`SearchIndex::exact`] index, which has no reduction).
     pub fn project(&self, v: &[f32]) -> [f32; PCA_DIMS] {
         let mut out = [0.0f32; PCA_DIMS];
+        if self.basis.is_empty() {
+            return out;
+        }
         for (k, o) in out.iter_mut().enumerate() {
             let row = &self.basis[k * self.dims..(k + 1) * self.dims];
             let mut s = 0.0f32;
@@ -255,10 +297,11 @@ impl SearchIndex {
     }
 
     /// The best candidate for `query` (full vector): PCA k-d tree, then
-    /// re-ranking by full SSD. Returns (candidate, full SSD).
+    /// re-ranking by full SSD; every candidate by full SSD for an exact
+    /// index. Returns (candidate, full SSD); ties go to the lower index.
     pub fn nearest(&self, ex: &WorkingExemplar, query: &[f32], buf: &mut [f32]) -> (u32, f32) {
         let Some(tree) = &self.tree else {
-            return self.brute_force(ex, query);
+            return self.scan(ex, query, buf);
         };
         let q = self.project(query);
         let k = NonZeroUsize::new(self.rerank.min(self.reduced.len().max(1)))
@@ -282,6 +325,29 @@ impl SearchIndex {
         }
         if best.0 == u32::MAX {
             best = (0, f32::INFINITY);
+        }
+        best
+    }
+
+    /// Every candidate by full SSD, from the kept vectors when there are
+    /// any; ties go to the lower index.
+    fn scan(&self, ex: &WorkingExemplar, query: &[f32], buf: &mut [f32]) -> (u32, f32) {
+        let mut best = (0u32, f32::INFINITY);
+        if self.full.is_empty() {
+            for i in 0..ex.candidates() as u32 {
+                candidate_vector(ex, self.window, i, buf);
+                let d = ssd(query, buf);
+                if d < best.1 {
+                    best = (i, d);
+                }
+            }
+        } else {
+            for (i, v) in self.full.chunks_exact(self.dims).enumerate() {
+                let d = ssd(query, v);
+                if d < best.1 {
+                    best = (i as u32, d);
+                }
+            }
         }
         best
     }

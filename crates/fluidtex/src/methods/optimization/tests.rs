@@ -9,7 +9,7 @@ use rand::{Rng, SeedableRng};
 use super::histogram::Quantiles;
 use super::lattice::Lattice;
 use super::neighbourhood::Window;
-use super::search::{SearchIndex, WorkingExemplar, candidate_vector};
+use super::search::{SearchIndex, WorkingExemplar, candidate_vector, ssd};
 use super::solve::{LevelInput, SolveTimes, optimise};
 use super::transport::{self, Previous};
 use super::*;
@@ -279,6 +279,53 @@ fn accelerated_search_matches_brute_force() {
     }
     // ε = 5 %: measured 1.000 (every noisy query found the optimum).
     assert!(worst <= 1.05, "re-ranked / brute-force distance {worst}");
+}
+
+#[test]
+fn exact_search_finds_the_full_window_optimum() {
+    // The paper's search: the whole 17 × 17 window against every candidate.
+    // Its answer is the brute-force optimum over that window, and never
+    // worse than the PCA search over a 5 × 5 subsample of the same window,
+    // judged on the whole window; the subsample search, the control, misses
+    // the optimum on some queries.
+    let exemplar = pebbles(64);
+    let ex = WorkingExemplar::new(&exemplar, 40);
+    let full = Window {
+        width: 17,
+        grid: 17,
+        texel: 1.0,
+        relaxation: 0,
+    };
+    let sub = Window { grid: 5, ..full };
+    let exact = SearchIndex::exact(&ex, full);
+    let pca = SearchIndex::new(&ex, sub, 4);
+    assert_eq!(exact.dims, 17 * 17 * 3);
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(12);
+    let (mut q, mut buf) = (vec![0.0f32; exact.dims], vec![0.0f32; exact.dims]);
+    let (mut q_sub, mut buf_sub) = (vec![0.0f32; pca.dims], vec![0.0f32; pca.dims]);
+    let mut missed = 0;
+    for trial in 0..40 {
+        let i = rng.random_range(0..ex.candidates() as u32);
+        candidate_vector(&ex, full, i, &mut q);
+        for x in &mut q {
+            *x += 0.3 * (rng.random::<f32>() - 0.5);
+        }
+        let (found, d) = exact.nearest(&ex, &q, &mut buf);
+        assert_eq!((found, d), exact.brute_force(&ex, &q), "trial {trial}");
+        // The same query as the 5 × 5 subsample (stride 4) sees it.
+        for b in 0..5 {
+            for a in 0..5 {
+                let (cell, at) = (b * 5 + a, (b * 4) * 17 + a * 4);
+                q_sub[cell * 3..cell * 3 + 3].copy_from_slice(&q[at * 3..at * 3 + 3]);
+            }
+        }
+        let (found_sub, _) = pca.nearest(&ex, &q_sub, &mut buf_sub);
+        candidate_vector(&ex, full, found_sub, &mut buf);
+        let d_sub = ssd(&q, &buf);
+        assert!(d <= d_sub, "trial {trial}: exact {d} > subsample {d_sub}");
+        missed += usize::from(d < d_sub);
+    }
+    assert!(missed > 0, "the subsample search found every optimum");
 }
 
 /// A flat square level with a uniform orientation, its working exemplar
@@ -691,6 +738,33 @@ fn deterministic_across_thread_counts_and_resume_is_identical() {
     assert_ne!(diff[0], one[0]);
     // A corrupt state is an error, not a panic.
     assert!(resumed.load_state(&[0xff, 0xff, 0xff]).is_err());
+}
+
+#[test]
+fn exact_search_synthesises_its_own_texture_the_same_on_any_thread_count() {
+    let data = frames(2);
+    let params = |search| OptimizationParams {
+        exemplar_texels: 24,
+        sizes: vec![9, 5],
+        search,
+        ..small_params()
+    };
+    let go = |search, threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("pool");
+        pool.install(|| {
+            let mut m = Optimization::new(params(search), pebbles(64), 1).expect("params");
+            run(&mut m, &data, 0)
+        })
+    };
+    let exact = go(Search::Exact, 1);
+    assert_eq!(exact, go(Search::Exact, 2));
+    assert!(exact[1].iter().any(|&v| (v - exact[1][0]).abs() > 0.05));
+    // Control: the PCA search, re-ranking 8 candidates, matches other
+    // neighbourhoods at some points.
+    assert_ne!(exact, go(Search::Pca, 1));
 }
 
 #[test]
