@@ -12,6 +12,21 @@ use rand_pcg::Pcg64;
 
 use crate::mesh::TriMesh;
 
+/// The triangles of an `nx × ny` grid of quads over the `(nx + 1) ×
+/// (ny + 1)` vertices numbered row by row, two triangles per quad,
+/// counter-clockwise in a y-up frame.
+pub fn grid_triangles(nx: u32, ny: u32) -> Vec<[u32; 3]> {
+    let id = |i: u32, j: u32| j * (nx + 1) + i;
+    let mut triangles = Vec::with_capacity(2 * (nx * ny) as usize);
+    for j in 0..ny {
+        for i in 0..nx {
+            triangles.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+            triangles.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+        }
+    }
+    triangles
+}
+
 /// Unit sphere from an icosahedron whose faces are split into
 /// `frequency²` triangles each (20·frequency² triangles, frequency ≥ 1),
 /// counter-clockwise seen from outside.

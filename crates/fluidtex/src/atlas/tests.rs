@@ -238,15 +238,7 @@ fn flat_grid(length: u32, width: u32) -> TriMesh {
             positions.push(Vec3::new(i as f32 * 0.5, j as f32 * 0.5, 0.0));
         }
     }
-    let id = |i: u32, j: u32| j * (nx + 1) + i;
-    let mut triangles = Vec::new();
-    for j in 0..ny {
-        for i in 0..nx {
-            triangles.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-            triangles.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-        }
-    }
-    TriMesh::new(positions, triangles)
+    TriMesh::new(positions, fixtures::grid_triangles(nx, ny))
 }
 
 #[test]

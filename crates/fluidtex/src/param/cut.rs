@@ -186,14 +186,7 @@ mod tests {
                 uv.push(Vec2::new(c * x - s * y, s * x + c * y));
             }
         }
-        let id = |i: u32, j: u32| j * (nx + 1) + i;
-        let mut local_triangles = Vec::new();
-        for j in 0..ny {
-            for i in 0..nx {
-                local_triangles.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-                local_triangles.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-            }
-        }
+        let local_triangles = crate::atlas::fixtures::grid_triangles(nx, ny);
         FlatChart {
             triangles: (0..local_triangles.len() as u32)
                 .map(|t| 10 + 2 * t)

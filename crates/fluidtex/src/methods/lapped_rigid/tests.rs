@@ -224,6 +224,33 @@ fn receivers_honour_phi_max() {
     }
 }
 
+/// A compositing context for the falloff tests: ψ = 30° and 60°, nothing
+/// dropped, one exemplar read at level 0.
+fn falloff_context<'a>(
+    mesh: &'a TriMesh,
+    normals: &'a [Vec3],
+    layers: &'a [composite::Layer],
+    ex: &'a Exemplar,
+    mask: &'a PatchMask,
+    falloff_at: falloff::FalloffAt,
+) -> composite::CompositeContext<'a> {
+    composite::CompositeContext {
+        mesh,
+        vertex_normals: normals,
+        opaque: 30f32.to_radians(),
+        transparent: 60f32.to_radians(),
+        falloff_at,
+        layers,
+        exemplar: ex,
+        mask,
+        feature: ex.feature.sampler(),
+        base_lod: None,
+        coverage: 0.99,
+        keep_weight: 0.0,
+        multi: None,
+    }
+}
+
 #[test]
 fn the_falloff_at_a_texel_equals_its_formula() {
     // One patch centred on a flat texel, its frame normal tilted by θ from
@@ -254,21 +281,14 @@ fn the_falloff_at_a_texel_equals_its_formula() {
             exemplar: 0,
             feature: 0,
         }];
-        let ctx = composite::CompositeContext {
-            mesh: &mesh,
-            vertex_normals: &normals,
-            opaque: psi1.to_radians(),
-            transparent: psi0.to_radians(),
-            falloff_at: falloff::FalloffAt::Texel,
-            layers: &layers,
-            exemplar: &ex,
-            mask: &mask,
-            feature: ex.feature.sampler(),
-            base_lod: None,
-            coverage: 0.99,
-            keep_weight: 0.0,
-            multi: None,
-        };
+        let ctx = falloff_context(
+            &mesh,
+            &normals,
+            &layers,
+            &ex,
+            &mask,
+            falloff::FalloffAt::Texel,
+        );
         let mut sum = composite::TexelSum::default();
         let (mut values, mut sample) = (vec![0.0; 3], vec![0.0; 3]);
         let shading = ctx.shading(0, [1.0 / 3.0; 3], Vec3::Z);
@@ -322,21 +342,7 @@ fn the_papers_falloff_interpolates_the_vertex_alphas() {
         exemplar: 0,
         feature: 0,
     }];
-    let ctx = |falloff_at| composite::CompositeContext {
-        mesh: &mesh,
-        vertex_normals: &normals,
-        opaque: 30f32.to_radians(),
-        transparent: 60f32.to_radians(),
-        falloff_at,
-        layers: &layers,
-        exemplar: &ex,
-        mask: &mask,
-        feature: ex.feature.sampler(),
-        base_lod: None,
-        coverage: 0.99,
-        keep_weight: 0.0,
-        multi: None,
-    };
+    let ctx = |at| falloff_context(&mesh, &normals, &layers, &ex, &mask, at);
     let (texel, vertex) = (
         ctx(falloff::FalloffAt::Texel),
         ctx(falloff::FalloffAt::Vertex),
