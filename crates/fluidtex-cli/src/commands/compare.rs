@@ -9,6 +9,7 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use fluidtex::eval::report::{MethodReport, Report, SceneReport, contact_sheet};
 use fluidtex::eval::{self, EvalSettings, MethodRun};
+use fluidtex::exemplar::ExemplarSet;
 use fluidtex::io::FrameRange;
 use fluidtex::io::image::{PngOptions, encode_png};
 use fluidtex::metrics::Thresholds;
@@ -16,7 +17,7 @@ use fluidtex::pipeline::SequenceScene;
 use fluidtex::scenes;
 use fluidtex::texture::Texture;
 
-use super::run::{build_exemplar_set, build_job, build_method};
+use super::run::{build_exemplar_set, build_job, build_method_over};
 use crate::config::{Config, ExemplarEntry};
 use fluidtex::methods::registry::MethodKind;
 use fluidtex::named::Named;
@@ -190,16 +191,24 @@ pub fn compare(a: &CompareArgs) -> Result<()> {
     let job = build_job(&base, a.out.clone(), false)?;
     // The metrics compare with the first exemplar (the one exemplar of a
     // plain run).
-    let exemplar = build_exemplar_set(&base)?.primary().colour.clone();
+    // Each variant's exemplars are built once and shared by every scene and
+    // method (the preset changes no exemplar key, so the paper's set is the
+    // same images; it is built from its own config all the same).
+    let base_set = build_exemplar_set(&base)?;
+    let paper_set = paper.as_ref().map(build_exemplar_set).transpose()?;
+    let exemplar = base_set.primary().colour.clone();
     let thresholds = Thresholds::committed()?;
     // Build every method once up front so a bad configuration fails before
     // any scene is generated.
-    for config in std::iter::once(&base).chain(&paper) {
+    for (config, set) in std::iter::once((&base, &base_set)).chain(paper.iter().zip(&paper_set)) {
         for &kind in &kinds {
-            build_method(&Config {
-                method: Some(kind),
-                ..config.clone()
-            })?;
+            build_method_over(
+                &Config {
+                    method: Some(kind),
+                    ..config.clone()
+                },
+                set,
+            )?;
         }
     }
     std::fs::create_dir_all(&a.out)
@@ -216,6 +225,8 @@ pub fn compare(a: &CompareArgs) -> Result<()> {
         args: a,
         base: &base,
         paper: paper.as_ref(),
+        base_set: &base_set,
+        paper_set: paper_set.as_ref(),
         atlas: &job.atlas,
         exemplar: &exemplar,
         thresholds: &thresholds,
@@ -373,6 +384,9 @@ struct Session<'a> {
     base: &'a Config,
     /// With `--paper`: the same under `--preset paper`.
     paper: Option<&'a Config>,
+    /// The exemplars of `base` and of `paper`, built once.
+    base_set: &'a ExemplarSet,
+    paper_set: Option<&'a ExemplarSet>,
     atlas: &'a fluidtex::atlas::AtlasParams,
     exemplar: &'a Texture,
     thresholds: &'a Thresholds,
@@ -425,16 +439,17 @@ impl Session<'_> {
         let mut runs: Vec<MethodRun> = Vec::new();
         let mut parameters = Vec::new();
         // Each method's paper run right after its default run.
-        let variants: Vec<(&Config, bool)> = std::iter::once((self.base, false))
-            .chain(self.paper.map(|p| (p, true)))
-            .collect();
+        let variants: Vec<(&Config, &ExemplarSet, bool)> =
+            std::iter::once((self.base, self.base_set, false))
+                .chain(self.paper.zip(self.paper_set).map(|(p, s)| (p, s, true)))
+                .collect();
         for (m, &kind) in self.method_names.iter().zip(self.kinds) {
-            for &(base, is_paper) in &variants {
+            for &(base, set, is_paper) in &variants {
                 let config = Config {
                     method: Some(kind),
                     ..base.clone()
                 };
-                let mut method = build_method(&config)?;
+                let mut method = build_method_over(&config, set)?;
                 let clock = Instant::now();
                 let mut run = eval::evaluate(
                     &prepared,

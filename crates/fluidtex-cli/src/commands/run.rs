@@ -497,6 +497,17 @@ pub fn build_method(config: &Config) -> Result<Box<dyn Method>> {
     build_method_noting(config, &mut Vec::new())
 }
 
+/// [`build_method`] over exemplars already built: `compare` builds them
+/// once (decoding an image, generating a built-in, reading a sequence) for
+/// every scene and method it runs.
+pub fn build_method_over(config: &Config, set: &ExemplarSet) -> Result<Box<dyn Method>> {
+    config
+        .method_params()
+        .build_set(config.method_kind(), config.seed.unwrap_or(0), || {
+            Ok::<_, Error>(set.clone())
+        })
+}
+
 /// [`build_method`], adding to `notes` what the run should say of its
 /// exemplars before the first frame.
 fn build_method_noting(config: &Config, notes: &mut Vec<String>) -> Result<Box<dyn Method>> {
