@@ -252,7 +252,7 @@ impl SearchIndex {
     /// and no tree, every query scans every candidate's full vector
     /// (`window.grid` should then be `window.width`: the whole w × w
     /// neighbourhood). The vectors are kept when they fit in
-    /// [`FULL_VECTORS_LIMIT`] floats (33 × 33 × 3 over a 128² exemplar:
+    /// `FULL_VECTORS_LIMIT` (64 M) floats (33 × 33 × 3 over a 128² exemplar:
     /// 53 M), gathered per query otherwise.
     pub fn exact(ex: &WorkingExemplar, window: Window) -> SearchIndex {
         use rayon::prelude::*;
