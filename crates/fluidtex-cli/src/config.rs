@@ -1274,6 +1274,8 @@ mod tests {
                 "distance",
                 "histogram",
                 "off",
+                "exact",
+                "vertex",
                 "3,3,3",
             ]
             .iter()
