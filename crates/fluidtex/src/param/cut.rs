@@ -33,6 +33,8 @@ use std::collections::HashMap;
 
 use glam::DVec2;
 
+use crate::mesh::Topology;
+
 use super::flatten::FlatChart;
 use super::pack::MinAreaRect;
 
@@ -86,7 +88,7 @@ pub fn cut_long(chart: FlatChart, max_len: f64, out: &mut Vec<FlatChart>) {
             ((c.x / rect.size.x * k as f64).floor().max(0.0) as usize).min(k - 1)
         })
         .collect();
-    let pieces = connected_within(&chart.local_triangles, &slab);
+    let pieces = connected_within(&chart.local_triangles, chart.vertices.len(), &slab);
     if pieces.len() < 2 {
         // Every centroid in one slab (a few huge triangles): nothing to cut.
         out.push(chart);
@@ -97,45 +99,36 @@ pub fn cut_long(chart: FlatChart, max_len: f64, out: &mut Vec<FlatChart>) {
     }
 }
 
-/// Groups triangles into pieces: two triangles sharing an edge are in one
-/// piece when they have the same label. Pieces ordered by their first
-/// triangle, triangles ascending.
-fn connected_within(tris: &[[u32; 3]], label: &[usize]) -> Vec<Vec<usize>> {
-    let mut parent: Vec<usize> = (0..tris.len()).collect();
-    fn root(parent: &mut [usize], mut i: usize) -> usize {
-        while parent[i] != i {
-            parent[i] = parent[parent[i]];
-            i = parent[i];
+/// Groups triangles into pieces: two triangles sharing an edge
+/// ([`Topology`]) are in one piece when they have the same label. Pieces
+/// ordered by their first triangle, triangles ascending.
+fn connected_within(tris: &[[u32; 3]], vertex_count: usize, label: &[usize]) -> Vec<Vec<usize>> {
+    let topo = Topology::new(vertex_count, tris);
+    // Labels spread from each piece's first triangle, in index order.
+    let mut piece_of = vec![usize::MAX; tris.len()];
+    let mut pieces: Vec<Vec<usize>> = Vec::new();
+    for first in 0..tris.len() {
+        if piece_of[first] != usize::MAX {
+            continue;
         }
-        i
-    }
-    let mut edges: Vec<(u32, u32, usize)> = tris
-        .iter()
-        .enumerate()
-        .flat_map(|(i, t)| (0..3).map(move |k| (t[k], t[(k + 1) % 3], i)))
-        .map(|(a, b, i)| (a.min(b), a.max(b), i))
-        .collect();
-    edges.sort_unstable();
-    for w in edges.windows(2) {
-        let ((a0, b0, i), (a1, b1, j)) = (w[0], w[1]);
-        if a0 == a1 && b0 == b1 && label[i] == label[j] {
-            let (ri, rj) = (root(&mut parent, i), root(&mut parent, j));
-            // The smaller index is the root, so a piece's root is its first
-            // triangle.
-            if ri != rj {
-                parent[ri.max(rj)] = ri.min(rj);
+        let p = pieces.len();
+        piece_of[first] = p;
+        let mut members = vec![first];
+        let mut next = 0;
+        while let Some(&t) = members.get(next) {
+            next += 1;
+            for k in 0..3 {
+                for &nb in topo.edge_neighbours(t as u32, k) {
+                    let nb = nb as usize;
+                    if piece_of[nb] == usize::MAX && label[nb] == label[first] {
+                        piece_of[nb] = p;
+                        members.push(nb);
+                    }
+                }
             }
         }
-    }
-    let mut piece_of_root: HashMap<usize, usize> = HashMap::new();
-    let mut pieces: Vec<Vec<usize>> = Vec::new();
-    for i in 0..tris.len() {
-        let r = root(&mut parent, i);
-        let p = *piece_of_root.entry(r).or_insert_with(|| {
-            pieces.push(Vec::new());
-            pieces.len() - 1
-        });
-        pieces[p].push(i);
+        members.sort_unstable();
+        pieces.push(members);
     }
     pieces
 }

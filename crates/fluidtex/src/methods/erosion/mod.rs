@@ -1018,10 +1018,12 @@ impl Erosion {
         }
         let cell = reach * shape.radius / shape.exemplar_size;
         let patches = &mut self.state.patches;
-        let max_id = patches.iter().map(|p| p.id as usize).max().unwrap_or(0);
-        let mut index = vec![u32::MAX; max_id + 1];
+        // Ids run below next_id (as delete_unused reads them).
+        let mut index = vec![u32::MAX; self.state.next_id as usize + 1];
         for (i, p) in patches.iter().enumerate() {
-            index[p.id as usize] = i as u32;
+            if let Some(slot) = index.get_mut(p.id as usize) {
+                *slot = i as u32;
+            }
         }
         let of_source = |s: u32| {
             crate::provenance::patch_of(s)
