@@ -19,6 +19,7 @@ use fluidtex::methods::erosion::{
 use fluidtex::methods::lapped_rigid::LappedRigidParams;
 use fluidtex::methods::lapped_rigid::distribution::Placement as RigidPlacement;
 use fluidtex::methods::lapped_rigid::falloff::FalloffAt;
+use fluidtex::methods::optimization::orientation::Smoothing;
 use fluidtex::methods::optimization::{Histogram, OptimizationParams, Search};
 use fluidtex::methods::registry::{MethodKind, MethodParams};
 use fluidtex::methods::tone::Tone;
@@ -279,6 +280,11 @@ impl Config {
                 "optimization",
                 "upsample_diffusion",
                 toml::Value::from(o.upsample_diffusion),
+            ),
+            (
+                "optimization",
+                "orientation_smoothing",
+                toml::Value::try_from(o.orientation_smoothing)?,
             ),
         ];
         for (section, key, value) in left_out {
@@ -608,6 +614,9 @@ pub struct RunFlags {
     /// optimization: orientation smoothing iterations per level [10]
     #[arg(long)]
     pub orientation_iterations: Option<u32>,
+    /// optimization: orientation smoothing by projected vectors (projected) or by polar angles through each vertex's polar map (polar, the paper's) [projected]
+    #[arg(long, value_parser = named::<Smoothing>())]
+    pub orientation_smoothing: Option<Smoothing>,
     /// optimization: robust exponent of the texture energy (2: least squares) [0.8]
     #[arg(long)]
     pub robust: Option<f32>,
@@ -727,6 +736,7 @@ flag_keys! {
     centre_spacing => optimization.centre_spacing: value,
     coherence => optimization.coherence: value,
     orientation_iterations => optimization.orientation_iterations: value,
+    orientation_smoothing => optimization.orientation_smoothing: value,
     robust => optimization.robust: value,
     histogram => optimization.histogram: value,
     relaxation => optimization.relaxation: value,
@@ -1276,6 +1286,7 @@ mod tests {
                 "off",
                 "exact",
                 "vertex",
+                "polar",
                 "3,3,3",
             ]
             .iter()

@@ -350,6 +350,7 @@ fn documented_elsewhere(flag: &str) -> bool {
             "histogram",
             "passes-after-first",
             "orientation-iterations",
+            "orientation-smoothing",
             "relaxation",
             "upsample-diffusion",
             "preview-video",

@@ -12,7 +12,7 @@
 //!    Eqs. 3–4).
 //! 3. [`orientation`]: the orientation field smoothed coarse to fine
 //!    (Sec. IV-B), from the transported field or, on a fresh surface, from
-//!    a reference field.
+//!    a reference field; by projection, or through [`polar`] maps.
 //! 4. [`solve`] with [`neighbourhood`] and [`search`]: E = E_t + E_c
 //!    (Eqs. 1–2) minimised by alternating nearest-neighbour search and
 //!    averaging, passes of 33², 17², 9² at each level, coarse to fine; the
@@ -35,6 +35,7 @@ pub mod lattice;
 pub mod neighbourhood;
 pub mod orientation;
 pub mod output;
+pub mod polar;
 pub mod search;
 mod selection;
 pub mod solve;
@@ -130,6 +131,13 @@ pub struct OptimizationParams {
     pub histogram: Histogram,
     /// Orientation smoothing iterations per level \[10] (Sec. IV-B).
     pub orientation_iterations: u32,
+    /// How the orientation field is smoothed \[projected]: neighbours'
+    /// vectors projected and averaged; `polar` diffuses polar angles
+    /// through each vertex's polar map from polar angle 0, as the paper
+    /// does (Sec. IV-B). See [`orientation`]. Left out of the settings at
+    /// `projected`.
+    #[serde(skip_serializing_if = "crate::methods::is_default")]
+    pub orientation_smoothing: orientation::Smoothing,
     /// RK4 steps per frame for transport \[1].
     pub substeps: u32,
     /// Relaxation sweeps after a vertex neighbourhood is laid out ring by
@@ -163,6 +171,7 @@ impl Default for OptimizationParams {
             robust: 0.8,
             histogram: Histogram::Matched,
             orientation_iterations: 10,
+            orientation_smoothing: orientation::Smoothing::Projected,
             substeps: 1,
             relaxation: 0,
             upsample_diffusion: 0,
@@ -1018,13 +1027,13 @@ impl Method for Optimization {
 
         // 3. Orientation field: the transported one, or the reference
         // directions on a first frame, smoothed over the hierarchy.
-        let coarse = coarse_orientation.unwrap_or_else(|| {
-            (coarsest.normals.iter())
-                .map(|&n| orientation::reference(n))
-                .collect()
-        });
-        let iterations = self.params.orientation_iterations;
-        let fine_orientation = orientation::smooth_hierarchy(&lattice, &levels, coarse, iterations);
+        let fine_orientation = orientation::smooth_hierarchy(
+            &lattice,
+            &levels,
+            coarse_orientation,
+            self.params.orientation_iterations,
+            self.params.orientation_smoothing,
+        );
         clock.lap("orientation");
 
         // 4. Synthesis, coarse to fine.
