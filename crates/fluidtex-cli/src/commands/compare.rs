@@ -136,29 +136,9 @@ fn method_parameters(config: &Config, method: &str) -> serde_json::Value {
     })
 }
 
-pub fn compare(a: &CompareArgs) -> Result<()> {
-    let start = Instant::now();
-    let scene_names = match &a.mesh {
-        Some(_) => vec![MESH_SCENE.to_string()],
-        None => split_list("scenes", &a.scenes)?,
-    };
-    if a.mesh.is_none() {
-        for s in &scene_names {
-            scenes::default_params(s)?;
-        }
-    }
-    if !(a.fps.is_finite() && a.fps > 0.0 && a.fps <= 1000.0) {
-        bail!("--fps {}: allowed above 0 up to 1000", a.fps);
-    }
-    let (method_names, kinds) = methods_of(a)?;
-    let range = a
-        .frames
-        .as_deref()
-        .map(str::parse::<FrameRange>)
-        .transpose()?;
-    if !(32..=4096).contains(&a.render) {
-        bail!("--render {}: allowed 32 to 4096 pixels", a.render);
-    }
+/// The configurations `compare` runs: the defaults with the file's keys
+/// (`--config`), and with `--paper` the same under the paper preset.
+fn variants(a: &CompareArgs) -> Result<(Config, Option<Config>)> {
     // A config file brings the methods' parameters (e.g. an erosion
     // δ_max to weigh against the defaults); the scene decides the input.
     let file = Config::load_with_preset(a.config.as_deref(), None)?;
@@ -187,6 +167,33 @@ pub fn compare(a: &CompareArgs) -> Result<()> {
         .paper
         .then(|| Config::load_with_preset(a.config.as_deref(), Some("paper")).map(for_compare))
         .transpose()?;
+    Ok((base, paper))
+}
+
+pub fn compare(a: &CompareArgs) -> Result<()> {
+    let start = Instant::now();
+    let scene_names = match &a.mesh {
+        Some(_) => vec![MESH_SCENE.to_string()],
+        None => split_list("scenes", &a.scenes)?,
+    };
+    if a.mesh.is_none() {
+        for s in &scene_names {
+            scenes::default_params(s)?;
+        }
+    }
+    if !(a.fps.is_finite() && a.fps > 0.0 && a.fps <= 1000.0) {
+        bail!("--fps {}: allowed above 0 up to 1000", a.fps);
+    }
+    let (method_names, kinds) = methods_of(a)?;
+    let range = a
+        .frames
+        .as_deref()
+        .map(str::parse::<FrameRange>)
+        .transpose()?;
+    if !(32..=4096).contains(&a.render) {
+        bail!("--render {}: allowed 32 to 4096 pixels", a.render);
+    }
+    let (base, paper) = variants(a)?;
     // Validates the atlas size and gives the atlas parameters `run` uses.
     let job = build_job(&base, a.out.clone(), false)?;
     // The metrics compare with the first exemplar (the one exemplar of a

@@ -241,6 +241,29 @@ pub struct Atlas {
     fixed: Vec<[i32; 2]>,
 }
 
+/// Every triangle corner names a vertex, and every vertex used is finite.
+fn check_corners(mesh: &TriMesh) -> Result<(), AtlasError> {
+    let n = mesh.positions.len();
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        for &v in tri {
+            match mesh.positions.get(v as usize) {
+                None => {
+                    return Err(AtlasError::IndexOutOfRange {
+                        triangle: t,
+                        index: v,
+                        vertex_count: n,
+                    });
+                }
+                Some(p) if !p.is_finite() => {
+                    return Err(AtlasError::NonFinitePosition { vertex: v as usize });
+                }
+                _ => {}
+            }
+        }
+    }
+    Ok(())
+}
+
 impl Atlas {
     /// Unwraps, packs and rasterizes `mesh`. An empty mesh gives a valid
     /// atlas with no charts.
@@ -250,24 +273,8 @@ impl Atlas {
     /// used by a triangle, or more charts than the atlas can hold.
     pub fn build(mesh: &TriMesh, params: &AtlasParams) -> Result<Atlas, AtlasError> {
         params.validate()?;
+        check_corners(mesh)?;
         let n = mesh.positions.len();
-        for (t, tri) in mesh.triangles.iter().enumerate() {
-            for &v in tri {
-                match mesh.positions.get(v as usize) {
-                    None => {
-                        return Err(AtlasError::IndexOutOfRange {
-                            triangle: t,
-                            index: v,
-                            vertex_count: n,
-                        });
-                    }
-                    Some(p) if !p.is_finite() => {
-                        return Err(AtlasError::NonFinitePosition { vertex: v as usize });
-                    }
-                    _ => {}
-                }
-            }
-        }
         let mut timings = AtlasTimings::default();
 
         let clock = Instant::now();

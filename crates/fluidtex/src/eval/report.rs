@@ -304,6 +304,62 @@ fn spread_text(s: &Spread) -> String {
 const STATE: &str = "state agreement (info; ≥ 0.95 once settled)";
 
 impl SceneReport {
+    /// The Markdown table's header and rule lines for this scene.
+    fn markdown_head(&self) -> String {
+        let mut head = String::from("| method |");
+        let mut rule = String::from("| --- |");
+        for &m in COLUMNS {
+            let _ = write!(head, " {} |", m.name());
+            rule.push_str(" --- |");
+            if m == Metric::Distortion {
+                let _ = write!(head, " {ANISOTROPY} |");
+                rule.push_str(" --- |");
+            }
+            if m == Metric::SourceSwitch {
+                for title in SWITCH_SPLIT {
+                    let _ = write!(head, " {title} |");
+                    rule.push_str(" --- |");
+                }
+            }
+        }
+        if self.has_state() {
+            let _ = write!(head, " {STATE} |");
+            rule.push_str(" --- |");
+        }
+        head.push_str(" s/frame | patches |");
+        rule.push_str(" --- | --- |");
+        format!("{head}\n{rule}")
+    }
+
+    /// Method `m`'s row of the Markdown table.
+    fn markdown_row(&self, m: &MethodReport) -> String {
+        let mut row = format!("| {} |", m.name);
+        for &c in COLUMNS {
+            let text = m.cell(metric_key(c)).map_or("n/a".into(), cell_text);
+            let _ = write!(row, " {text} |");
+            if c == Metric::Distortion {
+                let text = m.anisotropy.as_ref().map_or("—".into(), spread_text);
+                let _ = write!(row, " {text} |");
+            }
+            if c == Metric::SourceSwitch {
+                for text in m.switch_split_texts() {
+                    let _ = write!(row, " {text} |");
+                }
+            }
+        }
+        if self.has_state() {
+            let text = m.state_agreement.as_ref().map_or("—".into(), spread_text);
+            let _ = write!(row, " {text} |");
+        }
+        let _ = write!(
+            row,
+            " {} | {} |",
+            spread_text(&m.seconds_per_frame),
+            m.patches.as_ref().map_or("—".into(), spread_text)
+        );
+        row
+    }
+
     /// Whether a method of the scene reports a state agreement.
     fn has_state(&self) -> bool {
         self.methods.iter().any(|m| m.state_agreement.is_some())
@@ -342,55 +398,9 @@ impl Report {
                 scene.render_size,
                 scene.truth_motion
             );
-            let mut head = String::from("| method |");
-            let mut rule = String::from("| --- |");
-            for &m in COLUMNS {
-                let _ = write!(head, " {} |", m.name());
-                rule.push_str(" --- |");
-                if m == Metric::Distortion {
-                    let _ = write!(head, " {ANISOTROPY} |");
-                    rule.push_str(" --- |");
-                }
-                if m == Metric::SourceSwitch {
-                    for title in SWITCH_SPLIT {
-                        let _ = write!(head, " {title} |");
-                        rule.push_str(" --- |");
-                    }
-                }
-            }
-            if scene.has_state() {
-                let _ = write!(head, " {STATE} |");
-                rule.push_str(" --- |");
-            }
-            head.push_str(" s/frame | patches |");
-            rule.push_str(" --- | --- |");
-            let _ = writeln!(s, "{head}\n{rule}");
+            let _ = writeln!(s, "{}", scene.markdown_head());
             for m in &scene.methods {
-                let mut row = format!("| {} |", m.name);
-                for &c in COLUMNS {
-                    let text = m.cell(metric_key(c)).map_or("n/a".into(), cell_text);
-                    let _ = write!(row, " {text} |");
-                    if c == Metric::Distortion {
-                        let text = m.anisotropy.as_ref().map_or("—".into(), spread_text);
-                        let _ = write!(row, " {text} |");
-                    }
-                    if c == Metric::SourceSwitch {
-                        for text in m.switch_split_texts() {
-                            let _ = write!(row, " {text} |");
-                        }
-                    }
-                }
-                if scene.has_state() {
-                    let text = m.state_agreement.as_ref().map_or("—".into(), spread_text);
-                    let _ = write!(row, " {text} |");
-                }
-                let _ = write!(
-                    row,
-                    " {} | {} |",
-                    spread_text(&m.seconds_per_frame),
-                    m.patches.as_ref().map_or("—".into(), spread_text)
-                );
-                let _ = writeln!(s, "{row}");
+                let _ = writeln!(s, "{}", scene.markdown_row(m));
             }
             for m in &scene.methods {
                 for n in &m.notes {

@@ -146,19 +146,7 @@ pub fn parse_ply(path: &Path, bytes: &[u8], options: &ReadOptions) -> Result<Tri
             ),
         });
     }
-    // Requested components of the position or of the velocity: copies.
-    let mut copies = Vec::new();
-    for name in &scalars.components {
-        let axis = |names: [&str; 3]| names.iter().position(|n| n == name);
-        let values: Vec<f32> = if let Some(k) = axis(["x", "y", "z"]) {
-            vertices.positions.iter().map(|p| p[k]).collect()
-        } else if let Some(k) = velocity_names.and_then(axis) {
-            vertices.velocity.iter().map(|v| v[k]).collect()
-        } else {
-            continue;
-        };
-        copies.push((name.clone(), values));
-    }
+    let copies = vertices.component_copies(&scalars.components, velocity_names);
     let mut mesh = TriMesh::new(vertices.positions, triangles);
     if has_velocity {
         mesh = mesh.with_velocity(vertices.velocity);
@@ -266,6 +254,31 @@ struct Vertices {
     velocity: Vec<Vec3>,
     exemplar_ids: Vec<f32>,
     extras: Vec<Vec<f32>>,
+}
+
+impl Vertices {
+    /// The requested components of the position or of the velocity
+    /// (`names`), as copies named after them; a name that is neither is
+    /// skipped.
+    fn component_copies(
+        &self,
+        names: &[String],
+        velocity_names: Option<[&str; 3]>,
+    ) -> Vec<(String, Vec<f32>)> {
+        let mut copies = Vec::new();
+        for name in names {
+            let axis = |names: [&str; 3]| names.iter().position(|n| n == name);
+            let values: Vec<f32> = if let Some(k) = axis(["x", "y", "z"]) {
+                self.positions.iter().map(|p| p[k]).collect()
+            } else if let Some(k) = velocity_names.and_then(axis) {
+                self.velocity.iter().map(|v| v[k]).collect()
+            } else {
+                continue;
+            };
+            copies.push((name.clone(), values));
+        }
+        copies
+    }
 }
 
 impl Ctx<'_> {

@@ -24,9 +24,9 @@ pub enum PlyEncoding {
     Ascii,
 }
 
-/// Writes `mesh` (positions, triangles, velocity if present and every
-/// scalar attribute, in name order) atomically.
-pub fn write_ply(path: &Path, mesh: &TriMesh, encoding: PlyEncoding) -> Result<(), IoError> {
+/// The mesh can be written as it is: every triangle corner names a
+/// vertex, and a velocity, if any, is given for every vertex.
+fn check_writable(path: &Path, mesh: &TriMesh) -> Result<(), IoError> {
     if let Some(&[a, b, c]) = mesh
         .triangles
         .iter()
@@ -40,8 +40,7 @@ pub fn write_ply(path: &Path, mesh: &TriMesh, encoding: PlyEncoding) -> Result<(
             ),
         });
     }
-    let velocity = mesh.velocity();
-    if let Some(v) = velocity
+    if let Some(v) = mesh.velocity()
         && v.len() != mesh.positions.len()
     {
         return Err(IoError::Unwritable {
@@ -53,6 +52,14 @@ pub fn write_ply(path: &Path, mesh: &TriMesh, encoding: PlyEncoding) -> Result<(
             ),
         });
     }
+    Ok(())
+}
+
+/// Writes `mesh` (positions, triangles, velocity if present and every
+/// scalar attribute, in name order) atomically.
+pub fn write_ply(path: &Path, mesh: &TriMesh, encoding: PlyEncoding) -> Result<(), IoError> {
+    check_writable(path, mesh)?;
+    let velocity = mesh.velocity();
     let scalars = scalar_attributes(path, mesh)?;
     write_atomic(path, |w| {
         let format = match encoding {

@@ -153,6 +153,35 @@ pub(crate) fn reconstruct(
     reconstruct_with(positions, velocities, &[], r, s, frame)
 }
 
+/// splashsurf's parameters for particle radius `r`: single-threaded and
+/// without SIMD, so that the surface is the same on every machine.
+fn parameters(r: f32, s: &Surfacing) -> Parameters<f32> {
+    let mut parameters = Parameters::new(r, s.support * r, s.cube * r);
+    parameters.rest_density = s.rest_density;
+    parameters.iso_surface_threshold = s.threshold;
+    parameters.enable_multi_threading = false;
+    parameters.enable_simd = false;
+    parameters.spatial_decomposition = SpatialDecomposition::None;
+    parameters
+}
+
+/// splashsurf's triangles as u32 indices, each checked against the
+/// `n` vertices.
+fn checked_triangles(triangles: &[[usize; 3]], n: usize) -> Result<Vec<[u32; 3]>, String> {
+    let mut out = Vec::with_capacity(triangles.len());
+    for (t, tri) in triangles.iter().enumerate() {
+        let mut corners = [0u32; 3];
+        for (k, &i) in tri.iter().enumerate() {
+            if i >= n || i > u32::MAX as usize {
+                return Err(format!("triangle {t} refers to vertex {i} of {n}"));
+            }
+            corners[k] = i as u32;
+        }
+        out.push(corners);
+    }
+    Ok(out)
+}
+
 /// [`reconstruct`], and each named per-particle scalar of `scalars` (one
 /// value per particle) carried to the vertices the same way as the
 /// velocity (first-order corrected SPH interpolation, so a vertex gets a
@@ -187,14 +216,9 @@ pub(crate) fn reconstruct_with(
         .iter()
         .map(|p| SsVector::new(p[0], p[1], p[2]))
         .collect();
-    let mut parameters = Parameters::new(r, s.support * r, s.cube * r);
-    parameters.rest_density = s.rest_density;
-    parameters.iso_surface_threshold = s.threshold;
-    parameters.enable_multi_threading = false;
-    parameters.enable_simd = false;
-    parameters.spatial_decomposition = SpatialDecomposition::None;
-    let mut surface = splashsurf_lib::reconstruct_surface::<i64, f32>(&positions, &parameters)
-        .map_err(|e| fail(format!("surface reconstruction: {e}")))?;
+    let mut surface =
+        splashsurf_lib::reconstruct_surface::<i64, f32>(&positions, &parameters(r, s))
+            .map_err(|e| fail(format!("surface reconstruction: {e}")))?;
     let grid = surface.grid.clone();
     splashsurf_lib::postprocessing::marching_cubes_cleanup(
         &mut surface.mesh,
@@ -247,18 +271,8 @@ pub(crate) fn reconstruct_with(
             attributes.push((name.to_string(), Attribute::Scalar(at_vertices)));
         }
     }
-    let mut triangles = Vec::with_capacity(surface.mesh.triangles.len());
-    let n = surface.mesh.vertices.len();
-    for (t, tri) in surface.mesh.triangles.iter().enumerate() {
-        let mut out = [0u32; 3];
-        for (k, &i) in tri.iter().enumerate() {
-            if i >= n || i > u32::MAX as usize {
-                return Err(fail(format!("triangle {t} refers to vertex {i} of {n}")));
-            }
-            out[k] = i as u32;
-        }
-        triangles.push(out);
-    }
+    let triangles =
+        checked_triangles(&surface.mesh.triangles, surface.mesh.vertices.len()).map_err(fail)?;
     let positions = surface
         .mesh
         .vertices

@@ -673,28 +673,12 @@ impl LappedRigid {
 
     /// Stages 3–5: receivers (Sec. 3.2), Algorithm 1, and the distribution
     /// update (Sec. 3.1.3); returns the ids of the patches shown.
-    fn composite_and_cover(
-        &mut self,
-        ctx: &FrameContext<'_>,
-        surface: &Surface<'_>,
-        out: &mut CompositeBuffers,
-        counts: &mut FrameCounts,
-        clock: &mut StageClock,
-    ) -> Result<Vec<u32>, MethodError> {
-        let mesh = ctx.mesh;
-        let (radius, exemplar_size) = (surface.radius, surface.exemplar_size);
-        let rc = ReceiverContext {
-            mesh,
-            topology: ctx.topology,
-            index: ctx.index,
-            vertex_normals: ctx.normals,
-            radius,
-            phi_max: self.params.phi_max.to_radians(),
-        };
+    /// One compositing layer per tracker, oldest first, each with the
+    /// exemplar slot it shows on frame `number` (pyramids of animated
+    /// exemplars prepared).
+    fn layers(&self, number: i32, exemplar_size: f32) -> Vec<Layer> {
         let slot = |t: &Tracker| match &self.multi {
-            Some(m) => m
-                .set
-                .slot(t.exemplar, self.seed, u64::from(t.id), ctx.number),
+            Some(m) => m.set.slot(t.exemplar, self.seed, u64::from(t.id), number),
             None => t.exemplar,
         };
         let feature_slot = |t: &Tracker| match &self.multi {
@@ -718,6 +702,28 @@ impl LappedRigid {
         {
             m.set.prepare(layers.iter().map(|l| l.exemplar));
         }
+        layers
+    }
+
+    fn composite_and_cover(
+        &mut self,
+        ctx: &FrameContext<'_>,
+        surface: &Surface<'_>,
+        out: &mut CompositeBuffers,
+        counts: &mut FrameCounts,
+        clock: &mut StageClock,
+    ) -> Result<Vec<u32>, MethodError> {
+        let mesh = ctx.mesh;
+        let (radius, exemplar_size) = (surface.radius, surface.exemplar_size);
+        let rc = ReceiverContext {
+            mesh,
+            topology: ctx.topology,
+            index: ctx.index,
+            vertex_normals: ctx.normals,
+            radius,
+            phi_max: self.params.phi_max.to_radians(),
+        };
+        let layers = self.layers(ctx.number, exemplar_size);
         let receivers: Vec<Receivers> = layers.par_iter().map(|l| rc.receivers(&l.frame)).collect();
         let lists = composite::layer_lists(&receivers, mesh.triangle_count());
         counts.pairs = lists.len();
