@@ -39,6 +39,7 @@ pub mod polar;
 pub mod search;
 mod selection;
 pub mod solve;
+pub mod tangent;
 pub mod transport;
 
 #[cfg(test)]

@@ -29,6 +29,7 @@ use serde::{Deserialize, Serialize};
 
 use super::lattice::{Lattice, Level};
 use super::polar::{self, PolarMaps};
+use super::tangent::{reference, tangent};
 
 /// How the orientation field is smoothed (Sec. IV-B).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -47,27 +48,6 @@ crate::named!(Smoothing {
     Projected => "projected",
     Polar => "polar",
 });
-
-/// `d` projected on the plane of normal `n` and normalised; a stable
-/// tangent of `n` when `d` is (nearly) normal to the plane.
-#[inline]
-pub fn tangent(d: Vec3, n: Vec3) -> Vec3 {
-    let t = d - n * d.dot(n);
-    if t.length_squared() > 1e-12 {
-        t.normalize()
-    } else {
-        reference(n)
-    }
-}
-
-/// The reference (zero-angle) tangent of a point: world X projected on
-/// the tangent plane, or world Z near the poles of X.
-#[inline]
-pub fn reference(n: Vec3) -> Vec3 {
-    let axis = if n.x.abs() < 0.9 { Vec3::X } else { Vec3::Z };
-    let t = axis - n * axis.dot(n);
-    t.normalize_or(Vec3::X)
-}
 
 /// `iterations` Jacobi steps of neighbour averaging on `level`.
 pub fn diffuse(level: &Level, d: &mut Vec<Vec3>, iterations: u32) {

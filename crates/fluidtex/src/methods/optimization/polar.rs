@@ -43,7 +43,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::lattice::Level;
-use super::orientation::{reference, tangent};
+use super::tangent::{reference, tangent};
 
 /// The polar maps of every vertex of one level.
 pub struct PolarMaps {

@@ -1022,8 +1022,8 @@ fn polar_maps_of_a_sphere_add_up_to_its_total_curvature() {
 /// polar angle 0 is the reference vector.
 #[test]
 fn polar_angles_and_tangent_vectors_are_inverse_maps() {
-    use super::orientation::tangent;
     use super::polar::PolarMaps;
+    use super::tangent::tangent;
     let mut mesh = crate::atlas::fixtures::icosphere(2);
     // Squash it so that the fans are uneven.
     mesh.positions.iter_mut().for_each(|p| p.z *= 0.5);
@@ -1044,7 +1044,7 @@ fn polar_angles_and_tangent_vectors_are_inverse_maps() {
             assert!(wrap(back - theta).abs() < 1e-3, "v {v}: {theta} -> {back}");
         }
         let zero = maps.vector(v, n, 0.0);
-        assert!(zero.angle_between(super::orientation::reference(n)) < 1e-3);
+        assert!(zero.angle_between(super::tangent::reference(n)) < 1e-3);
         for &u in level.neighbours(v) {
             let phi = maps
                 .edge_angle(v, u)

@@ -22,7 +22,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::lattice::Lattice;
-use super::orientation::tangent;
+use super::tangent::tangent;
 use crate::mesh::TriMesh;
 use crate::surface::SurfaceIndex;
 use crate::surface::velocity::FlowInterval;
@@ -117,7 +117,7 @@ pub fn orientations(
                     let head = forward.advect(on_surface + d * epsilon);
                     tangent(head - tail, n)
                 }
-                None => super::orientation::reference(n),
+                None => super::tangent::reference(n),
             }
         })
         .collect()
