@@ -137,14 +137,7 @@ fn border_distance(seed: u64, x: f32, y: f32) -> f32 {
     let (mut f1, mut f2) = (f32::INFINITY, f32::INFINITY);
     for dy in -2..=2 {
         for dx in -2..=2 {
-            let (i, j) = (cx + dx, cy + dy);
-            let cell = i.rem_euclid(CELLS as i32) as u64
-                + CELLS as u64 * j.rem_euclid(CELLS as i32) as u64;
-            let h = mix(seed, SITE_STREAM, cell);
-            let jx = unit(h) * 2.0 - 1.0;
-            let jy = unit(h >> 24) * 2.0 - 1.0;
-            let sx = i as f32 + 0.5 + JITTER * jx;
-            let sy = j as f32 + 0.5 + JITTER * jy;
+            let (sx, sy) = site(seed, cx + dx, cy + dy);
             let dist = ((sx - x).powi(2) + (sy - y).powi(2)).sqrt();
             if dist < f1 {
                 f2 = f1;
@@ -155,6 +148,18 @@ fn border_distance(seed: u64, x: f32, y: f32) -> f32 {
         }
     }
     0.5 * (f2 - f1)
+}
+
+/// The Voronoi site of cell `(i, j)` (any integers, wrapped on the torus
+/// of [`CELLS`] cells), in cell units: the cell's centre moved by up to
+/// [`JITTER`] on each axis, by two independent 24-bit draws of one hash.
+fn site(seed: u64, i: i32, j: i32) -> (f32, f32) {
+    let cell = i.rem_euclid(CELLS as i32) as u64 + CELLS as u64 * j.rem_euclid(CELLS as i32) as u64;
+    let h = mix(seed, SITE_STREAM, cell);
+    // `unit` reads the top 24 bits: x takes bits 40–63, y bits 16–39.
+    let jx = unit(h) * 2.0 - 1.0;
+    let jy = unit(h << 24) * 2.0 - 1.0;
+    (i as f32 + 0.5 + JITTER * jx, j as f32 + 0.5 + JITTER * jy)
 }
 
 /// Tileable value noise in [0, 1] at uv `(u, v)` on a `lattice`² grid.
@@ -206,6 +211,40 @@ mod tests {
     fn luminance(e: &Exemplar) -> f32 {
         let d = &e.colour.data;
         d.iter().sum::<f32>() / d.len() as f32
+    }
+
+    /// The sites are jittered on both axes: over every cell of eight seeds,
+    /// each offset
+    /// from the cell centre spreads over most of ±JITTER with a mean near
+    /// 0. Control: reading y from `h >> 24` (bits that `unit` shifts out)
+    /// gave every site the same y offset, −JITTER, so the cracks ran in
+    /// rows.
+    #[test]
+    fn voronoi_sites_are_jittered_on_both_axes() {
+        let (mut xs, mut ys) = (Vec::new(), Vec::new());
+        for seed in 0..8 {
+            for j in 0..CELLS as i32 {
+                for i in 0..CELLS as i32 {
+                    let (x, y) = site(seed, i, j);
+                    xs.push(x - i as f32 - 0.5);
+                    ys.push(y - j as f32 - 0.5);
+                }
+            }
+        }
+        for (axis, d) in [("x", &xs), ("y", &ys)] {
+            let n = d.len() as f32;
+            let mean = d.iter().sum::<f32>() / n;
+            let sd = (d.iter().map(|v| (v - mean).powi(2)).sum::<f32>() / n).sqrt();
+            assert!(mean.abs() < 0.2 * JITTER, "{axis}: mean {mean}");
+            // A uniform draw on ±J has sd J/√3 ≈ 0.577 J.
+            assert!(sd > 0.45 * JITTER, "{axis}: sd {sd}");
+            assert!(d.iter().all(|v| v.abs() <= JITTER));
+        }
+        let h = mix(7, SITE_STREAM, 3);
+        assert_eq!(unit(h >> 24), 0.0, "the old draw was always 0");
+        // Wrapped cells share their site, moved by whole tori.
+        let (a, b) = (site(7, 1, 2), site(7, 1 + CELLS as i32, 2 - CELLS as i32));
+        assert!((a.0 + CELLS as f32 - b.0).abs() < 1e-5 && (a.1 - CELLS as f32 - b.1).abs() < 1e-5);
     }
 
     #[test]
