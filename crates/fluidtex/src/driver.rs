@@ -18,7 +18,9 @@ use thiserror::Error;
 use crate::atlas::{AtlasError, AtlasParams};
 use crate::frame::{FrameGeometry, GeometryError, StageClock};
 use crate::mesh::{TriMesh, ValidationReport};
-use crate::methods::{FrameContext, FrameResult, Method, MethodError, Selection, SpentBuffers};
+use crate::methods::{
+    FrameArena, FrameContext, FrameResult, Method, MethodError, Selection, SpentBuffers, Wants,
+};
 
 /// Errors of the driver itself (a sink has its own error type, which
 /// converts from this one).
@@ -57,8 +59,9 @@ pub trait FrameSink {
     fn frame(&mut self, frame: DrivenFrame<'_>) -> Result<(), Self::Error>;
 
     /// Whether [`FrameSink::frame`] reads the result's per-texel uv and
-    /// exemplar levels; when not, the driver hands them back to the method
-    /// ([`Method::recycle`]) once the sink has seen the frame.
+    /// exemplar levels; when not, the method is not asked for the levels
+    /// and the driver keeps the uv for the next frame (its
+    /// [`FrameArena`]).
     fn reads_evaluation_buffers(&self) -> bool {
         true
     }
@@ -72,8 +75,8 @@ pub trait FrameSink {
 
     /// The last frame's interleaved channel values, when the sink took what
     /// it needs of them and has no further use for the buffer; the driver
-    /// hands it back to the method ([`Method::recycle`]). The default keeps
-    /// nothing back.
+    /// keeps it for the next frame's step (its [`FrameArena`]). The default
+    /// keeps nothing back.
     fn spent_values(&mut self) -> Option<Vec<f32>> {
         None
     }
@@ -92,6 +95,9 @@ pub struct Driver<'m> {
     dt: f32,
     dilate_radius: u32,
     previous: Option<Arc<FrameGeometry>>,
+    /// The per-texel buffers lent to each frame's step, refilled with what
+    /// the sink no longer needs.
+    arena: FrameArena,
 }
 
 impl<'m> Driver<'m> {
@@ -103,6 +109,7 @@ impl<'m> Driver<'m> {
             dt,
             dilate_radius,
             previous: None,
+            arena: FrameArena::new(),
         }
     }
 
@@ -137,7 +144,8 @@ impl<'m> Driver<'m> {
     /// The frame becomes the previous one.
     pub fn select(&mut self, frame: &Arc<FrameGeometry>) -> Result<Selection, DriverError> {
         self.check_velocity(frame)?;
-        let ctx = FrameContext::new(self.dt, frame, self.previous.as_deref());
+        let ctx =
+            FrameContext::new(self.dt, frame, self.previous.as_deref()).with_arena(&self.arena);
         let selection = self.method.select(&ctx)?;
         self.previous = Some(Arc::clone(frame));
         Ok(selection)
@@ -180,10 +188,11 @@ impl<'m> Driver<'m> {
         } = frame;
         let g = &*geometry;
         self.check_velocity(g)?;
-        self.method
-            .set_evaluation_buffers_read(sink.reads_evaluation_buffers());
-        self.method.set_renewal_read(sink.reads_renewal());
-        let ctx = FrameContext::new(self.dt, g, self.previous.as_deref());
+        self.arena.set_wants(Wants {
+            levels: sink.reads_evaluation_buffers(),
+            renewal: sink.reads_renewal(),
+        });
+        let ctx = FrameContext::new(self.dt, g, self.previous.as_deref()).with_arena(&self.arena);
         let mut result = fill(&mut *self.method, &ctx).map_err(DriverError::from)?;
         clock.extend(&result.timings);
         for channel in &mut result.channels {
@@ -208,7 +217,7 @@ impl<'m> Driver<'m> {
             clock: &mut clock,
         })?;
         spent.values = sink.spent_values();
-        self.method.recycle(spent);
+        self.arena.hand_back(spent);
         self.previous = Some(geometry);
         Ok(())
     }

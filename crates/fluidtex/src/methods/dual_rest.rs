@@ -439,6 +439,7 @@ mod tests {
                     index: &indices[k - 1],
                 }),
                 atlas: &atlases[k],
+                arena: &crate::methods::arena::FRESH,
             };
             let r = m.step(&ctx).expect("step");
             let n = |key: &str| r.stats[key].as_u64().unwrap_or(0) > 0;

@@ -30,6 +30,7 @@
 //! per-triangle patch lists, the band walk over the atlas with its
 //! deterministic merge, and the bookkeeping of coverage-driven insertion.
 
+pub mod arena;
 pub mod atlas_check;
 pub mod dual_rest;
 pub mod erosion;
@@ -56,6 +57,7 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use thiserror::Error;
 
+pub use self::arena::{FrameArena, SpentBuffers, Wants};
 use crate::atlas::Atlas;
 pub use crate::exemplar::channels::{ChannelFormat, ChannelSpec};
 use crate::frame::FrameGeometry;
@@ -88,6 +90,9 @@ pub struct FrameContext<'a> {
     /// The frame before, when this is not the first frame of the run.
     pub previous: Option<PreviousFrame<'a>>,
     pub atlas: &'a Atlas,
+    /// The per-texel buffers lent to this frame's step, and what its
+    /// result must carry ([`arena`]).
+    pub arena: &'a FrameArena,
 }
 
 impl<'a> FrameContext<'a> {
@@ -109,7 +114,13 @@ impl<'a> FrameContext<'a> {
                 index: &p.index,
             }),
             atlas: &frame.atlas,
+            arena: &arena::FRESH,
         }
+    }
+
+    /// The same frame, its buffers lent by `arena`.
+    pub fn with_arena(self, arena: &'a FrameArena) -> FrameContext<'a> {
+        FrameContext { arena, ..self }
     }
 
     /// The flow that carries points from the previous frame to this one
@@ -389,32 +400,6 @@ pub trait Method: Send {
     fn memory_report(&self) -> Option<String> {
         None
     }
-
-    /// Takes back the last frame's per-texel buffers the caller has no use
-    /// for (a `run` writes no file of the uv and levels, and writes an
-    /// 8-bit colour atlas from its own 8-bit copy), so the next
-    /// [`Method::step`] can fill them again instead of mapping fresh pages:
-    /// at 6144² they are 450 MB each. The default drops them.
-    fn recycle(&mut self, spent: SpentBuffers) {
-        drop(spent);
-    }
-
-    /// Whether the caller reads the per-texel uv and levels of the next
-    /// results ([`FrameResult::uv`], [`FrameResult::exemplar_lod`]): an
-    /// evaluation does, a `run` does not. A method may then skip the
-    /// buffers it makes only for the caller. The default ignores it; a
-    /// method assumes they are read until told otherwise.
-    fn set_evaluation_buffers_read(&mut self, read: bool) {
-        let _ = read;
-    }
-
-    /// Whether the caller reads the per-texel renewal of the next results
-    /// ([`FrameResult::renewal`]): a run measures the switches only with
-    /// its debug outputs. Recording it costs the erosion fill about a
-    /// sixth of its time, so a method may skip it when it is not read.
-    fn set_renewal_read(&mut self, read: bool) {
-        let _ = read;
-    }
 }
 
 /// A frame's selection, serialised: what a later process needs, besides
@@ -443,19 +428,6 @@ impl Selection {
             Selection::Own(b) | Selection::Replay(b) => b,
         }
     }
-}
-
-/// Per-texel buffers of a [`FrameResult`] that nothing reads any more,
-/// handed back to the method by [`Method::recycle`]: the uv and levels
-/// that only an evaluation reads, and the channel values once the sink has
-/// them in the form it writes.
-#[derive(Debug, Default)]
-pub struct SpentBuffers {
-    pub uv: Option<Vec<Vec2>>,
-    pub exemplar_lod: Option<Vec<f32>>,
-    /// The interleaved channel values the fill wrote (the colour atlas when
-    /// the exemplar has no extra channel).
-    pub values: Option<Vec<f32>>,
 }
 
 /// Checks `lo <= value <= hi` for a parameter.

@@ -315,7 +315,6 @@ fn switches_the_state_forces_count_as_forced() {
     // of consecutive frames compare texel by texel.
     let clip = cooling_plane();
     let mut m = build(MethodKind::Erosion, crust_and_glow(RATE));
-    m.set_renewal_read(true);
     let results = clip.run(m.as_mut());
     let (mut with_state, mut without_state) = (0usize, 0usize);
     let mut switched = 0usize;
@@ -359,11 +358,7 @@ fn a_selection_by_attribute_resamples_into_the_one_pass_frame() {
     // the state) and statistics (state agreement).
     let clip = cooling_plane();
     for kind in [MethodKind::Erosion, MethodKind::LappedRigid] {
-        let fresh = || {
-            let mut m = build(kind, crust_and_glow(RATE));
-            m.set_renewal_read(true);
-            m
-        };
+        let fresh = || build(kind, crust_and_glow(RATE));
         let (mut one_pass, mut selecting) = (fresh(), fresh());
         for k in 0..HOT_FRAMES + SWEEP_FRAMES + 4 {
             let expected = one_pass.step(&clip.ctx(k)).expect("step");

@@ -79,6 +79,7 @@ impl Clip {
                 index: &self.indices[k - 1],
             }),
             atlas: &self.atlases[k],
+            arena: &crate::methods::arena::FRESH,
         }
     }
 }

@@ -116,22 +116,9 @@ pub struct Erosion {
     /// Each exemplar's statistics, measured on the first frame that
     /// matches its tone.
     tones: Option<Vec<ExemplarTone>>,
-    /// The last frame's uv, values and exemplar levels, when the caller
-    /// handed them back ([`Method::recycle`]): the next step fills the uv
-    /// again, and the values where the fill writes them (not deferred to
-    /// the footprint pass), and keeps its patch ids in the levels' buffer
-    /// where levels were kept.
-    spare: super::SpentBuffers,
-    /// Whether the caller reads the levels per texel
-    /// ([`Method::set_evaluation_buffers_read`]); true until told otherwise.
-    levels_read: bool,
     /// Whether wholly eroded triangles are dropped ([`Erosion::prune`]);
     /// always, but for the tests' control run that shows what it bounds.
     prune_eroded: bool,
-    /// Whether the lapped fill records each texel's renewal
-    /// ([`crate::methods::FrameResult::renewal`]); true until told
-    /// otherwise ([`Method::set_renewal_read`]).
-    track_renewal: bool,
 }
 
 pub(crate) use crate::seed::mix;
@@ -183,10 +170,7 @@ impl Erosion {
             dropped_by_reset: 0,
             multi: None,
             tones: None,
-            spare: super::SpentBuffers::default(),
-            levels_read: true,
             prune_eroded: true,
-            track_renewal: true,
         })
     }
 
@@ -377,8 +361,9 @@ impl Method for Erosion {
         let mut clock = StageClock::default();
         let mut counts = StepCounts::default();
         let setup = self.carry(ctx, &mut counts, &mut clock)?;
-        let texels = self.select_texels(ctx, setup, &mut counts, &mut clock);
-        let mut result = self.resample_texels(texels, counts, clock);
+        let wants = ctx.arena.wants();
+        let texels = self.select_texels(ctx, setup, wants.renewal, &mut counts, &mut clock);
+        let mut result = self.resample_texels(texels, counts, clock, wants);
         self.record_state_agreement(ctx, &mut result);
         Ok(result)
     }
@@ -392,10 +377,8 @@ impl Method for Erosion {
         let setup = self.carry(ctx, &mut counts, &mut clock)?;
         let bytes = self.snapshot(setup.as_ref().map(|s| s.carried), &counts)?;
         // Only a resampled frame's switches are measured.
-        let track = std::mem::replace(&mut self.track_renewal, false);
-        let texels = self.select_texels(ctx, setup, &mut counts, &mut clock);
-        self.track_renewal = track;
-        self.keep_spare(texels);
+        let texels = self.select_texels(ctx, setup, false, &mut counts, &mut clock);
+        self.keep_spare(ctx.arena, texels);
         Ok(super::Selection::Own(bytes))
     }
 
@@ -422,22 +405,11 @@ impl Method for Erosion {
             _ => None,
         };
         clock.lap("selection");
-        let texels = self.select_texels(ctx, setup, &mut counts, &mut clock);
-        let mut result = self.resample_texels(texels, counts, clock);
+        let wants = ctx.arena.wants();
+        let texels = self.select_texels(ctx, setup, wants.renewal, &mut counts, &mut clock);
+        let mut result = self.resample_texels(texels, counts, clock, wants);
         self.record_state_agreement(ctx, &mut result);
         Ok(result)
-    }
-
-    fn recycle(&mut self, spent: super::SpentBuffers) {
-        self.spare = spent;
-    }
-
-    fn set_evaluation_buffers_read(&mut self, read: bool) {
-        self.levels_read = read;
-    }
-
-    fn set_renewal_read(&mut self, read: bool) {
-        self.track_renewal = read;
     }
 
     fn save_state(&self) -> Result<Vec<u8>, MethodError> {
@@ -569,9 +541,14 @@ impl Erosion {
         (radius, exemplar_size)
     }
 
-    /// This frame's fill buffers, refilling the spent ones the caller
-    /// handed back where they fit.
-    fn fill_buffers(&mut self, atlas: &crate::atlas::Atlas) -> FillBuffers {
+    /// This frame's fill buffers, refilling the spent ones `arena` lends
+    /// where they fit; with the renewal of each texel where `renewal`.
+    fn fill_buffers(
+        &mut self,
+        atlas: &crate::atlas::Atlas,
+        arena: &super::FrameArena,
+        renewal: bool,
+    ) -> FillBuffers {
         // The footprint pass samples every covered texel (blends excepted).
         let defer_values = self.variant != Variant::Blend
             && self.exemplar.filter == crate::exemplar::ExemplarFilter::Trilinear;
@@ -579,28 +556,28 @@ impl Erosion {
         // the frame: fresh zero pages until then, instead of the last
         // frame's values held idle (453 MB at 6144²) through the
         // advection, the update and the fill.
-        let spare_values = self.spare.values.take().filter(|_| !defer_values);
+        let spare = arena.take();
+        let spare_values = spare.values.filter(|_| !defer_values);
         let mut out = FillBuffers::reusing(
             atlas.width,
             atlas.height,
             self.exemplar.total_channels(),
-            self.spare.uv.take(),
+            spare.uv,
             spare_values,
             // Where the caller kept levels (an evaluation) and handed them
             // back, they hold this frame's patch ids: a fresh id buffer
             // goes to the caller every frame, and levels kept aside until
             // the footprint pass would sit idle through the fill (151 MB
             // at 6144²). A run keeps no levels: its ids are fresh pages.
-            self.spare
+            spare
                 .exemplar_lod
-                .take()
                 .and_then(|lods| bytemuck::allocation::try_cast_vec(lods).ok()),
         );
         out.defer_values = defer_values;
         // The lapped fill records what became of each texel's previous
         // holder (the forced / unforced split of the switches); the blended
         // fill shows every layer and has no single holder.
-        if self.variant != Variant::Blend && self.track_renewal {
+        if self.variant != Variant::Blend && renewal {
             out = out.with_renewal();
         }
         out
@@ -693,14 +670,17 @@ impl Erosion {
 
     /// Which patch shows at each texel: the fill, the update (new patches
     /// where none did) and the deletion of patches no texel used.
+    /// `renewal`: whether the fill records what became of each texel's
+    /// previous holder.
     fn select_texels(
         &mut self,
         ctx: &FrameContext<'_>,
         setup: Option<FrameSetup>,
+        renewal: bool,
         counts: &mut StepCounts,
         clock: &mut StageClock,
     ) -> Texels {
-        let mut out = self.fill_buffers(ctx.atlas);
+        let mut out = self.fill_buffers(ctx.atlas, ctx.arena, renewal);
         let shape = setup.as_ref().map(|s| s.shape);
         let mut blended = match setup {
             Some(setup) => self.fill_and_cover(ctx, &setup, &mut out, counts, clock),
@@ -720,12 +700,14 @@ impl Erosion {
     }
 
     /// Every channel from the texels' selection: the footprint pass, the
-    /// transitions, the tone; and the frame's statistics.
+    /// transitions, the tone; and the frame's statistics, with the levels
+    /// per texel where `wants` asks for them.
     fn resample_texels(
         &mut self,
         texels: Texels,
         counts: StepCounts,
         mut clock: StageClock,
+        wants: super::Wants,
     ) -> FrameResult {
         let Texels {
             mut out,
@@ -753,7 +735,7 @@ impl Erosion {
         });
         // Contrast tone matching reads each texel's level.
         // So does a transition, which reads the earlier source at it.
-        let levels = if self.levels_read
+        let levels = if wants.levels
             || (self.variant == Variant::Erode && self.params.tone == Tone::Match)
             || !blended.transitions.is_empty()
         {
@@ -802,12 +784,15 @@ impl Erosion {
         result
     }
 
-    /// A selected frame's buffers, kept for the next (nothing resamples
-    /// them in the selecting phase).
-    fn keep_spare(&mut self, texels: Texels) {
+    /// A selected frame's buffers, handed back to `arena` for the next
+    /// (nothing resamples them in the selecting phase).
+    fn keep_spare(&mut self, arena: &super::FrameArena, texels: Texels) {
         let Texels { out, .. } = texels;
-        self.spare.uv = Some(out.uv);
-        self.spare.values = Some(out.values);
+        arena.hand_back(super::SpentBuffers {
+            uv: Some(out.uv),
+            values: Some(out.values),
+            exemplar_lod: None,
+        });
     }
 
     /// The fill and the update on a non-empty surface.

@@ -764,10 +764,13 @@ fn recycled_buffers_are_refilled_and_give_identical_frames() {
     let mut fresh = Erosion::new(ErosionParams::default(), exemplar(), 5).expect("params");
     let want = step_all(&mut fresh, &c);
     let mut m = Erosion::new(ErosionParams::default(), exemplar(), 5).expect("params");
+    // What a driver does: the spent buffers go back to the arena, which
+    // lends them to the next frame's step.
+    let arena = crate::methods::FrameArena::new();
     // (uv, values, levels) handed back, as addresses.
     let mut handed_back: Option<(usize, usize, usize)> = None;
     for (k, w) in want.iter().enumerate() {
-        let mut r = m.step(&c.ctx(k)).expect("step");
+        let mut r = m.step(&c.ctx(k).with_arena(&arena)).expect("step");
         assert!(
             r.channels == w.channels && r.source == w.source,
             "frame {k}"
@@ -804,19 +807,19 @@ fn recycled_buffers_are_refilled_and_give_identical_frames() {
             assert_eq!(source.as_ptr() as usize, lod_before, "frame {k}: ids");
         }
         handed_back = Some(ptrs);
-        m.recycle(crate::methods::SpentBuffers {
+        arena.hand_back(crate::methods::SpentBuffers {
             uv: Some(uv),
             exemplar_lod: Some(lod),
             values: Some(values),
         });
     }
     // A buffer of another size is not used: the step allocates its own.
-    m.recycle(crate::methods::SpentBuffers {
+    arena.hand_back(crate::methods::SpentBuffers {
         uv: Some(vec![Vec2::ZERO; 3]),
         exemplar_lod: Some(vec![0.0; 3]),
         values: Some(vec![1.0; 3]),
     });
-    let r = m.step(&c.ctx(0)).expect("step");
+    let r = m.step(&c.ctx(0).with_arena(&arena)).expect("step");
     assert_eq!(r.uv.map(|u| u.len()), Some(96 * 96));
     assert_eq!(r.channels[0].data.len(), 96 * 96 * r.channels[0].channels);
 }
@@ -834,9 +837,13 @@ fn unread_levels_are_not_kept_and_change_nothing() {
         let mut reads = Erosion::new(params.clone(), exemplar(), 5).expect("params");
         let want = step_all(&mut reads, &c);
         let mut m = Erosion::new(params, exemplar(), 5).expect("params");
-        m.set_evaluation_buffers_read(false);
+        let mut arena = crate::methods::FrameArena::fresh();
+        arena.set_wants(crate::methods::Wants {
+            levels: false,
+            renewal: true,
+        });
         for (k, w) in want.iter().enumerate() {
-            let r = m.step(&c.ctx(k)).expect("step");
+            let r = m.step(&c.ctx(k).with_arena(&arena)).expect("step");
             assert!(
                 r.channels == w.channels && r.source == w.source,
                 "{tone:?} frame {k}"
@@ -875,6 +882,7 @@ fn saved_state_continues_exactly() {
             index: &c.indices[1],
         }),
         atlas: &c.atlases[2],
+        arena: &crate::methods::arena::FRESH,
     };
     let r = resumed.step(&ctx).expect("step");
     assert_eq!(r.channels, all[2].channels);
@@ -912,6 +920,7 @@ fn missing_velocity_and_bad_parameters_are_errors() {
         index: &c.indices[0],
         previous: None,
         atlas: &c.atlases[0],
+        arena: &crate::methods::arena::FRESH,
     };
     let err = m.step(&ctx).expect_err("no velocity").to_string();
     assert!(err.contains("frame 3") && err.contains("velocity"), "{err}");
@@ -2002,8 +2011,15 @@ fn recording_the_renewal_changes_no_output() {
     let c = scene("vortex", 10, 12, 96);
     let mut tracked = Erosion::new(ErosionParams::default(), exemplar(), 4).expect("params");
     let mut plain = Erosion::new(ErosionParams::default(), exemplar(), 4).expect("params");
-    plain.set_renewal_read(false);
-    let (a, b) = (step_all(&mut tracked, &c), step_all(&mut plain, &c));
+    let mut arena = crate::methods::FrameArena::fresh();
+    arena.set_wants(crate::methods::Wants {
+        levels: true,
+        renewal: false,
+    });
+    let b: Vec<FrameResult> = (0..c.meshes.len())
+        .map(|k| plain.step(&c.ctx(k).with_arena(&arena)).expect("step"))
+        .collect();
+    let (a, b) = (step_all(&mut tracked, &c), b);
     let mut unforced = 0;
     for (k, (a, b)) in a.iter().zip(&b).enumerate() {
         assert_eq!(sources(a), sources(b), "frame {k}");

@@ -436,6 +436,7 @@ fn erosion_atlas_of_a_minified_checker_keeps_its_mean() {
                     index: &indices[k - 1],
                 }),
                 atlas: &atlases[k],
+                arena: &crate::methods::arena::FRESH,
             };
             last = Some(m.step(&ctx).unwrap());
         }

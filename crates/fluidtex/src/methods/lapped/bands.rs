@@ -56,8 +56,8 @@ impl TexelBuffers {
     }
 
     /// [`TexelBuffers::new`], refilling `spare_uv`, `spare_values` and
-    /// `spare_source` (a spent frame's buffers,
-    /// [`crate::methods::Method::recycle`]) where they have the size.
+    /// `spare_source` (a spent frame's buffers, lent by the frame's
+    /// [`crate::methods::FrameArena`]) where they have the size.
     pub fn reusing(
         width: u32,
         height: u32,

@@ -617,6 +617,7 @@ fn flat_synthesis_keeps_the_exemplar_contrast() {
         normals: &mesh.vertex_normals(),
         previous: None,
         atlas: &atlas,
+        arena: &crate::methods::arena::FRESH,
     };
     m.step(&ctx).expect("step");
     for d in &m.state().orientation {
@@ -701,6 +702,7 @@ fn run(
                 normals: &mesh.vertex_normals(),
                 previous,
                 atlas,
+                arena: &crate::methods::arena::FRESH,
             };
             let r = method.step(&ctx).expect("step");
             r.channels.into_iter().flat_map(|t| t.data).collect()
@@ -849,6 +851,7 @@ fn frames_carry_texture_and_report_stats() {
             index: &data[f - 1].1,
         }),
         atlas: &data[f].2,
+        arena: &crate::methods::arena::FRESH,
     };
     let widths = |stats: &serde_json::Value| -> Vec<Vec<u64>> {
         let levels = stats.as_array().expect("levels");
