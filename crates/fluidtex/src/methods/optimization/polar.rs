@@ -228,17 +228,35 @@ impl PolarMaps {
         self.polar_angle(v, d.dot(t2).atan2(d.dot(t1))) - self.zero[v as usize]
     }
 
-    /// u's orientation `theta_u` carried along the edge to `v`: through
-    /// both polar maps where each lists the other, by projection into v's
-    /// tangent plane otherwise.
-    pub fn carry(&self, level: &Level, u: u32, theta_u: f32, v: u32) -> f32 {
-        match (self.edge_angle(u, v), self.edge_angle(v, u)) {
-            (Some(phi_uv), Some(phi_vu)) => theta_u - phi_uv + phi_vu + PI,
-            _ => {
+    /// The edge's polar angles at both ends, (φ_uv, φ_vu), where each
+    /// polar map lists the other end.
+    fn turn(&self, u: u32, v: u32) -> Option<(f32, f32)> {
+        Some((self.edge_angle(u, v)?, self.edge_angle(v, u)?))
+    }
+
+    /// u's orientation `theta_u` carried along the edge to `v` with its
+    /// [`PolarMaps::turn`], or by projection into v's tangent plane where
+    /// there is none.
+    fn carry_by(
+        &self,
+        level: &Level,
+        u: u32,
+        theta_u: f32,
+        v: u32,
+        turn: Option<(f32, f32)>,
+    ) -> f32 {
+        match turn {
+            Some((phi_uv, phi_vu)) => theta_u - phi_uv + phi_vu + PI,
+            None => {
                 let d = self.vector(u, level.normals[u as usize], theta_u);
                 self.angle(v, level.normals[v as usize], d)
             }
         }
+    }
+
+    /// u's orientation `theta_u` carried along the edge to `v`.
+    pub fn carry(&self, level: &Level, u: u32, theta_u: f32, v: u32) -> f32 {
+        self.carry_by(level, u, theta_u, v, self.turn(u, v))
     }
 }
 
@@ -399,14 +417,27 @@ pub fn diffuse(level: &Level, maps: &PolarMaps, d: &mut Vec<Vec3>, iterations: u
         .into_par_iter()
         .map(|v| maps.angle(v as u32, level.normals[v], d[v]))
         .collect();
+    // Each edge's turn, looked up once for every iteration, in the order
+    // of the level's neighbour lists.
+    let turns: Vec<Vec<Option<(f32, f32)>>> = (0..level.len() as u32)
+        .into_par_iter()
+        .map(|v| {
+            level
+                .neighbours(v)
+                .iter()
+                .map(|&u| maps.turn(u, v))
+                .collect()
+        })
+        .collect();
     for _ in 0..iterations {
         theta = (0..level.len() as u32)
             .into_par_iter()
             .map(|v| {
                 let own = theta[v as usize];
                 let (mut s, mut c) = own.sin_cos();
-                for &u in level.neighbours(v) {
-                    let (su, cu) = maps.carry(level, u, theta[u as usize], v).sin_cos();
+                for (&u, &turn) in level.neighbours(v).iter().zip(&turns[v as usize]) {
+                    let carried = maps.carry_by(level, u, theta[u as usize], v, turn);
+                    let (su, cu) = carried.sin_cos();
                     s += su;
                     c += cu;
                 }
