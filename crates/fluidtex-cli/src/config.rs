@@ -12,19 +12,14 @@ use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 use fluidtex::methods::atlas_check::AtlasCheckParams;
 use fluidtex::methods::dual_rest::DualRestParams;
-use fluidtex::methods::erosion::{
-    ErosionParams, Falloff, FeatureFilter, Orientation, PatchRegion, Placement, SeedCorners,
-    SeedTexel, WeightMode,
-};
+use fluidtex::methods::erosion::ErosionParams;
 use fluidtex::methods::lapped_rigid::LappedRigidParams;
-use fluidtex::methods::lapped_rigid::distribution::Placement as RigidPlacement;
-use fluidtex::methods::lapped_rigid::falloff::FalloffAt;
-use fluidtex::methods::optimization::orientation::Smoothing;
-use fluidtex::methods::optimization::{Histogram, OptimizationParams, Search};
+use fluidtex::methods::optimization::OptimizationParams;
 use fluidtex::methods::registry::{MethodKind, MethodParams};
-use fluidtex::methods::tone::Tone;
 use fluidtex::named::Named;
 use fluidtex::pipeline::OutputOptions;
+
+use crate::method_flags::MethodFlags;
 use serde::{Deserialize, Serialize};
 
 /// Everything a `run` needs, after merging file and flags.
@@ -223,73 +218,17 @@ impl Config {
     /// left out of the fingerprint when at their defaults are written too.
     pub fn resolved_toml(&self) -> Result<String> {
         let mut table = toml::Table::try_from(self).context("cannot write the config")?;
-        let sections = [
-            ("optimization", toml::Value::try_from(&self.optimization)?),
-            ("lapped_rigid", toml::Value::try_from(&self.lapped_rigid)?),
-        ];
-        for (name, value) in sections {
-            table.entry(name).or_insert(value);
-        }
-        // The keys left out of the fingerprint at their defaults (a test
-        // holds this list against every section's fields).
-        let (e, r, o) = (&self.erosion, &self.lapped_rigid, &self.optimization);
-        let left_out = [
-            ("erosion", "transition", toml::Value::from(e.transition)),
-            (
-                "erosion",
-                "patch_region",
-                toml::Value::try_from(e.patch_region)?,
-            ),
-            (
-                "erosion",
-                "seed_corners",
-                toml::Value::try_from(e.seed_corners)?,
-            ),
-            (
-                "erosion",
-                "seed_texel",
-                toml::Value::try_from(e.seed_texel)?,
-            ),
-            (
-                "erosion",
-                "feature_filter",
-                toml::Value::try_from(e.feature_filter)?,
-            ),
-            (
-                "lapped_rigid",
-                "placement",
-                toml::Value::try_from(r.placement)?,
-            ),
-            (
-                "lapped_rigid",
-                "seed_texel",
-                toml::Value::try_from(r.seed_texel)?,
-            ),
-            (
-                "lapped_rigid",
-                "falloff_at",
-                toml::Value::try_from(r.falloff_at)?,
-            ),
-            ("optimization", "search", toml::Value::try_from(o.search)?),
-            (
-                "optimization",
-                "relaxation",
-                toml::Value::from(o.relaxation),
-            ),
-            (
-                "optimization",
-                "upsample_diffusion",
-                toml::Value::from(o.upsample_diffusion),
-            ),
-            (
-                "optimization",
-                "orientation_smoothing",
-                toml::Value::try_from(o.orientation_smoothing)?,
-            ),
-        ];
-        for (section, key, value) in left_out {
-            if let Some(toml::Value::Table(t)) = table.get_mut(section) {
-                t.entry(key).or_insert(value);
+        // Every key of every section, including those left out of the
+        // fingerprint at their defaults.
+        for (name, every) in self.method_params().every_key() {
+            let toml::Value::Table(every) = every else {
+                continue;
+            };
+            let section = table
+                .entry(name)
+                .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+            if let toml::Value::Table(section) = section {
+                fill_missing(section, every);
             }
         }
         Ok(toml::to_string(&table)?)
@@ -404,6 +343,22 @@ impl Config {
             lapped_rigid: self.lapped_rigid.clone(),
         }
     }
+
+    /// Writes every method's parameter section back (after flags).
+    pub fn set_method_params(&mut self, params: MethodParams) {
+        let MethodParams {
+            erosion,
+            atlas_check,
+            dual_rest,
+            optimization,
+            lapped_rigid,
+        } = params;
+        self.erosion = erosion;
+        self.atlas_check = atlas_check;
+        self.dual_rest = dual_rest;
+        self.optimization = optimization;
+        self.lapped_rigid = lapped_rigid;
+    }
 }
 
 /// Flags of `fluidtex run` that mirror the config (flags win).
@@ -479,81 +434,6 @@ pub struct RunFlags {
     /// PLY velocity property names, e.g. --velocity vel_x,vel_y,vel_z
     #[arg(long, value_delimiter = ',', num_args = 1)]
     pub velocity: Option<Vec<String>>,
-    /// Patch radius r in world units [bbox diagonal / 25]
-    #[arg(long)]
-    pub radius: Option<f32>,
-    /// World size covered by the exemplar [2.6 r]
-    #[arg(long)]
-    pub exemplar_size: Option<f32>,
-    /// Maximal triangle distortion δ_max (Eq. 1) [3]
-    #[arg(long)]
-    pub delta_max: Option<f32>,
-    /// Erosion ε (Sec. 5.2) [0.1]
-    #[arg(long)]
-    pub epsilon: Option<f32>,
-    /// Remove patch vertices farther than this × r from the surface [0.25]
-    #[arg(long)]
-    pub far_fraction: Option<f32>,
-    /// Never erode within this × r of a patch centre (Eq. 2) [0.25]
-    #[arg(long)]
-    pub centre_fraction: Option<f32>,
-    /// RK4 substeps per frame [1]
-    #[arg(long)]
-    pub substeps: Option<u32>,
-    /// Disable the random rotation of new patches
-    #[arg(long)]
-    pub no_rotation: bool,
-    /// New patch placement: local (the paper) or global
-    #[arg(long, value_parser = named::<Placement>())]
-    pub placement: Option<Placement>,
-    /// Weights over time: progressive (monotone, rate-limited) or paper
-    #[arg(long, value_parser = named::<WeightMode>())]
-    pub weights: Option<WeightMode>,
-    /// Progressive weights: largest fall of w per second [4.8]
-    #[arg(long)]
-    pub erosion_rate: Option<f32>,
-    /// Where the erosion falloff D reaches 0: footprint (r/S) or paper (0.5)
-    #[arg(long, value_parser = named::<Falloff>())]
-    pub falloff: Option<Falloff>,
-    /// Exemplar orientation on new patches: random or aligned (with --up-axis)
-    #[arg(long, value_parser = named::<Orientation>())]
-    pub orientation: Option<Orientation>,
-    /// World direction the exemplar's up follows with --orientation aligned [0,1,0]
-    #[arg(long, value_delimiter = ',', num_args = 1, allow_hyphen_values = true)]
-    pub up_axis: Option<Vec<f32>>,
-    /// Default r is never below this many median edge lengths [4]
-    #[arg(long)]
-    pub radius_edges: Option<f32>,
-    /// Split patch edges longer than this many median edge lengths of the frame (0: never, the paper) [2]
-    #[arg(long)]
-    pub split_edges: Option<f32>,
-    /// Erosion: after each frame a patch keeps only the triangles within this fraction of r of a texel it showed; the rest, hidden under older patches, go (0: keep them, the paper) [0.1]
-    #[arg(long)]
-    pub hidden_reach: Option<f32>,
-    /// Distortion at which erosion starts: Q_T = 1 below it, then falls linearly to 0 at δ_max [1.5; 1: the paper's Eq. 1]
-    #[arg(long)]
-    pub delta_onset: Option<f32>,
-    /// Erosion: per frame, move each channel's mean to the exemplar's (mean), also match its contrast (match), or keep the paper's composite (off) [mean]
-    #[arg(long, value_parser = named::<Tone>())]
-    pub tone: Option<Tone>,
-    /// Erosion: frames over which a texel whose source changes shows the old and the new source, blended preserving contrast (0: one source per texel, the paper) [0]
-    #[arg(long)]
-    pub transition: Option<u32>,
-    /// Which triangles within r a new patch copies: connected (to p's triangle) or paper (every one facing p's side) [connected]
-    #[arg(long, value_parser = named::<PatchRegion>())]
-    pub patch_region: Option<PatchRegion>,
-    /// B_V = 1 at the corners of p's triangle too (pinned) or only within r/4 of p (paper, Eq. 2) [pinned]
-    #[arg(long, value_parser = named::<SeedCorners>())]
-    pub seed_corners: Option<SeedCorners>,
-    /// A new patch that erodes its own seed texel: it gets it anyway (forced) or the texel stays uncovered (paper) [forced]
-    #[arg(long, value_parser = named::<SeedTexel>())]
-    pub seed_texel: Option<SeedTexel>,
-    /// The erosion test reads the feature map at the atlas texel's mip level (mip) or at full resolution (full, the paper) [mip]
-    #[arg(long, value_parser = named::<FeatureFilter>())]
-    pub feature_filter: Option<FeatureFilter>,
-    /// dual-rest: frames between two resets of a layer [24]
-    #[arg(long)]
-    pub period: Option<u32>,
     /// Do not write mesh.F.obj / .mtl
     #[arg(long)]
     pub no_obj: bool,
@@ -575,66 +455,13 @@ pub struct RunFlags {
     /// USD input (--mesh shot.usd|usda|usdc): the Mesh prim to read, e.g. /liquid/surface
     #[arg(long)]
     pub prim: Option<String>,
-    /// optimization: target points at the finest level on the first frame [200000]
-    #[arg(long)]
-    pub points: Option<u32>,
-    /// optimization: exemplar width in synthesis texels (point spacings) [128]
-    #[arg(long)]
-    pub exemplar_texels: Option<u32>,
-    /// optimization: hierarchy levels on the first frame [3]
-    #[arg(long)]
-    pub levels: Option<u32>,
-    /// optimization: hierarchy levels on later frames [1]
-    #[arg(long)]
-    pub levels_after_first: Option<u32>,
-    /// optimization: neighbourhood widths of the passes, odd [33,17,9]
-    #[arg(long, value_delimiter = ',')]
-    pub sizes: Option<Vec<u32>>,
-    /// optimization: passes on carried frames, the last N of --sizes [2]
-    #[arg(long)]
-    pub passes_after_first: Option<u32>,
-    /// optimization: exemplar search, a PCA k-d tree over a subsample (pca) or every candidate over the whole window (exact, the paper's; slow) [pca]
-    #[arg(long, value_parser = named::<Search>())]
-    pub search: Option<Search>,
-    /// optimization: the search compares a G x G subsample of each neighbourhood [9]
-    #[arg(long)]
-    pub search_grid: Option<u32>,
-    /// optimization: k-d tree candidates re-ranked by full distance [8]
-    #[arg(long)]
-    pub rerank: Option<u32>,
-    /// optimization: most search + averaging iterations per pass [3]
-    #[arg(long)]
-    pub iterations: Option<u32>,
-    /// optimization: spacing of neighbourhood centres, fraction of the width [0.25]
-    #[arg(long)]
-    pub centre_spacing: Option<f32>,
-    /// optimization: weight of the transported texture (lambda, Eq. 2) [1]
-    #[arg(long)]
-    pub coherence: Option<f32>,
-    /// optimization: orientation smoothing iterations per level [10]
-    #[arg(long)]
-    pub orientation_iterations: Option<u32>,
-    /// optimization: orientation smoothing by projected vectors (projected) or by polar angles through each vertex's polar map (polar, the paper's) [projected]
-    #[arg(long, value_parser = named::<Smoothing>())]
-    pub orientation_smoothing: Option<Smoothing>,
-    /// optimization: robust exponent of the texture energy (2: least squares) [0.8]
-    #[arg(long)]
-    pub robust: Option<f32>,
-    /// optimization: relaxation sweeps of each vertex neighbourhood's layout (the paper relaxes) [0]
-    #[arg(long)]
-    pub relaxation: Option<u32>,
-    /// optimization: diffusion sweeps of the values carried up to a finer level (the paper diffuses) [0]
-    #[arg(long)]
-    pub upsample_diffusion: Option<u32>,
-    /// optimization: after each average, values take the exemplar's histogram (matched) or stay as averaged (paper) [matched]
-    #[arg(long, value_parser = named::<Histogram>())]
-    pub histogram: Option<Histogram>,
     /// Every departure from the papers that has a paper setting set to it
     /// (docs/departures.md); the config file's keys and other flags win
     #[arg(long, value_parser = ["paper"])]
     pub preset: Option<String>,
+    /// The methods' parameter flags, from their declarations.
     #[command(flatten)]
-    pub rigid: RigidFlags,
+    pub params: MethodFlags,
 }
 
 /// The flags that copy their value to one config key, one row each:
@@ -692,77 +519,11 @@ flag_keys! {
     preview_video => preview_video: on,
     prim => prim: some,
     preset => preset: some,
-    radius => erosion.radius: some,
-    exemplar_size => erosion.exemplar_size: some,
-    delta_max => erosion.delta_max: value,
-    delta_onset => erosion.delta_onset: value,
-    epsilon => erosion.epsilon: value,
-    far_fraction => erosion.far_fraction: value,
-    centre_fraction => erosion.centre_fraction: value,
-    substeps => erosion.substeps: value,
-    no_rotation => erosion.random_rotation: off,
-    placement => erosion.placement: value,
-    weights => erosion.weights: value,
-    erosion_rate => erosion.erosion_rate: value,
-    falloff => erosion.falloff: value,
-    orientation => erosion.orientation: value,
-    radius_edges => erosion.radius_edges: value,
-    split_edges => erosion.split_edges: value,
-    hidden_reach => erosion.hidden_reach: value,
-    tone => erosion.tone: value,
-    transition => erosion.transition: value,
-    patch_region => erosion.patch_region: value,
-    seed_corners => erosion.seed_corners: value,
-    seed_texel => erosion.seed_texel: value,
-    feature_filter => erosion.feature_filter: value,
-    period => dual_rest.period: value,
     no_obj => outputs.obj: off,
     no_glb => outputs.glb: off,
     no_debug => outputs.debug: off,
     switch_map => outputs.switch_map: set,
     preview_every => outputs.preview_every: value,
-    exemplar_size => optimization.exemplar_size: some,
-    substeps => optimization.substeps: value,
-    points => optimization.points: value,
-    exemplar_texels => optimization.exemplar_texels: value,
-    levels => optimization.levels: value,
-    levels_after_first => optimization.levels_after_first: value,
-    sizes => optimization.sizes: value,
-    passes_after_first => optimization.passes_after_first: value,
-    search => optimization.search: value,
-    search_grid => optimization.search_grid: value,
-    rerank => optimization.rerank: value,
-    iterations => optimization.iterations: value,
-    centre_spacing => optimization.centre_spacing: value,
-    coherence => optimization.coherence: value,
-    orientation_iterations => optimization.orientation_iterations: value,
-    orientation_smoothing => optimization.orientation_smoothing: value,
-    robust => optimization.robust: value,
-    histogram => optimization.histogram: value,
-    relaxation => optimization.relaxation: value,
-    upsample_diffusion => optimization.upsample_diffusion: value,
-    rigid.rigid_radius => lapped_rigid.radius: some,
-    rigid.rigid_radius_fraction => lapped_rigid.radius_fraction: value,
-    rigid.rigid_radius_edges => lapped_rigid.radius_edges: value,
-    rigid.rigid_exemplar_size => lapped_rigid.exemplar_size: some,
-    rigid.rigid_exemplar_scale => lapped_rigid.exemplar_scale: value,
-    rigid.rigid_phi_max => lapped_rigid.phi_max: value,
-    rigid.rigid_alpha_opaque => lapped_rigid.alpha_opaque: value,
-    rigid.rigid_alpha_transparent => lapped_rigid.alpha_transparent: value,
-    rigid.rigid_far_fraction => lapped_rigid.far_fraction: value,
-    rigid.rigid_substeps => lapped_rigid.substeps: value,
-    rigid.rigid_normal_dot => lapped_rigid.normal_dot: value,
-    rigid.rigid_no_rotation => lapped_rigid.random_rotation: off,
-    rigid.rigid_coverage => lapped_rigid.coverage: value,
-    rigid.rigid_keep_weight => lapped_rigid.keep_weight: value,
-    rigid.mask => lapped_rigid.mask: some,
-    rigid.rigid_mask_feature_weight => lapped_rigid.mask_feature_weight: value,
-    rigid.rigid_mask_softness => lapped_rigid.mask_softness: value,
-    rigid.rigid_sink_speed => lapped_rigid.sink_speed: value,
-    rigid.rigid_sink_fade_rate => lapped_rigid.sink_fade_rate: value,
-    rigid.rigid_placement => lapped_rigid.placement: value,
-    rigid.rigid_seed_texel => lapped_rigid.seed_texel: value,
-    rigid.rigid_falloff_at => lapped_rigid.falloff_at: value,
 }
 
 /// Flags applied by hand in [`RunFlags::apply`] (their value is parsed
@@ -771,7 +532,6 @@ pub const HAND_FLAGS: &[(&str, &[&str])] = &[
     ("exemplar", &["exemplar", "exemplars"]),
     ("channels", &["channels"]),
     ("velocity", &["velocity"]),
-    ("up_axis", &["erosion.up_axis"]),
 ];
 
 /// Config keys without a flag: rarely changed, set them in the file (the
@@ -811,12 +571,9 @@ impl RunFlags {
             };
             config.velocity = Some([a.clone(), b.clone(), c.clone()]);
         }
-        if let Some(a) = &self.up_axis {
-            let [x, y, z] = a.as_slice() else {
-                bail!("--up-axis needs three numbers, e.g. 0,1,0");
-            };
-            config.erosion.up_axis = [*x, *y, *z];
-        }
+        let mut params = config.method_params();
+        self.params.apply(&mut params)?;
+        config.set_method_params(params);
         // A video needs previews: every frame unless the user chose.
         if config.preview_video == Some(true) && config.outputs.preview_every == 0 {
             config.outputs.preview_every = 1;
@@ -886,80 +643,6 @@ fn exemplar_spec(spec: &str) -> Result<(PathBuf, Option<f32>, Option<[f32; 2]>)>
     Ok((PathBuf::from(rest), None, range))
 }
 
-/// Flags of the lapped-rigid method (`[lapped_rigid]` keys), one per key
-/// (applied through the `flag_keys!` table).
-// Field docs are `--help` text: `[4]` is a default, not a link.
-#[allow(rustdoc::broken_intra_doc_links)]
-#[derive(Args, Clone, Debug, Default)]
-pub struct RigidFlags {
-    /// lapped-rigid: patch size r in world units [bbox diagonal / 25]
-    #[arg(long)]
-    pub rigid_radius: Option<f32>,
-    /// lapped-rigid: default r as a fraction of the bbox diagonal [0.04]
-    #[arg(long)]
-    pub rigid_radius_fraction: Option<f32>,
-    /// lapped-rigid: default r is never below this many median edge lengths [4]
-    #[arg(long)]
-    pub rigid_radius_edges: Option<f32>,
-    /// lapped-rigid: world size covered by the exemplar [exemplar_scale × r]
-    #[arg(long)]
-    pub rigid_exemplar_size: Option<f32>,
-    /// lapped-rigid: default exemplar size as a multiple of r [2.6]
-    #[arg(long)]
-    pub rigid_exemplar_scale: Option<f32>,
-    /// lapped-rigid: φ_max, receivers turning farther from the frame normal are rejected, degrees [130]
-    #[arg(long)]
-    pub rigid_phi_max: Option<f32>,
-    /// lapped-rigid: ψ_{α=1}, receiver vertices within this angle are opaque, degrees [30]
-    #[arg(long)]
-    pub rigid_alpha_opaque: Option<f32>,
-    /// lapped-rigid: ψ_{α=0}, receiver vertices beyond this angle are transparent, degrees [60]
-    #[arg(long)]
-    pub rigid_alpha_transparent: Option<f32>,
-    /// lapped-rigid: trackers farther than this × r from the next surface are deleted (0: never, the paper) [0.25]
-    #[arg(long)]
-    pub rigid_far_fraction: Option<f32>,
-    /// lapped-rigid: RK4 substeps per frame [1]
-    #[arg(long)]
-    pub rigid_substeps: Option<u32>,
-    /// lapped-rigid: first-frame Poisson disks with normals less aligned do not block [0.9]
-    #[arg(long)]
-    pub rigid_normal_dot: Option<f32>,
-    /// lapped-rigid: no random tangent direction for new trackers
-    #[arg(long)]
-    pub rigid_no_rotation: bool,
-    /// lapped-rigid: composite alpha below which a texel seeds a tracker [0.99]
-    #[arg(long)]
-    pub rigid_coverage: Option<f32>,
-    /// lapped-rigid: contributions below this are dropped, a patch with none is deleted [1/255]
-    #[arg(long)]
-    pub rigid_keep_weight: Option<f32>,
-    /// lapped-rigid: patch mask image (grey, covers the exemplar square); default: from the feature map
-    #[arg(long, value_name = "IMG")]
-    pub mask: Option<PathBuf>,
-    /// lapped-rigid: derived mask, how far features move the patch border [0.2]
-    #[arg(long)]
-    pub rigid_mask_feature_weight: Option<f32>,
-    /// lapped-rigid: derived mask, width of the soft border [0.2]
-    #[arg(long)]
-    pub rigid_mask_softness: Option<f32>,
-    /// lapped-rigid: sink test, corners must move inward faster than this × r per second [0.25]
-    #[arg(long)]
-    pub rigid_sink_speed: Option<f32>,
-    /// lapped-rigid: sink fade speed (1: gone when the corners would reach the centre) [1]
-    #[arg(long)]
-    pub rigid_sink_fade_rate: Option<f32>,
-    /// lapped-rigid: new trackers at the first uncovered texel (first) or at random uncovered texels (random, the paper) [first]
-    #[arg(long, value_parser = named::<RigidPlacement>())]
-    pub rigid_placement: Option<RigidPlacement>,
-    /// lapped-rigid: a seed texel its patch leaves short is closed anyway (forced) or left to later trackers (paper) [forced]
-    #[arg(long, value_parser = named::<SeedTexel>())]
-    pub rigid_seed_texel: Option<SeedTexel>,
-    /// lapped-rigid: the alpha falloff's angle per texel from its interpolated normal (texel) or per receiver vertex, alphas interpolated (vertex, the paper) [texel]
-    #[arg(long, value_parser = named::<FalloffAt>())]
-    pub rigid_falloff_at: Option<FalloffAt>,
-}
-
 #[cfg(test)]
 mod tests {
     use std::collections::BTreeSet;
@@ -983,17 +666,49 @@ mod tests {
             Some(dir.path().join("sim/fluid.$F4.ply").to_str().expect("utf8"))
         );
         assert_eq!(c.channels["displacement"], dir.path().join("tex/disp.exr"));
-        let flags = RunFlags {
-            atlas: Some(512),
-            epsilon: Some(0.05),
-            placement: Some(Placement::Global),
-            ..Default::default()
-        };
+        let flags = parse_flags(&[
+            "--atlas",
+            "512",
+            "--epsilon",
+            "0.05",
+            "--placement",
+            "global",
+        ])
+        .expect("valid flags");
         flags.apply(&mut c).expect("valid flags");
         assert_eq!(c.atlas, Some(512));
         assert_eq!(c.erosion.epsilon, 0.05);
         assert_eq!(c.erosion.radius, Some(0.5));
-        assert_eq!(c.erosion.placement, Placement::Global);
+        assert_eq!(
+            c.erosion.placement,
+            fluidtex::methods::erosion::Placement::Global
+        );
+        // A flag two sections declare sets both; a bad value is refused
+        // when the flags are read.
+        let flags = parse_flags(&["--substeps", "3", "--up-axis", "-1,0,0"]).expect("valid");
+        let mut c = Config::default();
+        flags.apply(&mut c).expect("valid flags");
+        assert_eq!((c.erosion.substeps, c.optimization.substeps), (3, 3));
+        assert_eq!(c.erosion.up_axis, [-1.0, 0.0, 0.0]);
+        for bad in [
+            &["--epsilon", "small"][..],
+            &["--up-axis", "1,0"],
+            &["--placement", "nowhere"],
+            &["--sizes", "33,x"],
+        ] {
+            assert!(parse_flags(bad).is_err(), "{bad:?} was accepted");
+        }
+    }
+
+    /// `run`'s flags as clap reads them from `args`.
+    fn parse_flags(args: &[&str]) -> Result<RunFlags, clap::Error> {
+        use clap::Parser;
+        #[derive(Parser)]
+        struct Cli {
+            #[command(flatten)]
+            flags: RunFlags,
+        }
+        Cli::try_parse_from(std::iter::once("run").chain(args.iter().copied())).map(|c| c.flags)
     }
 
     #[test]
@@ -1152,6 +867,19 @@ mod tests {
             .collect()
     }
 
+    /// (flag id, config key) of the `flag_keys!` table and of every
+    /// method's declared flags (a flag two sections declare is two rows).
+    fn flag_rows() -> Vec<(String, String)> {
+        FLAG_KEYS
+            .iter()
+            .map(|(f, k)| (f.to_string(), k.to_string()))
+            .chain(
+                MethodParams::flags()
+                    .map(|(section, f)| (f.flag.to_string(), format!("{section}.{}", f.field))),
+            )
+            .collect()
+    }
+
     /// Where the flag table, the hand-applied flags and the keys without a
     /// flag disagree with clap's flags and serde's keys, one line each.
     fn disagreements(
@@ -1159,13 +887,13 @@ mod tests {
         keys: &BTreeSet<String>,
         without: &[&str],
     ) -> Vec<String> {
-        let mut rows: Vec<(&str, &str)> = FLAG_KEYS.to_vec();
+        let mut rows = flag_rows();
         for (flag, ks) in HAND_FLAGS {
-            rows.extend(ks.iter().map(|k| (*flag, *k)));
+            rows.extend(ks.iter().map(|k| (flag.to_string(), k.to_string())));
         }
         let leaf = |f: &str| f.rsplit('.').next().unwrap_or(f).to_string();
         let mut problems = Vec::new();
-        for &(flag, key) in &rows {
+        for (flag, key) in &rows {
             if !flags.contains(&leaf(flag)) {
                 problems.push(format!("the table names flag {flag}, which RunFlags lacks"));
             }
@@ -1183,13 +911,13 @@ mod tests {
         }
         for f in flags
             .iter()
-            .filter(|f| !rows.iter().any(|r| leaf(r.0) == **f))
+            .filter(|f| !rows.iter().any(|r| leaf(&r.0) == **f))
         {
             problems.push(format!("flag {f} sets no key: add a row to flag_keys!"));
         }
         for k in keys
             .iter()
-            .filter(|k| !rows.iter().any(|r| r.1 == *k) && !without.contains(&k.as_str()))
+            .filter(|k| !rows.iter().any(|r| r.1 == **k) && !without.contains(&k.as_str()))
         {
             problems.push(format!(
                 "config key {k} has no flag: add one to RunFlags and flag_keys!, or list it in \
@@ -1209,7 +937,10 @@ mod tests {
             config_keys().contains("exemplar_region"),
             "skipped when unset"
         );
-        assert!(flag_fields().contains("rigid_radius"), "flattened group");
+        assert!(
+            flag_fields().contains("rigid-radius"),
+            "a method's declared flag"
+        );
     }
 
     /// Known-bad controls: a key without a flag, a flag without a key and
@@ -1263,8 +994,8 @@ mod tests {
             v
         };
         let default = json(&Config::default());
-        for &(flag, key) in FLAG_KEYS {
-            let leaf = flag.rsplit('.').next().unwrap_or(flag);
+        for (flag, key) in flag_rows() {
+            let leaf = flag.rsplit('.').next().unwrap_or(&flag);
             let arg = cmd
                 .get_arguments()
                 .find(|a| a.get_id() == leaf)

@@ -6,7 +6,6 @@
 //! one shows it at once (sheared cells, seams, holes).
 
 use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
 
 use super::{
     ChannelFormat, ChannelSpec, FrameContext, FrameResult, Method, MethodError, SOURCE_OUTSIDE,
@@ -14,15 +13,15 @@ use super::{
 };
 use crate::texture::Texture;
 
-/// Parameters of the checker.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct AtlasCheckParams {
-    /// Checker cell size in world units. `None`: the first non-empty frame's
-    /// bounding-box diagonal / `cells_per_diagonal`.
-    pub cell: Option<f32>,
-    /// Default number of cells along the bounding-box diagonal \[24].
-    pub cells_per_diagonal: f32,
+crate::methods::params::params! {
+    /// Parameters of the checker.
+    pub struct AtlasCheckParams {
+        /// Checker cell size in world units. `None`: the first non-empty frame's
+        /// bounding-box diagonal / `cells_per_diagonal`.
+        pub cell: Option<f32> = None,
+        /// Default number of cells along the bounding-box diagonal \[24].
+        pub cells_per_diagonal: f32 = 24.0,
+    }
 }
 
 impl AtlasCheckParams {
@@ -38,15 +37,6 @@ impl AtlasCheckParams {
             1e6,
             "[1, 1e6]",
         )
-    }
-}
-
-impl Default for AtlasCheckParams {
-    fn default() -> Self {
-        AtlasCheckParams {
-            cell: None,
-            cells_per_diagonal: 24.0,
-        }
     }
 }
 

@@ -28,13 +28,14 @@ use super::{
 use crate::exemplar::Exemplar;
 use crate::texture::Texture;
 
-/// Parameters of the `dual-rest` baseline.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct DualRestParams {
-    /// Frames between two resets of the same layer \[24]; the layers reset
-    /// half a period apart. At least 2.
-    pub period: u32,
+crate::methods::params::params! {
+    /// Parameters of the `dual-rest` baseline.
+    pub struct DualRestParams {
+        /// Frames between two resets of the same layer \[24]; the layers reset
+        /// half a period apart. At least 2.
+        pub period: u32 = 24
+            => "period" : "dual-rest: frames between two resets of a layer [24]",
+    }
 }
 
 impl DualRestParams {
@@ -48,12 +49,6 @@ impl DualRestParams {
             });
         }
         Ok(())
-    }
-}
-
-impl Default for DualRestParams {
-    fn default() -> Self {
-        DualRestParams { period: 24 }
     }
 }
 

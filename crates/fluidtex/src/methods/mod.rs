@@ -38,6 +38,7 @@ pub mod footprint;
 pub mod lapped;
 pub mod lapped_rigid;
 pub mod optimization;
+pub mod params;
 pub mod registry;
 pub mod tone;
 

@@ -17,6 +17,7 @@ use super::dual_rest::{DualRest, DualRestParams};
 use super::erosion::{Erosion, ErosionParams, Variant};
 use super::lapped_rigid::{LappedRigid, LappedRigidParams};
 use super::optimization::{Optimization, OptimizationParams};
+use super::params::{ParamFlag, ParamSection};
 use super::{Method, MethodError};
 use crate::exemplar::{Exemplar, ExemplarSet};
 use crate::named::Named;
@@ -74,19 +75,62 @@ impl std::str::FromStr for MethodKind {
     }
 }
 
-/// The parameters of every method, one section each (config keys
-/// `\[erosion]`, `\[dual_rest]`, `\[atlas_check]`, `\[optimization]`,
-/// `\[lapped_rigid]`); a method reads its own section and, for the baselines
-/// built from erosion's patches (`advect`, `blend-deformable`, `dual-rest`),
-/// erosion's.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct MethodParams {
-    pub erosion: ErosionParams,
-    pub atlas_check: AtlasCheckParams,
-    pub dual_rest: DualRestParams,
-    pub optimization: OptimizationParams,
-    pub lapped_rigid: LappedRigidParams,
+/// Declares [`MethodParams`] from its sections, one line each: the
+/// struct, and the functions that reach every section's flags and keys.
+macro_rules! sections {
+    ($(#[$attr:meta])* pub struct $name:ident { $($section:ident : $ty:ty),* $(,)? }) => {
+        $(#[$attr])*
+        #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+        #[serde(default, deny_unknown_fields)]
+        pub struct $name {
+            $(pub $section: $ty,)*
+        }
+
+        impl $name {
+            /// Every section's flags as (section, flag), sections in order.
+            /// A flag may be declared by several sections (`--substeps`):
+            /// it sets each of them.
+            pub fn flags() -> impl Iterator<Item = (&'static str, &'static ParamFlag)> {
+                let mut all: Vec<(&'static str, &'static ParamFlag)> = Vec::new();
+                $(all.extend(<$ty as ParamSection>::FLAGS.iter().map(|f| (stringify!($section), f)));)*
+                all.into_iter()
+            }
+
+            /// Sets `--flag text` in every section that declares it.
+            pub fn set_flag(&mut self, flag: &str, text: &str) -> Result<(), String> {
+                let mut found = false;
+                $(
+                    if <$ty as ParamSection>::FLAGS.iter().any(|f| f.flag == flag) {
+                        self.$section.set_flag(flag, text)?;
+                        found = true;
+                    }
+                )*
+                if found { Ok(()) } else { Err(format!("no method flag --{flag}")) }
+            }
+
+            /// Every section's [`ParamSection::every_key`], by section name.
+            pub fn every_key(&self) -> toml::Table {
+                let mut table = toml::Table::new();
+                $(table.insert(stringify!($section).into(), toml::Value::Table(self.$section.every_key()));)*
+                table
+            }
+        }
+    };
+}
+
+sections! {
+    /// The parameters of every method, one section each (config keys
+    /// `\[erosion]`, `\[dual_rest]`, `\[atlas_check]`, `\[optimization]`,
+    /// `\[lapped_rigid]`); a method reads its own section and, for the baselines
+    /// built from erosion's patches (`advect`, `blend-deformable`, `dual-rest`),
+    /// erosion's.
+    pub struct MethodParams {
+        erosion: ErosionParams,
+        atlas_check: AtlasCheckParams,
+        dual_rest: DualRestParams,
+        optimization: OptimizationParams,
+        lapped_rigid: LappedRigidParams,
+    }
 }
 
 impl MethodParams {

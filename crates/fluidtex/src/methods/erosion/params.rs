@@ -9,106 +9,130 @@ use super::update::Placement;
 use crate::methods::tone::Tone;
 use crate::methods::{MethodError, check_range};
 
-/// Parameters of the erosion method. Defaults follow docs/design.md and the
-/// 2021 paper; every field is also a config key and a CLI flag.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct ErosionParams {
-    /// Patch radius r in world units (Sec. 4). `None`: `radius_fraction` ×
-    /// the bounding-box diagonal of the first non-empty frame.
-    pub radius: Option<f32>,
-    /// Default r as a fraction of the first frame's bounding-box diagonal [1/25].
-    pub radius_fraction: f32,
-    /// World size S covered by the exemplar's \[0,1]². `None`:
-    /// `exemplar_scale` × r.
-    pub exemplar_size: Option<f32>,
-    /// Default S as a multiple of r [2.6]: the authors' code used (2 + β) r, β = 0.6.
-    pub exemplar_scale: f32,
-    /// δ_max of Eq. 1 \[3]: triangles at or beyond this distortion have Q_T = 0.
-    pub delta_max: f32,
-    /// Distortion at which erosion starts: Q_T of Eq. 1 stays 1 up to δ_onset
-    /// and falls linearly to 0 at δ_max \[1.5; 1 is the paper's Eq. 1, where
-    /// any distortion lowers Q_T]. Above 1, a patch sheared by a slow flow
-    /// keeps every texel until its distortion is visible instead of shedding
-    /// a thin band of texels every frame from its first frame on; it comes
-    /// with a faster `erosion_rate` so patches are still gone by δ_max.
-    pub delta_onset: f32,
-    /// ε of the erosion test, Sec. 5.2 [0.1], in (0, 1).
-    pub epsilon: f32,
-    /// Vertices farther than this fraction of r from the next surface are removed [1/4] (Sec. 4).
-    pub far_fraction: f32,
-    /// B_V = 1 within this fraction of r of the patch centre [1/4] (Eq. 2).
-    pub centre_fraction: f32,
-    /// Poisson disks whose normals have a smaller dot product do not block each other [0.9].
-    pub normal_dot: f32,
-    /// RK4 steps per frame \[1].
-    pub substeps: u32,
-    /// Random rotation of each patch at creation [true] (seeded per patch id,
-    /// or per creation point for patches the update adds).
-    pub random_rotation: bool,
-    /// New-patch placement \[local]: `local` (the paper) or `global`.
-    pub placement: Placement,
-    /// How vertex weights w_V evolve over time \[progressive] (see [`WeightMode`]).
-    pub weights: WeightMode,
-    /// Progressive weights: the largest decrease of w_V per second of
-    /// animation [4.8, i.e. 0.2 per frame at 24 fps], so a patch takes at
-    /// least 1/rate seconds to erode from whole to nothing.
-    pub erosion_rate: f32,
-    /// Reach of the centre falloff D(u, v) of the erosion test (Sec. 5.2)
-    /// \[footprint] (see [`Falloff`]).
-    pub falloff: Falloff,
-    /// Orientation of the exemplar on new patches \[random] (see [`Orientation`]).
-    pub orientation: Orientation,
-    /// World direction the exemplar's up follows with `orientation = aligned` [0, 1, 0].
-    pub up_axis: [f32; 3],
-    /// The default r is never below this many median edge lengths of the
-    /// first frame \[4]: a patch must hold enough fluid triangles that
-    /// re-meshing noise does not dominate its shape.
-    pub radius_edges: f32,
-    /// Patch edges longer than this many median edge lengths of the current
-    /// frame are split at their midpoint after advection \[2] (0: never, as
-    /// in the paper). A stretched patch triangle is a long chord of the
-    /// curved surface whose middle leaves the surface, so its coverage
-    /// flickers as the fluid is re-meshed (see [`super::patch::Patch::refine`]).
-    pub split_edges: f32,
-    /// After each frame, a patch keeps only the triangles within about this
-    /// fraction of r (in its rest space) of a texel it showed \[0.1]; the
-    /// rest lie hidden under older patches and go (0: every triangle is
-    /// kept until the patch shows nothing, as in the paper). See
-    /// `Erosion::prune_hidden`.
-    pub hidden_reach: f32,
-    /// Per frame, each channel's mean over the covered texels is moved to
-    /// the exemplar's \[mean]; `match` also matches its contrast to the
-    /// exemplar's as shown (see [`crate::methods::tone`]): the
-    /// feature-guided compositing of Sec. 5.1–5.2 shows high-feature texels
-    /// more often than the exemplar has them. `off` leaves the composite as
-    /// the paper makes it. Only the erosion method itself; the baselines
-    /// are never matched.
-    pub tone: Tone,
-    /// Frames over which a texel whose source changes shows its old and its
-    /// new source together \[0: the paper, one source per texel always]
-    /// (see [`transition`]). Up to [`transition::MAX_FRAMES`]. Left out of
-    /// the settings (and so of a run's fingerprint) at 0.
-    #[serde(skip_serializing_if = "crate::methods::is_default")]
-    pub transition: u32,
-    /// Which fluid triangles a new patch copies (Sec. 4) \[connected] (see
-    /// [`PatchRegion`]). Left out of the settings at its default.
-    #[serde(skip_serializing_if = "crate::methods::is_default")]
-    pub patch_region: PatchRegion,
-    /// Whether the corners of the triangle that holds p keep B_V = 1 (Eq. 2)
-    /// \[pinned] (see [`SeedCorners`]). Left out of the settings at its
-    /// default.
-    #[serde(skip_serializing_if = "crate::methods::is_default")]
-    pub seed_corners: SeedCorners,
-    /// What becomes of the texel a new patch was made for when the patch
-    /// erodes it (Sec. 5.1) \[forced] (see [`SeedTexel`]). Left out of the
-    /// settings at its default.
-    #[serde(skip_serializing_if = "crate::methods::is_default")]
-    pub seed_texel: SeedTexel,
-    /// How the erosion test reads the feature map F_m (Sec. 5.2) \[mip]
-    /// (see [`FeatureFilter`]). Left out of the settings at its default.
-    #[serde(skip_serializing_if = "crate::methods::is_default")]
-    pub feature_filter: FeatureFilter,
+crate::methods::params::params! {
+    /// Parameters of the erosion method. Defaults follow docs/design.md and the
+    /// 2021 paper; every field is also a config key and a CLI flag.
+    pub struct ErosionParams {
+        /// Patch radius r in world units (Sec. 4). `None`: `radius_fraction` ×
+        /// the bounding-box diagonal of the first non-empty frame.
+        pub radius: Option<f32> = None
+            => "radius" : "Patch radius r in world units [bbox diagonal / 25]",
+        /// Default r as a fraction of the first frame's bounding-box diagonal [1/25].
+        pub radius_fraction: f32 = 1.0 / 25.0,
+        /// World size S covered by the exemplar's \[0,1]². `None`:
+        /// `exemplar_scale` × r.
+        pub exemplar_size: Option<f32> = None
+            => "exemplar-size" : "World size covered by the exemplar [2.6 r]",
+        /// Default S as a multiple of r [2.6]: the authors' code used (2 + β) r, β = 0.6.
+        pub exemplar_scale: f32 = 2.6,
+        /// δ_max of Eq. 1 \[3]: triangles at or beyond this distortion have Q_T = 0.
+        pub delta_max: f32 = 3.0
+            => "delta-max" : "Maximal triangle distortion δ_max (Eq. 1) [3]",
+        /// Distortion at which erosion starts: Q_T of Eq. 1 stays 1 up to δ_onset
+        /// and falls linearly to 0 at δ_max \[1.5; 1 is the paper's Eq. 1, where
+        /// any distortion lowers Q_T]. Above 1, a patch sheared by a slow flow
+        /// keeps every texel until its distortion is visible instead of shedding
+        /// a thin band of texels every frame from its first frame on; it comes
+        /// with a faster `erosion_rate` so patches are still gone by δ_max.
+        pub delta_onset: f32 = 1.5
+            => "delta-onset" : "Distortion at which erosion starts: Q_T = 1 below it, then falls linearly to 0 at δ_max [1.5; 1: the paper's Eq. 1]",
+        /// ε of the erosion test, Sec. 5.2 [0.1], in (0, 1).
+        pub epsilon: f32 = 0.1
+            => "epsilon" : "Erosion ε (Sec. 5.2) [0.1]",
+        /// Vertices farther than this fraction of r from the next surface are removed [1/4] (Sec. 4).
+        pub far_fraction: f32 = 0.25
+            => "far-fraction" : "Remove patch vertices farther than this × r from the surface [0.25]",
+        /// B_V = 1 within this fraction of r of the patch centre [1/4] (Eq. 2).
+        pub centre_fraction: f32 = 0.25
+            => "centre-fraction" : "Never erode within this × r of a patch centre (Eq. 2) [0.25]",
+        /// Poisson disks whose normals have a smaller dot product do not block each other [0.9].
+        pub normal_dot: f32 = 0.9,
+        /// RK4 steps per frame \[1].
+        pub substeps: u32 = 1
+            => "substeps" : "RK4 substeps per frame [1]",
+        /// Random rotation of each patch at creation [true] (seeded per patch id,
+        /// or per creation point for patches the update adds).
+        pub random_rotation: bool = true
+            => "no-rotation" = "false" : "Disable the random rotation of new patches",
+        /// New-patch placement \[local]: `local` (the paper) or `global`.
+        pub placement: Placement = Placement::Local
+            => "placement" : "New patch placement: local (the paper) or global",
+        /// How vertex weights w_V evolve over time \[progressive] (see [`WeightMode`]).
+        pub weights: WeightMode = WeightMode::Progressive
+            => "weights" : "Weights over time: progressive (monotone, rate-limited) or paper",
+        /// Progressive weights: the largest decrease of w_V per second of
+        /// animation [4.8, i.e. 0.2 per frame at 24 fps], so a patch takes at
+        /// least 1/rate seconds to erode from whole to nothing.
+        pub erosion_rate: f32 = 4.8
+            => "erosion-rate" : "Progressive weights: largest fall of w per second [4.8]",
+        /// Reach of the centre falloff D(u, v) of the erosion test (Sec. 5.2)
+        /// \[footprint] (see [`Falloff`]).
+        pub falloff: Falloff = Falloff::Footprint
+            => "falloff" : "Where the erosion falloff D reaches 0: footprint (r/S) or paper (0.5)",
+        /// Orientation of the exemplar on new patches \[random] (see [`Orientation`]).
+        pub orientation: Orientation = Orientation::Random
+            => "orientation" : "Exemplar orientation on new patches: random or aligned (with --up-axis)",
+        /// World direction the exemplar's up follows with `orientation = aligned` [0, 1, 0].
+        pub up_axis: [f32; 3] = [0.0, 1.0, 0.0]
+            => "up-axis" : "World direction the exemplar's up follows with --orientation aligned [0,1,0]",
+        /// The default r is never below this many median edge lengths of the
+        /// first frame \[4]: a patch must hold enough fluid triangles that
+        /// re-meshing noise does not dominate its shape.
+        pub radius_edges: f32 = 4.0
+            => "radius-edges" : "Default r is never below this many median edge lengths [4]",
+        /// Patch edges longer than this many median edge lengths of the current
+        /// frame are split at their midpoint after advection \[2] (0: never, as
+        /// in the paper). A stretched patch triangle is a long chord of the
+        /// curved surface whose middle leaves the surface, so its coverage
+        /// flickers as the fluid is re-meshed (see [`super::patch::Patch::refine`]).
+        pub split_edges: f32 = 2.0
+            => "split-edges" : "Split patch edges longer than this many median edge lengths of the frame (0: never, the paper) [2]",
+        /// After each frame, a patch keeps only the triangles within about this
+        /// fraction of r (in its rest space) of a texel it showed \[0.1]; the
+        /// rest lie hidden under older patches and go (0: every triangle is
+        /// kept until the patch shows nothing, as in the paper). See
+        /// `Erosion::prune_hidden`.
+        pub hidden_reach: f32 = 0.1
+            => "hidden-reach" : "Erosion: after each frame a patch keeps only the triangles within this fraction of r of a texel it showed; the rest, hidden under older patches, go (0: keep them, the paper) [0.1]",
+        /// Per frame, each channel's mean over the covered texels is moved to
+        /// the exemplar's \[mean]; `match` also matches its contrast to the
+        /// exemplar's as shown (see [`crate::methods::tone`]): the
+        /// feature-guided compositing of Sec. 5.1–5.2 shows high-feature texels
+        /// more often than the exemplar has them. `off` leaves the composite as
+        /// the paper makes it. Only the erosion method itself; the baselines
+        /// are never matched.
+        pub tone: Tone = Tone::Mean
+            => "tone" : "Erosion: per frame, move each channel's mean to the exemplar's (mean), also match its contrast (match), or keep the paper's composite (off) [mean]",
+        /// Frames over which a texel whose source changes shows its old and its
+        /// new source together \[0: the paper, one source per texel always]
+        /// (see [`transition`]). Up to [`transition::MAX_FRAMES`]. Left out of
+        /// the settings (and so of a run's fingerprint) at 0.
+        #[serde(skip_serializing_if = "crate::methods::is_default")]
+        pub transition: u32 = 0
+            => "transition" : "Erosion: frames over which a texel whose source changes shows the old and the new source, blended preserving contrast (0: one source per texel, the paper) [0]",
+        /// Which fluid triangles a new patch copies (Sec. 4) \[connected] (see
+        /// [`PatchRegion`]). Left out of the settings at its default.
+        #[serde(skip_serializing_if = "crate::methods::is_default")]
+        pub patch_region: PatchRegion = PatchRegion::Connected
+            => "patch-region" : "Which triangles within r a new patch copies: connected (to p's triangle) or paper (every one facing p's side) [connected]",
+        /// Whether the corners of the triangle that holds p keep B_V = 1 (Eq. 2)
+        /// \[pinned] (see [`SeedCorners`]). Left out of the settings at its
+        /// default.
+        #[serde(skip_serializing_if = "crate::methods::is_default")]
+        pub seed_corners: SeedCorners = SeedCorners::Pinned
+            => "seed-corners" : "B_V = 1 at the corners of p's triangle too (pinned) or only within r/4 of p (paper, Eq. 2) [pinned]",
+        /// What becomes of the texel a new patch was made for when the patch
+        /// erodes it (Sec. 5.1) \[forced] (see [`SeedTexel`]). Left out of the
+        /// settings at its default.
+        #[serde(skip_serializing_if = "crate::methods::is_default")]
+        pub seed_texel: SeedTexel = SeedTexel::Forced
+            => "seed-texel" : "A new patch that erodes its own seed texel: it gets it anyway (forced) or the texel stays uncovered (paper) [forced]",
+        /// How the erosion test reads the feature map F_m (Sec. 5.2) \[mip]
+        /// (see [`FeatureFilter`]). Left out of the settings at its default.
+        #[serde(skip_serializing_if = "crate::methods::is_default")]
+        pub feature_filter: FeatureFilter = FeatureFilter::Mip
+            => "feature-filter" : "The erosion test reads the feature map at the atlas texel's mip level (mip) or at full resolution (full, the paper) [mip]",
+    }
 }
 
 /// Which fluid triangles a new patch copies. Both keep only the triangles
@@ -216,40 +240,6 @@ pub enum Orientation {
     /// the patch centre, then is carried (deformed) with the patch: right for
     /// oriented exemplars (bricks, streaks).
     Aligned,
-}
-
-impl Default for ErosionParams {
-    fn default() -> Self {
-        ErosionParams {
-            radius: None,
-            radius_fraction: 1.0 / 25.0,
-            exemplar_size: None,
-            exemplar_scale: 2.6,
-            delta_max: 3.0,
-            delta_onset: 1.5,
-            epsilon: 0.1,
-            far_fraction: 0.25,
-            centre_fraction: 0.25,
-            normal_dot: 0.9,
-            substeps: 1,
-            random_rotation: true,
-            placement: Placement::Local,
-            weights: WeightMode::Progressive,
-            erosion_rate: 4.8,
-            falloff: Falloff::Footprint,
-            orientation: Orientation::Random,
-            up_axis: [0.0, 1.0, 0.0],
-            radius_edges: 4.0,
-            split_edges: 2.0,
-            hidden_reach: 0.1,
-            tone: Tone::Mean,
-            transition: 0,
-            patch_region: PatchRegion::Connected,
-            seed_corners: SeedCorners::Pinned,
-            seed_texel: SeedTexel::Forced,
-            feature_filter: FeatureFilter::Mip,
-        }
-    }
 }
 
 impl ErosionParams {
