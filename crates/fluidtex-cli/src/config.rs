@@ -19,7 +19,7 @@ use fluidtex::methods::registry::{MethodKind, MethodParams};
 use fluidtex::named::Named;
 use fluidtex::pipeline::OutputOptions;
 
-use crate::method_flags::MethodFlags;
+use fluidtex::methods::flags::MethodFlags;
 use serde::{Deserialize, Serialize};
 
 /// Everything a `run` needs, after merging file and flags.
@@ -572,7 +572,7 @@ impl RunFlags {
             config.velocity = Some([a.clone(), b.clone(), c.clone()]);
         }
         let mut params = config.method_params();
-        self.params.apply(&mut params)?;
+        self.params.apply(&mut params).map_err(|e| anyhow!(e))?;
         config.set_method_params(params);
         // A video needs previews: every frame unless the user chose.
         if config.preview_video == Some(true) && config.outputs.preview_every == 0 {

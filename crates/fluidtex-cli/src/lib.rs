@@ -3,7 +3,6 @@
 //! [`run`] with an argument list, so they drive the whole tool in-process.
 
 pub mod config;
-pub mod method_flags;
 pub mod progress;
 pub mod test_hooks;
 pub mod usd;

@@ -6,7 +6,7 @@
 //! textures visible at once, contrast down to ≈ 0.71 at the 50% point) and a
 //! pulse per period.
 //!
-//! Each parameterization is an [`Variant::Advect`] instance of the patch
+//! Each parameterization is an [`advect`] instance of the patch
 //! machinery (a lapped texture placed on the frame where it resets).
 //!
 //! With φ = (frames since the first) mod period / period, layer A resets at
@@ -19,7 +19,8 @@ use std::sync::Arc;
 use glam::Vec2;
 use serde::{Deserialize, Serialize};
 
-use super::erosion::{Erosion, ErosionParams, Variant};
+use super::advect;
+use super::erosion::{Erosion, ErosionParams};
 use super::lapped::VISIBLE_LAYER_WEIGHT;
 use super::{
     ChannelSpec, FrameContext, FrameResult, Method, MethodError, MethodStats, SOURCE_OUTSIDE,
@@ -91,8 +92,8 @@ impl DualRest {
         seed: u64,
     ) -> Result<DualRest, MethodError> {
         params.validate()?;
-        let a = Erosion::with_exemplars(Variant::Advect, erosion.clone(), Arc::clone(&set), seed)?;
-        let b = Erosion::with_exemplars(Variant::Advect, erosion, set, seed ^ LAYER_B_SEED)?;
+        let a = Erosion::with_exemplars(advect::RULES, erosion.clone(), Arc::clone(&set), seed)?;
+        let b = Erosion::with_exemplars(advect::RULES, erosion, set, seed ^ LAYER_B_SEED)?;
         Ok(DualRest {
             params,
             layers: [a, b],

@@ -7,9 +7,10 @@
 //! reports are shared, so a method is one folder here.
 //!
 //! - [`erosion`]: eroded deformable lapped textures, Gagnon et al. 2021
-//!   (default), and two baselines built from its patches: `advect` (the
-//!   first frame's patches carried, never renewed) and `blend-deformable`
-//!   (patches alpha-blended by weight).
+//!   (default); its patch machinery also runs two baselines under their
+//!   own [`erosion::Rules`]: [`advect`] (the first frame's patches carried,
+//!   never renewed) and [`blend_deformable`] (patches alpha-blended by
+//!   weight).
 //! - [`dual_rest`]: two erosion layers reset in turn and cross-faded.
 //! - [`lapped_rigid`]: dynamic lapped textures with trackers, Gagnon et
 //!   al. 2016.
@@ -30,10 +31,13 @@
 //! per-triangle patch lists, the band walk over the atlas with its
 //! deterministic merge, and the bookkeeping of coverage-driven insertion.
 
+pub mod advect;
 pub mod arena;
 pub mod atlas_check;
+pub mod blend_deformable;
 pub mod dual_rest;
 pub mod erosion;
+pub mod flags;
 pub mod footprint;
 pub mod lapped;
 pub mod lapped_rigid;
@@ -41,6 +45,8 @@ pub mod optimization;
 pub mod params;
 pub mod registry;
 pub mod tone;
+#[cfg(test)]
+pub mod toy;
 
 #[cfg(test)]
 mod animated_tests;

@@ -221,7 +221,7 @@ fn region_mismatches(method: &mut dyn Method, clip: &Clip, kind: MethodKind) -> 
         }
         _ => {
             let mut m = super::erosion::Erosion::with_exemplars(
-                super::erosion::Variant::Erode,
+                super::erosion::EROSION,
                 Default::default(),
                 Arc::new(black_white(ExemplarSelect::Region)),
                 0,

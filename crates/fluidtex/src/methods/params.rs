@@ -1,4 +1,4 @@
-//! One declaration per parameter section: [`params!`] writes a method's
+//! One declaration per parameter section: `params!` writes a method's
 //! parameter struct (its config section, through serde), its defaults and
 //! its command-line flags from one list of fields, so a parameter is
 //! documented, defaulted and given a flag in one place.
@@ -110,7 +110,7 @@ impl<T: Named> FlagValue for T {
     }
 }
 
-/// One flag of a parameter section, as [`params!`] declares it.
+/// One flag of a parameter section, as `params!` declares it.
 #[derive(Clone, Copy, Debug)]
 pub struct ParamFlag {
     /// The long flag without its dashes (`delta-max`).
@@ -131,7 +131,7 @@ pub struct ParamFlag {
 }
 
 /// A parameter section (`[erosion]`, `[optimization]`, ...) declared by
-/// [`params!`].
+/// `params!`.
 pub trait ParamSection {
     /// Every flag of the section, in declaration order.
     const FLAGS: &'static [ParamFlag];

@@ -1,12 +1,20 @@
 //! The methods fluidtex offers, by name: what `--method` accepts, what
 //! `compare` runs, and how each is built from its parameters.
 //!
-//! Adding a method: its folder under `methods/` (a [`Method`]: `step`,
-//! and `select` / `resample` where it can split the two, which otherwise
-//! replay the frame), a variant here with its name, its arms in
-//! [`MethodParams::validate`] and [`MethodParams::build_set`] (plus its
-//! parameter section in [`MethodParams`] if it has parameters, which the
-//! CLI's config mirrors with a section and flags), and the README.
+//! Adding a method (the steps, in order):
+//! 1. Its module under `methods/`: a [`Method`] (`step`, and `select` /
+//!    `resample` where it can split the two; otherwise they replay the
+//!    frame), a constructor from its parameter section and its exemplars,
+//!    and, if it has parameters, their [`params!`](super::params)
+//!    declaration (struct, defaults, docs, flags) and `validate`.
+//! 2. One line in `registry!` below: its variant, doc and
+//!    [`MethodSpec`] (name, exemplars read, how it is checked and built).
+//! 3. If it has parameters, one line in `sections!`
+//!    ([`MethodParams`]); the CLI's `Config` keeps a field per section
+//!    (`Config::method_params`), so fingerprints of older runs hold.
+//! 4. The README's methods table.
+//!
+//! The test-only `toy` method (`methods/toy.rs`) is added exactly so.
 
 use std::sync::Arc;
 
@@ -14,50 +22,169 @@ use serde::{Deserialize, Serialize};
 
 use super::atlas_check::{AtlasCheck, AtlasCheckParams};
 use super::dual_rest::{DualRest, DualRestParams};
-use super::erosion::{Erosion, ErosionParams, Variant};
+use super::erosion::{Erosion, ErosionParams};
 use super::lapped_rigid::{LappedRigid, LappedRigidParams};
 use super::optimization::{Optimization, OptimizationParams};
 use super::params::{ParamFlag, ParamSection};
-use super::{Method, MethodError};
+use super::{Method, MethodError, advect, blend_deformable, erosion};
 use crate::exemplar::{Exemplar, ExemplarSet};
 use crate::named::Named;
 
-/// A texturing method.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum MethodKind {
-    /// Eroded deformable lapped textures (Gagnon et al. 2021), the default.
-    #[default]
-    Erosion,
-    /// Baseline: the first frame's patches carried by the flow, never renewed.
-    Advect,
-    /// Baseline: two erosion layers reset in turn, cross-faded.
-    DualRest,
-    /// Baseline: deformable patches alpha-blended by weight.
-    BlendDeformable,
-    /// A world-space checker, to inspect the atlas chain.
-    AtlasCheck,
-    /// Surface texture optimization with texture transport (Kwatra et al. 2007).
-    Optimization,
-    /// Dynamic lapped textures with trackers: rigid patches, over-composited
-    /// (Gagnon, Dagenais, Paquette 2016).
-    LappedRigid,
+/// How many exemplars a method reads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Exemplars {
+    /// None (the checker).
+    None,
+    /// One, still or animated.
+    One,
+    /// One or several per surface (the lapped methods).
+    Several,
 }
 
-crate::named!(MethodKind {
-    Erosion => "erosion",
-    Advect => "advect",
-    DualRest => "dual-rest",
-    BlendDeformable => "blend-deformable",
-    AtlasCheck => "atlas-check",
-    Optimization => "optimization",
-    LappedRigid => "lapped-rigid",
-});
+/// A method as the registry knows it.
+#[derive(Clone, Copy)]
+pub struct MethodSpec {
+    /// Its name: `--method`, state files, reports (the enum's serde name).
+    pub name: &'static str,
+    /// The exemplars it reads.
+    pub exemplars: Exemplars,
+    /// Range checks of the sections it reads, before any frame is read.
+    pub validate: fn(&MethodParams) -> Result<(), MethodError>,
+    /// The method, seeded, over its exemplars (`None` for
+    /// [`Exemplars::None`]).
+    pub build: BuildFn,
+}
+
+/// How a [`MethodSpec`] builds its method: from the parameter sections, a
+/// seed and its exemplars.
+pub type BuildFn =
+    fn(&MethodParams, u64, Option<Arc<ExemplarSet>>) -> Result<Box<dyn Method>, MethodError>;
+
+/// The exemplars a method that reads them was given.
+fn given(set: Option<Arc<ExemplarSet>>) -> Result<Arc<ExemplarSet>, MethodError> {
+    set.ok_or_else(|| MethodError::State("the method reads an exemplar and was given none".into()))
+}
+
+/// Declares [`MethodKind`] from one line per method: `Variant => spec`.
+macro_rules! registry {
+    ($(
+        $(#[doc = $doc:literal])*
+        $(#[cfg($cfg:meta)])?
+        $variant:ident => $spec:expr
+    ),* $(,)?) => {
+        /// A texturing method.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+        #[serde(rename_all = "kebab-case")]
+        pub enum MethodKind {
+            $( $(#[doc = $doc])* $(#[cfg($cfg)])? $variant, )*
+        }
+
+        impl MethodKind {
+            /// What the registry knows of the method.
+            pub fn spec(self) -> MethodSpec {
+                match self {
+                    $( $(#[cfg($cfg)])? MethodKind::$variant => $spec, )*
+                }
+            }
+        }
+
+        impl Named for MethodKind {
+            const ALL: &'static [Self] = &[$( $(#[cfg($cfg)])? MethodKind::$variant, )*];
+
+            fn name(self) -> &'static str {
+                self.spec().name
+            }
+        }
+    };
+}
+
+registry! {
+    /// Eroded deformable lapped textures (Gagnon et al. 2021), the default.
+    Erosion => MethodSpec {
+        name: "erosion",
+        exemplars: Exemplars::Several,
+        validate: |p| p.erosion.validate(),
+        build: |p, seed, set| {
+            let e = Erosion::with_exemplars(erosion::EROSION, p.erosion.clone(), given(set)?, seed);
+            Ok(Box::new(e?))
+        },
+    },
+    /// Baseline: the first frame's patches carried by the flow, never renewed.
+    Advect => MethodSpec {
+        name: "advect",
+        exemplars: Exemplars::Several,
+        validate: |p| p.erosion.validate(),
+        build: |p, seed, set| {
+            let e = Erosion::with_exemplars(advect::RULES, p.erosion.clone(), given(set)?, seed);
+            Ok(Box::new(e?))
+        },
+    },
+    /// Baseline: two erosion layers reset in turn, cross-faded.
+    DualRest => MethodSpec {
+        name: "dual-rest",
+        exemplars: Exemplars::One,
+        validate: |p| p.erosion.validate().and_then(|()| p.dual_rest.validate()),
+        build: |p, seed, set| {
+            let (d, e) = (p.dual_rest.clone(), p.erosion.clone());
+            Ok(Box::new(DualRest::with_exemplars(d, e, given(set)?, seed)?))
+        },
+    },
+    /// Baseline: deformable patches alpha-blended by weight.
+    BlendDeformable => MethodSpec {
+        name: "blend-deformable",
+        exemplars: Exemplars::Several,
+        validate: |p| p.erosion.validate(),
+        build: |p, seed, set| {
+            let rules = blend_deformable::RULES;
+            let e = Erosion::with_exemplars(rules, p.erosion.clone(), given(set)?, seed);
+            Ok(Box::new(e?))
+        },
+    },
+    /// A world-space checker, to inspect the atlas chain.
+    AtlasCheck => MethodSpec {
+        name: "atlas-check",
+        exemplars: Exemplars::None,
+        validate: |p| p.atlas_check.validate(),
+        build: |p, _, _| Ok(Box::new(AtlasCheck::new(p.atlas_check.clone())?)),
+    },
+    /// Surface texture optimization with texture transport (Kwatra et al. 2007).
+    Optimization => MethodSpec {
+        name: "optimization",
+        exemplars: Exemplars::One,
+        validate: |p| p.optimization.validate(),
+        build: |p, seed, set| {
+            let o = Optimization::with_set(p.optimization.clone(), &*given(set)?, seed);
+            Ok(Box::new(o?))
+        },
+    },
+    /// Dynamic lapped textures with trackers: rigid patches, over-composited
+    /// (Gagnon, Dagenais, Paquette 2016).
+    LappedRigid => MethodSpec {
+        name: "lapped-rigid",
+        exemplars: Exemplars::Several,
+        validate: |p| p.lapped_rigid.validate(),
+        build: |p, seed, set| {
+            let l = LappedRigid::with_exemplars(p.lapped_rigid.clone(), given(set)?, seed);
+            Ok(Box::new(l?))
+        },
+    },
+    /// A flat grey, only in tests: the method added by the steps above.
+    #[cfg(test)]
+    Toy => super::toy::SPEC,
+}
+
+// `registry!` writes the enum and takes no `#[default]`.
+#[allow(clippy::derivable_impls)]
+impl Default for MethodKind {
+    fn default() -> MethodKind {
+        MethodKind::Erosion
+    }
+}
 
 impl MethodKind {
     /// Whether the method reads an exemplar (all but the checker).
     pub fn needs_exemplar(self) -> bool {
-        self != MethodKind::AtlasCheck
+        self.spec().exemplars != Exemplars::None
     }
 }
 
@@ -78,12 +205,14 @@ impl std::str::FromStr for MethodKind {
 /// Declares [`MethodParams`] from its sections, one line each: the
 /// struct, and the functions that reach every section's flags and keys.
 macro_rules! sections {
-    ($(#[$attr:meta])* pub struct $name:ident { $($section:ident : $ty:ty),* $(,)? }) => {
+    ($(#[$attr:meta])* pub struct $name:ident {
+        $($(#[cfg($cfg:meta)])? $section:ident : $ty:ty),* $(,)?
+    }) => {
         $(#[$attr])*
         #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
         #[serde(default, deny_unknown_fields)]
         pub struct $name {
-            $(pub $section: $ty,)*
+            $($(#[cfg($cfg)])? pub $section: $ty,)*
         }
 
         impl $name {
@@ -92,7 +221,10 @@ macro_rules! sections {
             /// it sets each of them.
             pub fn flags() -> impl Iterator<Item = (&'static str, &'static ParamFlag)> {
                 let mut all: Vec<(&'static str, &'static ParamFlag)> = Vec::new();
-                $(all.extend(<$ty as ParamSection>::FLAGS.iter().map(|f| (stringify!($section), f)));)*
+                $(
+                    $(#[cfg($cfg)])?
+                    all.extend(<$ty as ParamSection>::FLAGS.iter().map(|f| (stringify!($section), f)));
+                )*
                 all.into_iter()
             }
 
@@ -100,6 +232,7 @@ macro_rules! sections {
             pub fn set_flag(&mut self, flag: &str, text: &str) -> Result<(), String> {
                 let mut found = false;
                 $(
+                    $(#[cfg($cfg)])?
                     if <$ty as ParamSection>::FLAGS.iter().any(|f| f.flag == flag) {
                         self.$section.set_flag(flag, text)?;
                         found = true;
@@ -111,7 +244,10 @@ macro_rules! sections {
             /// Every section's [`ParamSection::every_key`], by section name.
             pub fn every_key(&self) -> toml::Table {
                 let mut table = toml::Table::new();
-                $(table.insert(stringify!($section).into(), toml::Value::Table(self.$section.every_key()));)*
+                $(
+                    $(#[cfg($cfg)])?
+                    table.insert(stringify!($section).into(), toml::Value::Table(self.$section.every_key()));
+                )*
                 table
             }
         }
@@ -130,24 +266,15 @@ sections! {
         dual_rest: DualRestParams,
         optimization: OptimizationParams,
         lapped_rigid: LappedRigidParams,
+        #[cfg(test)]
+        toy: super::toy::ToyParams,
     }
 }
 
 impl MethodParams {
     /// Range checks of the sections `kind` reads, before any frame is read.
     pub fn validate(&self, kind: MethodKind) -> Result<(), MethodError> {
-        match kind {
-            MethodKind::Erosion | MethodKind::Advect | MethodKind::BlendDeformable => {
-                self.erosion.validate()
-            }
-            MethodKind::DualRest => {
-                self.erosion.validate()?;
-                self.dual_rest.validate()
-            }
-            MethodKind::AtlasCheck => self.atlas_check.validate(),
-            MethodKind::Optimization => self.optimization.validate(),
-            MethodKind::LappedRigid => self.lapped_rigid.validate(),
-        }
+        (kind.spec().validate)(self)
     }
 
     /// Builds `kind`. `exemplar` is called only for methods that read one
@@ -178,18 +305,12 @@ impl MethodParams {
         E: From<MethodError>,
     {
         self.validate(kind)?;
-        if kind == MethodKind::AtlasCheck {
-            return Ok(Box::new(AtlasCheck::new(self.atlas_check.clone())?));
+        let spec = kind.spec();
+        if spec.exemplars == Exemplars::None {
+            return Ok((spec.build)(self, seed, None)?);
         }
         let set = Arc::new(exemplars()?);
-        let several = matches!(
-            kind,
-            MethodKind::Erosion
-                | MethodKind::Advect
-                | MethodKind::BlendDeformable
-                | MethodKind::LappedRigid
-        );
-        if set.len() > 1 && !several {
+        if set.len() > 1 && spec.exemplars != Exemplars::Several {
             return Err(MethodError::InvalidParameter {
                 name: "exemplar",
                 value: format!("{} exemplars with --method {}", set.len(), kind.name()),
@@ -198,48 +319,7 @@ impl MethodParams {
             }
             .into());
         }
-        let exemplar = Arc::clone(set.primary());
-        let frames = || {
-            set.slots_of(0)
-                .filter_map(|s| set.exemplars().get(s).cloned())
-                .collect()
-        };
-        let erosion = |variant| -> Result<Box<dyn Method>, MethodError> {
-            Ok(Box::new(Erosion::with_exemplars(
-                variant,
-                self.erosion.clone(),
-                Arc::clone(&set),
-                seed,
-            )?))
-        };
-        Ok(match kind {
-            MethodKind::Erosion => erosion(Variant::Erode)?,
-            MethodKind::Advect => erosion(Variant::Advect)?,
-            MethodKind::BlendDeformable => erosion(Variant::Blend)?,
-            MethodKind::DualRest => Box::new(DualRest::with_exemplars(
-                self.dual_rest.clone(),
-                self.erosion.clone(),
-                Arc::clone(&set),
-                seed,
-            )?),
-            MethodKind::AtlasCheck => Box::new(AtlasCheck::new(self.atlas_check.clone())?),
-            MethodKind::Optimization if set.is_animated() => Box::new(Optimization::with_frames(
-                self.optimization.clone(),
-                frames(),
-                set.clock,
-                seed,
-            )?),
-            MethodKind::Optimization => Box::new(Optimization::new(
-                self.optimization.clone(),
-                exemplar,
-                seed,
-            )?),
-            MethodKind::LappedRigid => Box::new(LappedRigid::with_exemplars(
-                self.lapped_rigid.clone(),
-                Arc::clone(&set),
-                seed,
-            )?),
-        })
+        Ok((spec.build)(self, seed, Some(set))?)
     }
 }
 
@@ -289,6 +369,8 @@ mod tests {
                 })
                 .expect("defaults are valid");
             assert_eq!(method.name(), kind.name());
+            // The config's spelling (serde) is the registry's name.
+            assert_eq!(serde_json::to_value(kind).ok(), Some(kind.name().into()));
         }
     }
 

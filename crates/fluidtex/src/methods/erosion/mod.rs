@@ -80,26 +80,39 @@ impl ErosionState {
     }
 }
 
-/// What the patch machinery does with its patches: the 2021 method, or one
-/// of the baselines built from the same parts (docs/design.md, *Baselines*).
+/// What the patch machinery does with its patches: the 2021 method
+/// ([`EROSION`]), or a baseline built from the same parts, which declares
+/// its own rules in its folder (`methods::advect`,
+/// `methods::blend_deformable`; docs/design.md, *Baselines*).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Variant {
-    /// The 2021 method: erosion, lapped fill, new patches, deletion.
-    Erode,
-    /// `advect`: the first frame's lapped texture (patches placed and
-    /// covered as usual) is carried by the flow and never regenerated: no
-    /// erosion, no new patches, no deletion. It stretches without bound and
-    /// opens holes where the surface grows.
-    Advect,
-    /// `blend-deformable`: deformable patches with the weights of Eqs. 1–3,
-    /// alpha-blended by weight instead of lapped ([`blend`]); new patches
-    /// where no patch has weight left, deletion of patches no texel sees.
-    Blend,
+pub struct Rules {
+    /// The method's name (`--method`, state files, reports).
+    pub name: &'static str,
+    /// Eqs. 1–3 erode the patches in the lapped fill (Sec. 5), with the
+    /// erosion method's own refinements: progressive weights, tone
+    /// matching, pruning of hidden and eroded triangles, the whole centre.
+    /// Without it no texel is ever eroded.
+    pub erodes: bool,
+    /// Patches are alpha-blended by weight ([`blend`]) instead of lapped
+    /// (one source per texel).
+    pub blends: bool,
+    /// Patches are renewed after the first frame: new ones where texels are
+    /// uncovered, unused ones deleted, a mismatching exemplar fading.
+    /// Without it the first frame's patches are carried for ever.
+    pub renews: bool,
 }
+
+/// The 2021 method: erosion, lapped fill, new patches, deletion.
+pub const EROSION: Rules = Rules {
+    name: "erosion",
+    erodes: true,
+    blends: false,
+    renews: true,
+};
 
 /// The erosion method (and the baselines sharing its patches).
 pub struct Erosion {
-    variant: Variant,
+    rules: Rules,
     params: ErosionParams,
     exemplar: Arc<Exemplar>,
     /// Built once r and S are known (the footprint falloff needs r/S).
@@ -148,19 +161,19 @@ impl Erosion {
         exemplar: Arc<Exemplar>,
         seed: u64,
     ) -> Result<Erosion, MethodError> {
-        Erosion::with_variant(Variant::Erode, params, exemplar, seed)
+        Erosion::with_rules(EROSION, params, exemplar, seed)
     }
 
-    /// The method or baseline `variant` with the erosion method's parameters.
-    pub fn with_variant(
-        variant: Variant,
+    /// The method or baseline of `rules` with the erosion method's parameters.
+    pub fn with_rules(
+        rules: Rules,
         params: ErosionParams,
         exemplar: Arc<Exemplar>,
         seed: u64,
     ) -> Result<Erosion, MethodError> {
         params.validate()?;
         Ok(Erosion {
-            variant,
+            rules,
             params,
             feature_levels: feature_levels::FeatureLevels::new(&exemplar.feature),
             exemplar,
@@ -174,16 +187,16 @@ impl Erosion {
         })
     }
 
-    /// The method or baseline `variant` over the exemplars of `set`, each
+    /// The method or baseline of `rules` over the exemplars of `set`, each
     /// patch showing the one its strategy chose ([`exemplars`]). One
-    /// exemplar is exactly [`Erosion::with_variant`].
+    /// exemplar is exactly [`Erosion::with_rules`].
     pub fn with_exemplars(
-        variant: Variant,
+        rules: Rules,
         params: ErosionParams,
         set: Arc<crate::exemplar::ExemplarSet>,
         seed: u64,
     ) -> Result<Erosion, MethodError> {
-        let mut e = Erosion::with_variant(variant, params, Arc::clone(set.primary()), seed)?;
+        let mut e = Erosion::with_rules(rules, params, Arc::clone(set.primary()), seed)?;
         if set.len() > 1 || set.is_animated() {
             e.multi = Some(exemplars::Multi::new(set, seed));
         }
@@ -214,7 +227,7 @@ impl Erosion {
     /// The erosion test for patches of uv radius `footprint` = r/S over
     /// `feature` (the exemplar's feature map).
     fn erosion_test(&self, footprint: f32, feature: &crate::exemplar::FeatureMap) -> ErosionTest {
-        if self.variant != Variant::Erode {
+        if !self.rules.erodes {
             return ErosionTest::never();
         }
         let reach = match self.params.falloff {
@@ -233,7 +246,7 @@ impl Erosion {
             Some(m) => m.set.exemplars(),
             None => std::slice::from_ref(&self.exemplar),
         };
-        let contrast = self.variant == Variant::Erode && self.params.tone == Tone::Match;
+        let contrast = self.rules.erodes && self.params.tone == Tone::Match;
         self.tones.get_or_insert_with(|| {
             if !contrast {
                 // No pyramid is read: an animated exemplar's frames keep
@@ -263,7 +276,7 @@ impl Erosion {
         lods: Option<&[f32]>,
         by_id: Option<&[u32]>,
     ) -> Vec<ToneMap> {
-        if self.variant != Variant::Erode || self.params.tone == Tone::Off {
+        if !self.rules.erodes || self.params.tone == Tone::Off {
             return Vec::new();
         }
         let mode = self.params.tone;
@@ -300,7 +313,7 @@ impl Erosion {
             },
             // Only where the triangles past δ_max are pruned (see
             // [`Erosion::prune`]).
-            split_stretch: if self.variant == Variant::Erode && self.prune_eroded {
+            split_stretch: if self.rules.erodes && self.prune_eroded {
                 self.params.delta_max * exemplar_size
             } else {
                 f32::INFINITY
@@ -319,8 +332,7 @@ impl Erosion {
             far_distance: self.params.far_fraction * radius,
             centre_radius: self.params.centre_fraction * radius,
             // Only where progressive weights carry it over the next frames.
-            whole_centre: self.variant == Variant::Erode
-                && self.params.weights == WeightMode::Progressive,
+            whole_centre: self.rules.erodes && self.params.weights == WeightMode::Progressive,
             whole_region: self.params.patch_region == PatchRegion::Paper,
             pin_seed_corners: self.params.seed_corners == SeedCorners::Pinned,
         }
@@ -346,11 +358,7 @@ struct Texels {
 
 impl Method for Erosion {
     fn name(&self) -> &'static str {
-        match self.variant {
-            Variant::Erode => "erosion",
-            Variant::Advect => "advect",
-            Variant::Blend => "blend-deformable",
-        }
+        self.rules.name
     }
 
     fn channel_specs(&self) -> Vec<ChannelSpec> {
@@ -436,11 +444,7 @@ impl Method for Erosion {
         // Per texel besides channels and ids: uv (8), exemplar level (4)
         // and renewal flags (1); a blend adds its accumulated channels and
         // weights, a transition the second source's uv and weight.
-        let blend = if self.variant == Variant::Blend {
-            24
-        } else {
-            0
-        };
+        let blend = if self.rules.blends { 24 } else { 0 };
         let transition = if self.transition_frames() > 0 { 16 } else { 0 };
         // A radius above the default makes larger patches that stretch
         // further before they erode, so more of their triangles are split
@@ -459,11 +463,7 @@ impl Method for Erosion {
         // at frame 48 (910 MiB at 85k triangles). Three times the erosion
         // figure covers a run of about two seconds; the memory guard stops
         // a longer one that outgrows it.
-        let history = if self.variant == Variant::Blend {
-            3.0
-        } else {
-            1.0
-        };
+        let history = if self.rules.blends { 3.0 } else { 1.0 };
         let per_triangle =
             super::PATCH_BYTES_PER_TRIANGLE as f64 * history * radius_ratio.clamp(1.0, 64.0).sqrt();
         super::MemoryModel {
@@ -550,7 +550,7 @@ impl Erosion {
         renewal: bool,
     ) -> FillBuffers {
         // The footprint pass samples every covered texel (blends excepted).
-        let defer_values = self.variant != Variant::Blend
+        let defer_values = !self.rules.blends
             && self.exemplar.filter == crate::exemplar::ExemplarFilter::Trilinear;
         // Deferred values are first written by the footprint pass, late in
         // the frame: fresh zero pages until then, instead of the last
@@ -577,7 +577,7 @@ impl Erosion {
         // The lapped fill records what became of each texel's previous
         // holder (the forced / unforced split of the switches); the blended
         // fill shows every layer and has no single holder.
-        if self.variant != Variant::Blend && renewal {
+        if !self.rules.blends && renewal {
             out = out.with_renewal();
         }
         out
@@ -592,7 +592,7 @@ impl Erosion {
         levels: super::footprint::Levels,
         by_id: Option<&[u32]>,
     ) -> Option<Vec<f32>> {
-        (self.variant != Variant::Blend)
+        (!self.rules.blends)
             .then(|| match (&self.multi, by_id) {
                 (Some(m), Some(by_id)) => {
                     let all = m.set.exemplars();
@@ -736,7 +736,7 @@ impl Erosion {
         // Contrast tone matching reads each texel's level.
         // So does a transition, which reads the earlier source at it.
         let levels = if wants.levels
-            || (self.variant == Variant::Erode && self.params.tone == Tone::Match)
+            || (self.rules.erodes && self.params.tone == Tone::Match)
             || !blended.transitions.is_empty()
         {
             super::footprint::Levels::Keep
@@ -912,12 +912,12 @@ impl Erosion {
     /// lowers a weight).
     fn update_weights(&mut self, ctx: &FrameContext<'_>, shape: &PatchShape, first_new_id: u32) {
         let dt = ctx.dt;
-        let max_drop = match (self.variant, self.params.weights) {
-            (Variant::Erode, WeightMode::Progressive) => Some(self.params.erosion_rate * dt),
+        let max_drop = match (self.rules.erodes, self.params.weights) {
+            (true, WeightMode::Progressive) => Some(self.params.erosion_rate * dt),
             _ => None,
         };
-        let mismatch = match (&self.multi, self.variant) {
-            (Some(m), Variant::Erode | Variant::Blend) => m.set.by.as_ref().map(|by| {
+        let mismatch = match (&self.multi, self.rules.renews) {
+            (Some(m), true) => m.set.by.as_ref().map(|by| {
                 let everywhere =
                     (by.values(ctx.mesh)).map_or_else(Vec::new, |v| by.matching_everywhere(v));
                 (m, by.mismatch_rate * dt, everywhere)
@@ -958,7 +958,7 @@ impl Erosion {
     /// eroding method: `advect` never erodes and `blend-deformable` blends
     /// by weights that may rise again.
     fn prune(&mut self, shape: &PatchShape, test: ErosionTest) -> usize {
-        if self.variant != Variant::Erode || !self.prune_eroded {
+        if !self.rules.erodes || !self.prune_eroded {
             return 0;
         }
         let tests = self.multi.as_ref().map(|m| m.tests.as_slice());
@@ -998,7 +998,7 @@ impl Erosion {
     /// 36 % more patches made per frame.
     fn prune_hidden(&mut self, out: &FillBuffers, blended: &Blended, shape: &PatchShape) -> usize {
         let reach = self.params.hidden_reach;
-        if self.variant != Variant::Erode || !self.prune_eroded || reach <= 0.0 {
+        if !self.rules.erodes || !self.prune_eroded || reach <= 0.0 {
             return 0;
         }
         let cell = reach * shape.radius / shape.exemplar_size;
@@ -1106,7 +1106,7 @@ impl Erosion {
             fill_ctx.tolerance,
         );
         counts.candidate_pairs = candidates.len();
-        if self.variant == Variant::Blend {
+        if self.rules.blends {
             let outcome = blend::fill(fill_ctx, ctx.atlas, &candidates, out);
             blended.layers = Some(outcome.layers);
             blended.used = Some(outcome.used);
@@ -1168,7 +1168,7 @@ impl Erosion {
             });
             self.state.patches.retain(|p| !p.triangles.is_empty());
             // `advect` carries what it has; it only places patches on a fresh start.
-            carried = self.variant == Variant::Advect && !self.state.patches.is_empty();
+            carried = !self.rules.renews && !self.state.patches.is_empty();
         } else if ctx.previous.is_none() || ctx.previous.is_some_and(|p| p.mesh.is_empty()) {
             // A fresh start of the surface: patches of an older surface cannot be carried.
             self.state.patches.clear();
@@ -1221,7 +1221,7 @@ impl Erosion {
     /// Returns how many went.
     fn delete_unused(&mut self, out: &FillBuffers, blend_used: Option<&[u32]>) -> usize {
         let alive_before = self.state.patches.len();
-        if self.variant != Variant::Advect {
+        if self.rules.renews {
             let max_id = self.state.next_id as usize;
             let mut used = vec![false; max_id + 1];
             for &s in &out.source {

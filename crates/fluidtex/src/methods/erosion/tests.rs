@@ -1062,15 +1062,23 @@ fn blend_fill_is_the_weight_normalised_mix_of_every_covering_patch() {
 fn advect_carries_the_first_frame_patches_and_never_renews_them() {
     let c = scene("differential-rotation", 12, 5, 96);
     let ex = exemplar();
-    let mut method =
-        Erosion::with_variant(Variant::Advect, ErosionParams::default(), ex.clone(), 2)
-            .expect("params");
+    let mut method = Erosion::with_rules(
+        crate::methods::advect::RULES,
+        ErosionParams::default(),
+        ex.clone(),
+        2,
+    )
+    .expect("params");
     let results = step_all(&mut method, &c);
     assert_eq!(method.name(), "advect");
     let first_ids: Vec<u32> = {
-        let mut m2 =
-            Erosion::with_variant(Variant::Advect, ErosionParams::default(), ex.clone(), 2)
-                .expect("params");
+        let mut m2 = Erosion::with_rules(
+            crate::methods::advect::RULES,
+            ErosionParams::default(),
+            ex.clone(),
+            2,
+        )
+        .expect("params");
         let one = Clip::from_meshes(vec![c.meshes[0].clone()], c.atlases[0].width);
         step_all(&mut m2, &one);
         m2.state().patches.iter().map(|p| p.id).collect()
@@ -1107,8 +1115,13 @@ fn advect_carries_the_first_frame_patches_and_never_renews_them() {
 #[test]
 fn blend_deformable_covers_everything_and_shows_ghosts() {
     let c = scene("differential-rotation", 12, 3, 96);
-    let mut method = Erosion::with_variant(Variant::Blend, ErosionParams::default(), exemplar(), 4)
-        .expect("params");
+    let mut method = Erosion::with_rules(
+        crate::methods::blend_deformable::RULES,
+        ErosionParams::default(),
+        exemplar(),
+        4,
+    )
+    .expect("params");
     assert_eq!(method.name(), "blend-deformable");
     for (k, r) in step_all(&mut method, &c).iter().enumerate() {
         assert_eq!(r.stats["uncovered_texels"], 0, "frame {k}");
@@ -2081,8 +2094,13 @@ fn advect_holders_always_show_and_only_distortion_forces() {
     // only renewal it would need is the distortion bound's, growing with
     // the shear (the renewal floor of the vortex).
     let c = scene("vortex", 10, 16, 96);
-    let mut m = Erosion::with_variant(Variant::Advect, ErosionParams::default(), exemplar(), 4)
-        .expect("params");
+    let mut m = Erosion::with_rules(
+        crate::methods::advect::RULES,
+        ErosionParams::default(),
+        exemplar(),
+        4,
+    )
+    .expect("params");
     let results = step_all(&mut m, &c);
     let distorted: Vec<f64> = results
         .iter()

@@ -47,9 +47,9 @@ use std::sync::Arc;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use super::Erosion;
 use super::fill::{FillBuffers, OUTSIDE, Transition, UNCOVERED};
 use super::patch::Patch;
-use super::{Erosion, Variant};
 use crate::exemplar::Exemplar;
 use crate::methods::MethodError;
 
@@ -129,9 +129,10 @@ impl Erosion {
     /// Frames of the transition this run blends over: the parameter's, for
     /// the lapped fills (the blended fill shows every layer anyway).
     pub(super) fn transition_frames(&self) -> u32 {
-        match self.variant {
-            Variant::Blend => 0,
-            _ => self.params.transition.min(MAX_FRAMES),
+        if self.rules.blends {
+            0
+        } else {
+            self.params.transition.min(MAX_FRAMES)
         }
     }
 

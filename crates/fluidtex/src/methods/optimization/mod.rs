@@ -398,6 +398,23 @@ impl Optimization {
         })
     }
 
+    /// The method over the exemplar of `set`: its one entry, still
+    /// ([`Optimization::new`]) or animated ([`Optimization::with_frames`]).
+    pub fn with_set(
+        params: OptimizationParams,
+        set: &crate::exemplar::ExemplarSet,
+        seed: u64,
+    ) -> Result<Optimization, MethodError> {
+        if !set.is_animated() {
+            return Optimization::new(params, Arc::clone(set.primary()), seed);
+        }
+        let frames = set
+            .slots_of(0)
+            .filter_map(|s| set.exemplars().get(s).cloned())
+            .collect();
+        Optimization::with_frames(params, frames, set.clock, seed)
+    }
+
     /// The method over an animated exemplar's `frames`: fluid frame t
     /// synthesises from exemplar frame ⌊t·rate⌋ mod n, starting from the
     /// texture carried from the frame before, so the surface's texture

@@ -1,12 +1,15 @@
-//! The methods' parameter flags of `fluidtex run`, built from the
-//! library's declarations ([`MethodParams::flags`]) rather than written
-//! here: a parameter added to a method's `params!` list gets its flag,
-//! its `--help` line and its value check without a line in the CLI.
+//! The methods' parameter flags as clap arguments (`fluidtex run` flattens
+//! [`MethodFlags`] into its own), built from the declarations
+//! ([`MethodParams::flags`]) rather than written in the CLI: a parameter
+//! added to a method's `params!` list gets its flag, its `--help` line and
+//! its value check with no line elsewhere. It lives in the library so that
+//! the registry's tests parse a test-only method's flag with the very
+//! parser the CLI uses.
 
+use super::params::ParamFlag;
+use super::registry::MethodParams;
 use clap::builder::{PossibleValuesParser, ValueParser};
 use clap::{Arg, ArgAction, ArgMatches, Args, Command, FromArgMatches};
-use fluidtex::methods::params::ParamFlag;
-use fluidtex::methods::registry::MethodParams;
 
 /// The method flags given on a command line, in declaration order, each
 /// with its text (a switch: the text it writes).
@@ -86,11 +89,11 @@ impl FromArgMatches for MethodFlags {
 
 impl MethodFlags {
     /// Sets every given flag in `params` (in each section that declares it).
-    pub fn apply(&self, params: &mut MethodParams) -> anyhow::Result<()> {
+    pub fn apply(&self, params: &mut MethodParams) -> Result<(), String> {
         for (flag, text) in &self.set {
             params
                 .set_flag(flag, text)
-                .map_err(|e| anyhow::anyhow!("--{flag} {text}: {e}"))?;
+                .map_err(|e| format!("--{flag} {text}: {e}"))?;
         }
         Ok(())
     }
