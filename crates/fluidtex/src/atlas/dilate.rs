@@ -12,9 +12,10 @@
 //!
 //! Sources are chart texels, which dilation never writes, so the result
 //! does not depend on order. Work is split by bands: nearest sources are
-//! found in parallel with the texture borrowed immutably, then the values
-//! are written band by band through `par_chunks_mut` (groups of bands bound
-//! the memory of the staged values).
+//! found in parallel once per atlas ([`DilationMap`], 8 bytes per gutter
+//! texel), then each image's values are written band by band through
+//! `par_chunks_mut` (groups of bands bound the memory of the staged
+//! values).
 
 use rayon::prelude::*;
 
@@ -76,45 +77,78 @@ impl RowRuns {
     }
 }
 
+/// Where every gutter texel within `radius` of a chart takes its value
+/// from: per band, (texel index within the band, global index of the
+/// nearest chart texel). Found once per atlas and radius and reused by
+/// every image dilated on that atlas (a frame's channels, its debug
+/// colours and patch ids), since only the values differ.
+#[derive(Clone)]
+pub(crate) struct DilationMap {
+    pub(crate) radius: u32,
+    per_band: Vec<Vec<(u32, u32)>>,
+}
+
+impl std::fmt::Debug for DilationMap {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let texels: usize = self.per_band.iter().map(Vec::len).sum();
+        write!(
+            f,
+            "DilationMap {{ radius: {}, texels: {texels} }}",
+            self.radius
+        )
+    }
+}
+
+impl DilationMap {
+    /// The map of `bands` (an atlas of `width × height`, at most
+    /// 16384², so a texel index fits `u32`).
+    pub(crate) fn new(bands: &[Band], width: u32, height: u32, radius: u32) -> DilationMap {
+        if radius == 0 || bands.is_empty() {
+            return DilationMap {
+                radius,
+                per_band: Vec::new(),
+            };
+        }
+        let rows = RowRuns::new(bands, width, height);
+        let per_band = bands
+            .par_iter()
+            .map(|b| sources_in_band(&rows, b.y0, b.y1, width, height, radius))
+            .collect();
+        DilationMap { radius, per_band }
+    }
+}
+
 /// See the module doc. `texture` has the atlas's size (checked by the caller).
-pub(crate) fn dilate(bands: &[Band], width: u32, height: u32, texture: &mut Texture, radius: u32) {
+pub(crate) fn dilate(map: &DilationMap, width: u32, texture: &mut Texture) {
     let channels = texture.channels;
-    dilate_values(bands, (width, height), &mut texture.data, channels, radius);
+    dilate_values(map, width, &mut texture.data, channels);
 }
 
 /// [`dilate`] over any per-texel values, `channels` interleaved per texel
 /// (patch ids dilate as `u32`, without a float copy). `data` holds
 /// `width × height × channels` values (checked by the caller).
 pub(crate) fn dilate_values<T: Copy + Send + Sync>(
-    bands: &[Band],
-    (width, height): (u32, u32),
+    map: &DilationMap,
+    width: u32,
     data: &mut [T],
     channels: usize,
-    radius: u32,
 ) {
-    if radius == 0 || bands.is_empty() {
-        return;
-    }
-    let rows = RowRuns::new(bands, width, height);
     let band_len = BAND_HEIGHT as usize * width as usize * channels;
-    for (g, group) in bands.chunks(GROUP).enumerate() {
-        let staged: Vec<Vec<(u32, usize)>> = group
-            .par_iter()
-            .map(|b| sources_in_band(&rows, b.y0, b.y1, width, height, radius))
-            .collect();
+    for (g, staged) in map.per_band.chunks(GROUP).enumerate() {
         let src_data = &*data;
         let values: Vec<Vec<T>> = staged
             .par_iter()
             .map(|entries| {
                 let mut v = Vec::with_capacity(entries.len() * channels);
                 for &(_, src) in entries {
+                    let src = src as usize;
                     v.extend_from_slice(&src_data[src * channels..(src + 1) * channels]);
                 }
                 v
             })
             .collect();
         let first = g * GROUP * band_len;
-        let last = (first + group.len() * band_len).min(data.len());
+        let last = (first + staged.len() * band_len).min(data.len());
         data[first..last]
             .par_chunks_mut(band_len)
             .zip(staged.par_iter().zip(values.par_iter()))
@@ -172,7 +206,7 @@ fn sources_in_band(
     width: u32,
     height: u32,
     radius: u32,
-) -> Vec<(u32, usize)> {
+) -> Vec<(u32, u32)> {
     let r = radius as i64;
     let r2 = r * r;
     let mut out = Vec::new();
@@ -230,7 +264,7 @@ fn sources_in_band(
                 if let Some((_, sy, sx)) = best {
                     out.push((
                         ((y - y0) as i64 * width as i64 + x) as u32,
-                        (sy * width as i64 + sx) as usize,
+                        (sy * width as i64 + sx) as u32,
                     ));
                 }
             }

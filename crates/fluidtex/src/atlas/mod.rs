@@ -239,6 +239,9 @@ pub struct Atlas {
     /// Fixed-point (1/256 texel) coordinates of each uv_mesh vertex: the
     /// exact geometry the spans were rasterized from.
     fixed: Vec<[i32; 2]>,
+    /// The gutter's sources, found on the first dilation and reused by
+    /// the later ones at the same radius.
+    dilation: std::sync::OnceLock<dilate::DilationMap>,
 }
 
 /// Every triangle corner names a vertex, and every vertex used is finite.
@@ -354,6 +357,7 @@ impl Atlas {
             timings,
             bands,
             fixed,
+            dilation: std::sync::OnceLock::new(),
         })
     }
 
@@ -456,7 +460,7 @@ impl Atlas {
                 got_height: texture.height,
             });
         }
-        dilate::dilate(&self.bands, self.width, self.height, texture, radius);
+        self.with_dilation(radius, |map| dilate::dilate(map, self.width, texture));
         Ok(())
     }
 
@@ -474,8 +478,22 @@ impl Atlas {
                 got: ids.len(),
             });
         }
-        dilate::dilate_values(&self.bands, (self.width, self.height), ids, 1, radius);
+        self.with_dilation(radius, |map| {
+            dilate::dilate_values(map, self.width, ids, 1);
+        });
         Ok(())
+    }
+
+    /// `f` with the dilation map at `radius`: the cached one (made by the
+    /// first call), or one made for this call at another radius.
+    fn with_dilation<R>(&self, radius: u32, f: impl FnOnce(&dilate::DilationMap) -> R) -> R {
+        let make = || dilate::DilationMap::new(&self.bands, self.width, self.height, radius);
+        let cached = self.dilation.get_or_init(make);
+        if cached.radius == radius {
+            f(cached)
+        } else {
+            f(&make())
+        }
     }
 
     /// Area-weighted p50/p95/max of σ₁/σ₂ of the uv → 3-D map, overlapping

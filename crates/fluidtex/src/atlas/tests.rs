@@ -387,43 +387,47 @@ fn dilation_copies_the_nearest_chart_texel_and_leaves_charts_alone() {
         }
     }
     let before = tex.clone();
-    let radius = 3i64;
-    atlas.dilate(&mut tex, radius as u32).expect("same size");
-    let mut filled = 0;
-    for y in 0..h {
-        for x in 0..w {
-            let got = tex.texel(x as u32, y as u32);
-            if map[(y * w + x) as usize] != u32::MAX {
-                assert_eq!(
-                    got,
-                    before.texel(x as u32, y as u32),
-                    "chart texel ({x},{y}) changed"
-                );
-                continue;
-            }
-            // Brute force: nearest chart texel, ties by row then column.
-            let mut best: Option<(i64, i64, i64)> = None;
-            for yy in (y - radius).max(0)..=(y + radius).min(h - 1) {
-                for xx in (x - radius).max(0)..=(x + radius).min(w - 1) {
-                    let d = (xx - x).pow(2) + (yy - y).pow(2);
-                    if map[(yy * w + xx) as usize] != u32::MAX && d <= radius * radius {
-                        let key = (d, yy, xx);
-                        if best.is_none_or(|b| key < b) {
-                            best = Some(key);
+    // The first dilation keeps its gutter map: the second radius is
+    // found afresh, the third reuses the map of the first.
+    for radius in [3i64, 1, 3] {
+        let mut tex = before.clone();
+        atlas.dilate(&mut tex, radius as u32).expect("same size");
+        let mut filled = 0;
+        for y in 0..h {
+            for x in 0..w {
+                let got = tex.texel(x as u32, y as u32);
+                if map[(y * w + x) as usize] != u32::MAX {
+                    assert_eq!(
+                        got,
+                        before.texel(x as u32, y as u32),
+                        "chart texel ({x},{y}) changed"
+                    );
+                    continue;
+                }
+                // Brute force: nearest chart texel, ties by row then column.
+                let mut best: Option<(i64, i64, i64)> = None;
+                for yy in (y - radius).max(0)..=(y + radius).min(h - 1) {
+                    for xx in (x - radius).max(0)..=(x + radius).min(w - 1) {
+                        let d = (xx - x).pow(2) + (yy - y).pow(2);
+                        if map[(yy * w + xx) as usize] != u32::MAX && d <= radius * radius {
+                            let key = (d, yy, xx);
+                            if best.is_none_or(|b| key < b) {
+                                best = Some(key);
+                            }
                         }
                     }
                 }
-            }
-            match best {
-                Some((_, yy, xx)) => {
-                    assert_eq!(got, value(xx, yy), "gutter texel ({x},{y})");
-                    filled += 1;
+                match best {
+                    Some((_, yy, xx)) => {
+                        assert_eq!(got, value(xx, yy), "gutter texel ({x},{y})");
+                        filled += 1;
+                    }
+                    None => assert_eq!(got, [-1.0, -1.0], "texel ({x},{y}) far from charts"),
                 }
-                None => assert_eq!(got, [-1.0, -1.0], "texel ({x},{y}) far from charts"),
             }
         }
+        assert!(filled > 0);
     }
-    assert!(filled > 0);
     let mut wrong = Texture::filled(atlas.width + 1, atlas.height, 1, 0.0);
     assert!(matches!(
         atlas.dilate(&mut wrong, 2),
