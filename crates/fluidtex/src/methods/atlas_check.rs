@@ -5,13 +5,10 @@
 //! square, unstretched checker cells continuing across chart seams; a wrong
 //! one shows it at once (sheared cells, seams, holes).
 
-use rayon::prelude::*;
-
 use super::{
-    ChannelFormat, ChannelSpec, FrameContext, FrameResult, Method, MethodError, SOURCE_OUTSIDE,
-    StageClock, check_range,
+    ChannelFormat, ChannelSpec, FrameContext, FrameResult, Method, MethodError, StageClock,
+    check_range, paint_charts,
 };
-use crate::texture::Texture;
 
 crate::methods::params::params! {
     /// Parameters of the checker.
@@ -112,30 +109,11 @@ impl Method for AtlasCheck {
                 Some((lo.distance(hi) / self.params.cells_per_diagonal).max(f32::MIN_POSITIVE));
         }
         let cell = self.cell.unwrap_or(1.0);
-        let w = atlas.width as usize;
-        let mut colour = Texture::filled(atlas.width, atlas.height, 3, 0.0);
-        let mut source = vec![SOURCE_OUTSIDE; w * atlas.height as usize];
-        if let Some(first) = atlas.bands().first() {
-            let rows = (first.y1 - first.y0) as usize;
-            colour
-                .data
-                .par_chunks_mut(rows * w * 3)
-                .zip(source.par_chunks_mut(rows * w))
-                .zip(atlas.bands().par_iter())
-                .for_each(|((data, src), band)| {
-                    for span in &band.spans {
-                        let [a, b, c] = mesh.corners(span.triangle as usize);
-                        let row = (span.y - band.y0) as usize * w;
-                        for (x, bary) in atlas.span_barycentrics(span) {
-                            let t = row + x as usize;
-                            let p = a * bary[0] + b * bary[1] + c * bary[2];
-                            data[t * 3..t * 3 + 3].copy_from_slice(&checker(p, cell));
-                            // One "source" for the whole surface: it is never uncovered.
-                            src[t] = 1;
-                        }
-                    }
-                });
-        }
+        let (colour, source) = paint_charts(atlas, 3, |span, bary, texel| {
+            let [a, b, c] = mesh.corners(span.triangle as usize);
+            let p = a * bary[0] + b * bary[1] + c * bary[2];
+            texel.copy_from_slice(&checker(p, cell));
+        });
         clock.lap("fill");
         let mut result = FrameResult {
             channels: vec![colour],

@@ -437,6 +437,41 @@ impl Selection {
     }
 }
 
+/// A `channels`-channel texture of the atlas's size with every chart texel
+/// set by `paint(span, barycentrics, texel)` (0 elsewhere), and its source
+/// map: 1 at chart texels (one source for the whole surface, never
+/// uncovered), [`SOURCE_OUTSIDE`] elsewhere. For methods that paint the
+/// surface directly, without patches.
+pub(crate) fn paint_charts(
+    atlas: &crate::atlas::Atlas,
+    channels: usize,
+    paint: impl Fn(&crate::atlas::Span, [f32; 3], &mut [f32]) + Sync,
+) -> (crate::texture::Texture, Vec<u32>) {
+    use rayon::prelude::*;
+    let w = atlas.width as usize;
+    let mut texture = crate::texture::Texture::filled(atlas.width, atlas.height, channels, 0.0);
+    let mut source = vec![SOURCE_OUTSIDE; w * atlas.height as usize];
+    if let Some(first) = atlas.bands().first() {
+        let rows = (first.y1 - first.y0) as usize;
+        texture
+            .data
+            .par_chunks_mut(rows * w * channels)
+            .zip(source.par_chunks_mut(rows * w))
+            .zip(atlas.bands().par_iter())
+            .for_each(|((data, src), band)| {
+                for span in &band.spans {
+                    let row = (span.y - band.y0) as usize * w;
+                    for (x, bary) in atlas.span_barycentrics(span) {
+                        let t = row + x as usize;
+                        paint(span, bary, &mut data[t * channels..(t + 1) * channels]);
+                        src[t] = 1;
+                    }
+                }
+            });
+    }
+    (texture, source)
+}
+
 /// Checks `lo <= value <= hi` for a parameter.
 pub(crate) fn check_range(
     name: &'static str,

@@ -6,14 +6,10 @@
 //! the flag test below hold the steps written in [`super::registry`] to
 //! account.
 
-use rayon::prelude::*;
-
 use super::registry::{Exemplars, MethodSpec};
 use super::{
-    ChannelFormat, ChannelSpec, FrameContext, FrameResult, Method, MethodError, SOURCE_OUTSIDE,
-    check_range,
+    ChannelFormat, ChannelSpec, FrameContext, FrameResult, Method, MethodError, check_range,
 };
-use crate::texture::Texture;
 
 super::params::params! {
     /// Parameters of the toy method.
@@ -69,28 +65,8 @@ impl Method for Toy {
     }
 
     fn step(&mut self, ctx: &FrameContext<'_>) -> Result<FrameResult, MethodError> {
-        let atlas = ctx.atlas;
-        let w = atlas.width as usize;
-        let mut colour = Texture::filled(atlas.width, atlas.height, 3, 0.0);
-        let mut source = vec![SOURCE_OUTSIDE; w * atlas.height as usize];
-        if let Some(first) = atlas.bands().first() {
-            let rows = (first.y1 - first.y0) as usize;
-            colour
-                .data
-                .par_chunks_mut(rows * w * 3)
-                .zip(source.par_chunks_mut(rows * w))
-                .zip(atlas.bands().par_iter())
-                .for_each(|((data, src), band)| {
-                    for span in &band.spans {
-                        let row = (span.y - band.y0) as usize * w;
-                        for (x, _) in atlas.span_barycentrics(span) {
-                            let t = row + x as usize;
-                            data[t * 3..t * 3 + 3].fill(self.params.grey);
-                            src[t] = 1;
-                        }
-                    }
-                });
-        }
+        let grey = self.params.grey;
+        let (colour, source) = super::paint_charts(ctx.atlas, 3, |_, _, texel| texel.fill(grey));
         self.frames += 1;
         let mut result = FrameResult {
             channels: vec![colour],
@@ -162,7 +138,7 @@ mod tests {
         let last = results.last().expect("two frames");
         let source = last.source.as_ref().expect("a source per texel");
         let covered: Vec<usize> = (0..source.len())
-            .filter(|&t| source[t] != SOURCE_OUTSIDE)
+            .filter(|&t| source[t] != crate::methods::SOURCE_OUTSIDE)
             .collect();
         assert!(!covered.is_empty());
         for t in covered {
