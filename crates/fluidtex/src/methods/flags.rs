@@ -18,18 +18,22 @@ pub struct MethodFlags {
     pub set: Vec<(&'static str, String)>,
 }
 
-/// Every method flag once: a flag several sections declare (`--substeps`)
-/// is one argument, described by its first section's help.
-pub fn unique_flags() -> Vec<&'static ParamFlag> {
+/// Every method flag once, with its section: a flag several sections
+/// declare (`--substeps`) is one argument, described by its first
+/// section's help.
+pub fn unique_flags() -> Vec<(&'static str, &'static ParamFlag)> {
     let mut seen = std::collections::BTreeSet::new();
     MethodParams::flags()
         .filter(|(_, f)| seen.insert(f.flag))
-        .map(|(_, f)| f)
         .collect()
 }
 
-fn argument(spec: &'static ParamFlag) -> Arg {
-    let arg = Arg::new(spec.flag).long(spec.flag).help(spec.help);
+/// `--help` lists each section's flags under its own heading.
+fn argument(section: &str, spec: &'static ParamFlag) -> Arg {
+    let arg = Arg::new(spec.flag)
+        .long(spec.flag)
+        .help(spec.help)
+        .help_heading(format!("Method parameters [{section}]"));
     if spec.switch.is_some() {
         return arg.action(ArgAction::SetTrue);
     }
@@ -53,7 +57,7 @@ impl Args for MethodFlags {
     fn augment_args(cmd: Command) -> Command {
         unique_flags()
             .into_iter()
-            .fold(cmd, |cmd, spec| cmd.arg(argument(spec)))
+            .fold(cmd, |cmd, (section, spec)| cmd.arg(argument(section, spec)))
     }
 
     fn augment_args_for_update(cmd: Command) -> Command {
@@ -64,7 +68,7 @@ impl Args for MethodFlags {
 impl FromArgMatches for MethodFlags {
     fn from_arg_matches(matches: &ArgMatches) -> Result<Self, clap::Error> {
         let mut set = Vec::new();
-        for spec in unique_flags() {
+        for (_, spec) in unique_flags() {
             match spec.switch {
                 Some(text) => {
                     if matches.get_flag(spec.flag) {

@@ -22,7 +22,7 @@ crate::methods::params::params! {
         /// World size S covered by the exemplar's \[0,1]². `None`:
         /// `exemplar_scale` × r.
         pub exemplar_size: Option<f32> = None
-            => "exemplar-size" : "World size covered by the exemplar [2.6 r]",
+            => "exemplar-size" : "World size covered by the exemplar [2.6 r]; also sets optimization's (its width, [exemplar_texels point spacings])",
         /// Default S as a multiple of r [2.6]: the authors' code used (2 + β) r, β = 0.6.
         pub exemplar_scale: f32 = 2.6,
         /// δ_max of Eq. 1 \[3]: triangles at or beyond this distortion have Q_T = 0.
@@ -49,7 +49,7 @@ crate::methods::params::params! {
         pub normal_dot: f32 = 0.9,
         /// RK4 steps per frame \[1].
         pub substeps: u32 = 1
-            => "substeps" : "RK4 substeps per frame [1]",
+            => "substeps" : "RK4 substeps per frame [1]; also sets optimization's transport substeps",
         /// Random rotation of each patch at creation [true] (seeded per patch id,
         /// or per creation point for patches the update adds).
         pub random_rotation: bool = true
