@@ -260,22 +260,11 @@ impl PolarMaps {
     }
 }
 
-/// v's fan walked triangle by triangle over shared edges, or `None` where
-/// it is not a disc or half-disc whose edges keep their order when
-/// projected on the tangent plane.
-fn walked_fan(level: &Level, v: u32) -> Option<Fan> {
-    let tris = level.vertex_triangles(v);
-    let others: Vec<[u32; 2]> = tris
-        .iter()
-        .map(|&t| {
-            let tri = level.triangles[t as usize];
-            let i = tri.iter().position(|&c| c == v).unwrap_or(0);
-            [tri[(i + 1) % 3], tri[(i + 2) % 3]]
-        })
-        .collect();
-    if others.is_empty() {
-        return None;
-    }
+/// The neighbours of a vertex in fan order, from the (next, previous)
+/// corners of each of its triangles, and whether the fan closes; `None`
+/// when the triangles do not form one fan (a non-manifold vertex, or
+/// several pieces).
+fn ring_order(others: &[[u32; 2]]) -> Option<(Vec<u32>, bool)> {
     // Each neighbour is on two of v's triangles inside the fan, one on its
     // border; a third makes the vertex non-manifold.
     let mut count: Vec<(u32, u32)> = Vec::with_capacity(others.len() * 2);
@@ -317,6 +306,26 @@ fn walked_fan(level: &Level, v: u32) -> Option<Fan> {
     if used.iter().any(|&u| !u) || (closed && cur != start) {
         return None;
     }
+    Some((order, closed))
+}
+
+/// v's fan walked triangle by triangle over shared edges, or `None` where
+/// it is not a disc or half-disc whose edges keep their order when
+/// projected on the tangent plane.
+fn walked_fan(level: &Level, v: u32) -> Option<Fan> {
+    let tris = level.vertex_triangles(v);
+    let others: Vec<[u32; 2]> = tris
+        .iter()
+        .map(|&t| {
+            let tri = level.triangles[t as usize];
+            let i = tri.iter().position(|&c| c == v).unwrap_or(0);
+            [tri[(i + 1) % 3], tri[(i + 2) % 3]]
+        })
+        .collect();
+    if others.is_empty() {
+        return None;
+    }
+    let (order, closed) = ring_order(&others)?;
     let p = level.positions[v as usize];
     let n = level.normals[v as usize];
     let dirs: Vec<Vec3> = order
