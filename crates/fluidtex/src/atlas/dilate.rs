@@ -12,7 +12,7 @@
 //!
 //! Sources are chart texels, which dilation never writes, so the result
 //! does not depend on order. Work is split by bands: nearest sources are
-//! found in parallel once per atlas ([`DilationMap`], 8 bytes per gutter
+//! found in parallel once per atlas (`DilationMap`, 8 bytes per gutter
 //! texel), then each image's values are written band by band through
 //! `par_chunks_mut` (groups of bands bound the memory of the staged
 //! values).
