@@ -4,6 +4,7 @@
 //! ```text
 //! cargo run --release -p fluidtex --example atlas_bench -- TRIS ATLAS [THREADS]
 //! cargo run --release -p fluidtex --example atlas_bench -- lscm [N]
+//! cargo run --release -p fluidtex --example atlas_bench -- mesh FILE ATLAS [THREADS]
 //! ```
 //! TRIS: approximate triangle count of the surface (default 20000); ATLAS:
 //! atlas side in texels (default 1024); THREADS: rayon threads (default: all
@@ -69,6 +70,14 @@ fn main() {
         bench_lscm();
         return;
     }
+    // `mesh PATH SIDE [THREADS]`: a mesh file instead of the generated blob.
+    let file = (args.first().map(String::as_str) == Some("mesh")).then(|| args[1..].to_vec());
+    // There, the side and threads come one place earlier: no TRIS.
+    let args = file.clone().map_or(args, |a| {
+        let mut shifted = vec![String::from("0")];
+        shifted.extend(a.iter().skip(1).cloned());
+        shifted
+    });
     let arg = |i: usize, default: u32| -> u32 {
         args.get(i)
             .map(|a| {
@@ -82,20 +91,32 @@ fn main() {
         .num_threads(threads as usize)
         .build()
         .expect("thread pool");
-    pool.install(|| run(tris, side));
+    let (mesh, name) = match file.as_ref().and_then(|f| f.first()) {
+        Some(path) => {
+            let options = fluidtex::io::ReadOptions::default();
+            match fluidtex::io::read_mesh(std::path::Path::new(path), &options) {
+                Ok((mesh, _)) => (mesh, path.clone()),
+                Err(e) => {
+                    eprintln!("{e}");
+                    return;
+                }
+            }
+        }
+        None => (fixtures::liquid_blob(tris, 1), "liquid_blob".to_string()),
+    };
+    pool.install(|| run(&mesh, &name, side));
 }
 
-fn run(tris: u32, side: u32) {
-    let mesh = fixtures::liquid_blob(tris, 1);
+fn run(mesh: &fluidtex::mesh::TriMesh, name: &str, side: u32) {
     println!(
-        "surface: liquid_blob, {} triangles, {} vertices; atlas {side}x{side}, {} threads",
+        "surface: {name}, {} triangles, {} vertices; atlas {side}x{side}, {} threads",
         mesh.triangles.len(),
         mesh.positions.len(),
         rayon::current_num_threads()
     );
     let params = AtlasParams::square(side);
     let t = Instant::now();
-    let atlas = match Atlas::build(&mesh, &params) {
+    let atlas = match Atlas::build(mesh, &params) {
         Ok(a) => a,
         Err(e) => {
             eprintln!("atlas failed: {e}");
@@ -132,13 +153,14 @@ fn run(tris: u32, side: u32) {
     }
     let bary = t.elapsed();
 
-    let stats = atlas.stretch_stats(&mesh).expect("same mesh");
+    let stats = atlas.stretch_stats(mesh).expect("same mesh");
     let spans: usize = atlas.bands().iter().map(|b| b.spans.len()).sum();
     println!(
-        "segmentation {:7.1} ms\nlscm         {:7.1} ms\npacking      {:7.1} ms\nrasterize    {:7.1} ms\nbuild total  {:7.1} ms\ndilation     {:7.1} ms (radius {}, 3 channels)\nbarycentrics {:7.1} ms (all texels, one thread)",
+        "segmentation {:7.1} ms\nlscm         {:7.1} ms\npacking      {:7.1} ms ({} attempts)\nrasterize    {:7.1} ms\nbuild total  {:7.1} ms\ndilation     {:7.1} ms (radius {}, 3 channels)\nbarycentrics {:7.1} ms (all texels, one thread)",
         ms(tm.segmentation),
         ms(tm.lscm),
         ms(tm.packing),
+        tm.packing_attempts,
         ms(tm.rasterization),
         ms(build),
         ms(dilation),

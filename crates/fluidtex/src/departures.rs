@@ -431,14 +431,23 @@ pub const DEPARTURES: &[Departure] = &[
         what: "The compositing formula.",
         ours: "The over operator, oldest patch on top, with α = falloff × mask × fade both for \
                the patch's colour and for what it hides.",
-        paper_setting: "Algorithm 1 as printed scales what lies beneath by 1 − falloff only. No \
-                        paper setting yet.",
-        key: None,
-        flag: None,
+        paper_setting: "Algorithm 1 as printed scales what lies beneath by 1 − falloff only \
+                        and adds falloff × mask × colour (`composite = paper`). `--preset \
+                        paper` keeps ours: as printed, the clear part of a patch's mask inside \
+                        its receivers shows black, which none of the paper's figures do, so we \
+                        read the line as alpha blending with α = falloff × mask.",
+        key: Some("lapped_rigid.composite"),
+        flag: Some("--rigid-composite paper"),
         preset: "",
-        effect: "Not measured. As printed, a clear part of the mask where the falloff is 1 would \
-                 erase the patches beneath.",
-        measure: "None yet: needs a switch.",
+        effect: "Frames 0–23 at atlas 512 (medians, ours → as printed): every patch gets a black \
+                 rim where its mask fades out; uncovered share 0 → 0.135 on `vortex` and 0 → \
+                 0.232 on `dam-break` (black texels no patch shows), contrast 0.875 → 1.230 and \
+                 0.885 → 1.384, popping 0.243 → 0.321 and 0.059 → 0.233, ghost fraction 0.481 \
+                 → 0.210 and 0.407 → 0.125 (the rims hide what lies beneath).",
+        measure: "`fluidtex compare --scenes vortex,dam-break --frames 0-23 --atlas 512 --methods \
+                  lapped-rigid --out cmp`, without and with `--config P`, P: \
+                  `lapped_rigid.composite = \"paper\"`; the formula by `cargo test -p fluidtex \
+                  --lib as_printed_a_clear_mask_hides_what_lies_beneath`",
     },
     Departure {
         method: "lapped-rigid",

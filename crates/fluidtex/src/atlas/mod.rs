@@ -219,6 +219,8 @@ pub struct AtlasTimings {
     pub packing: Duration,
     /// uv mesh assembly and span rasterization.
     pub rasterization: Duration,
+    /// Packings tried by the scale search.
+    pub packing_attempts: u32,
 }
 
 /// A packed, rasterized atlas of one mesh.
@@ -317,6 +319,7 @@ impl Atlas {
             },
         )?;
         timings.packing = clock.elapsed();
+        timings.packing_attempts = packing.attempts;
 
         let clock = Instant::now();
         let mut uv_mesh = UvMesh {

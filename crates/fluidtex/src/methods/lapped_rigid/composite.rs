@@ -11,6 +11,10 @@
 //! elders leave visible, which is the point of the layering: a patch
 //! appears *under* the others, nothing pops.
 //!
+//! Algorithm 1 as printed hides what lies beneath by the falloff alone
+//! and adds the mask-weighted colour, so a clear part of a mask shows
+//! black; [`Composite::Paper`] runs it so, α then being the hidden share.
+//!
 //! A texel whose accumulated α stays below `coverage` is uncovered and
 //! goes to the distribution update, with its partial sums, so new patches
 //! below continue its composite. A covered texel's colour is the sum
@@ -86,6 +90,27 @@ impl MultiComposite<'_> {
     }
 }
 
+/// How a layer is composited over what lies beneath it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Composite {
+    /// The over operator with α = falloff × mask × fade, for the layer's
+    /// colour and for what it hides: Algorithm 1's line read as alpha
+    /// blending, where a clear part of the mask shows what lies beneath.
+    #[default]
+    Over,
+    /// Algorithm 1 as printed: what lies beneath is scaled by 1 − falloff
+    /// (× fade) only, the layer's colour by falloff × mask. A clear part
+    /// of the mask inside the receivers then hides the layers beneath and
+    /// shows nothing (black where no colour is added).
+    Paper,
+}
+
+crate::named!(Composite {
+    Over => "over",
+    Paper => "paper",
+});
+
 /// What compositing reads per exemplar when there are several.
 pub struct MultiComposite<'a> {
     /// Every slot of the set (each frame of an animated exemplar is one):
@@ -111,6 +136,8 @@ pub struct CompositeContext<'a> {
     pub transparent: f32,
     /// Where the falloff's angle is taken (per texel or per vertex).
     pub falloff_at: FalloffAt,
+    /// How a layer hides what lies beneath it.
+    pub composite: Composite,
     pub layers: &'a [Layer],
     pub exemplar: &'a Exemplar,
     pub mask: &'a PatchMask,
@@ -296,15 +323,27 @@ impl<'a> CompositeContext<'a> {
             }
         };
         let a = a_fall * self.mask.sample(uv, feature) * layer.fade;
-        if a <= 0.0 {
+        // The share of the texel this layer takes from what lies beneath:
+        // its colour's weight, or as printed its falloff alone.
+        let left = 1.0 - sum.alpha;
+        let (w, hidden) = match self.composite {
+            Composite::Over => {
+                let w = a.min(1.0) * left;
+                (w, w)
+            }
+            Composite::Paper => (a.min(1.0) * left, (a_fall * layer.fade).min(1.0) * left),
+        };
+        // A layer that changes the texel by less than keep_weight is
+        // dropped, not added: a patch is used exactly when it changed a
+        // texel, so deleting the unused ones changes nothing and a fluid
+        // at rest stays identical.
+        if hidden <= 0.0 || hidden < self.keep_weight {
             return 0.0;
         }
-        let w = a.min(1.0) * (1.0 - sum.alpha);
-        // A contribution below keep_weight is dropped, not added: a patch
-        // is used exactly when it changed a texel, so deleting the unused
-        // ones changes nothing and a fluid at rest stays identical.
-        if w <= 0.0 || w < self.keep_weight {
-            return 0.0;
+        sum.alpha += hidden;
+        if w <= 0.0 {
+            // As printed, a clear part of the mask hides and adds nothing.
+            return hidden;
         }
         let lod = match base_lod {
             // The orthographic projection stretches the exemplar by
@@ -319,7 +358,6 @@ impl<'a> CompositeContext<'a> {
         for (o, s) in values.iter_mut().zip(sample.iter()) {
             *o += w * s;
         }
-        sum.alpha += w;
         sum.contributions.push(w);
         if sum.heaviest.is_none_or(|h| w > h.weight) {
             sum.heaviest = Some(Heaviest {
@@ -329,7 +367,7 @@ impl<'a> CompositeContext<'a> {
                 lod,
             });
         }
-        w
+        hidden
     }
 
     /// Normalises a texel whose composite is complete and records its

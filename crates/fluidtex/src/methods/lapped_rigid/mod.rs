@@ -168,6 +168,12 @@ crate::methods::params::params! {
         #[serde(skip_serializing_if = "crate::methods::is_default")]
         pub seed_texel: SeedTexel = SeedTexel::Forced
             => "rigid-seed-texel" : "lapped-rigid: a seed texel its patch leaves short is closed anyway (forced) or left to later trackers (paper) [forced]",
+        /// How a layer hides what lies beneath \[over] (Algorithm 1; see
+        /// [`composite::Composite`]). Left out of the settings at its
+        /// default.
+        #[serde(skip_serializing_if = "crate::methods::is_default")]
+        pub composite: composite::Composite = composite::Composite::Over
+            => "rigid-composite" : "lapped-rigid: a layer hides what lies beneath by its falloff × mask (over) or, as Algorithm 1 is printed, by its falloff alone (paper) [over]",
     }
 }
 
@@ -746,6 +752,7 @@ impl LappedRigid {
             opaque: self.params.alpha_opaque.to_radians(),
             transparent: self.params.alpha_transparent.to_radians(),
             falloff_at: self.params.falloff_at,
+            composite: self.params.composite,
             layers: &layers,
             exemplar: &exemplar,
             mask: &mask,

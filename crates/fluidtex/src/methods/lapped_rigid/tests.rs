@@ -240,6 +240,7 @@ fn falloff_context<'a>(
         opaque: 30f32.to_radians(),
         transparent: 60f32.to_radians(),
         falloff_at,
+        composite: composite::Composite::Over,
         layers,
         exemplar: ex,
         mask,
@@ -360,6 +361,97 @@ fn the_papers_falloff_interpolates_the_vertex_alphas() {
     let centre = texel.shading(0, [1.0 / 3.0; 3], Vec3::Z);
     assert_eq!(texel.falloff_alpha(0, &centre), 1.0);
     assert!((vertex.falloff_alpha(0, &centre) - 2.0 / 3.0).abs() < 1e-5);
+}
+
+#[test]
+fn as_printed_a_clear_mask_hides_what_lies_beneath() {
+    // Two layers at one flat texel x. On top, a patch whose hard mask is
+    // clear at x (x lies 0.45 from its centre, past its 0.4 reach), its
+    // frame tilted by `tilt` (falloff 1 at 0°, 0.5 at 45°); beneath, a
+    // patch centred at x, opaque. Over (ours): the clear mask shows the
+    // patch beneath whole. As printed: the top layer scales what lies
+    // beneath by 1 − falloff, so the texel shows 1 − falloff of it, and
+    // nothing at all (uncovered, black) where the falloff is 1.
+    let mesh = grid(4, 0.25, |_| Vec3::ZERO);
+    let normals = mesh.vertex_normals();
+    let ex = exemplar();
+    let mask = PatchMask::Derived {
+        reach: 0.4,
+        feature_weight: 0.0,
+        softness: 0.0,
+    };
+    let x = Vec3::new(0.4, 0.4, 0.0);
+    let layer = |id: u32, origin: Vec3, tilt: f32| {
+        let normal = Vec3::new(tilt.sin(), 0.0, tilt.cos());
+        composite::Layer {
+            id,
+            frame: Frame {
+                origin,
+                tangent: Vec3::Y,
+                binormal: normal.cross(Vec3::Y),
+                normal,
+                exemplar_size: 1.0,
+            },
+            fade: 1.0,
+            exemplar: 0,
+            feature: 0,
+        }
+    };
+    let mut beneath = vec![0.0f32; 3];
+    let below = layer(1, x, 0.0);
+    let uv = below.frame.uv(x);
+    ex.sample_all_lod(uv.x, uv.y, 0.0, &mut beneath);
+    assert!(beneath.iter().any(|&v| v > 0.05), "a dark exemplar texel");
+    for (tilt, shown) in [(0f32, 0.0f32), (45.0, 0.5)] {
+        let layers = [
+            layer(0, x + Vec3::new(0.0, 0.45, 0.0), tilt.to_radians()),
+            below,
+        ];
+        let over = falloff_context(
+            &mesh,
+            &normals,
+            &layers,
+            &ex,
+            &mask,
+            falloff::FalloffAt::Texel,
+        );
+        let printed = composite::CompositeContext {
+            composite: composite::Composite::Paper,
+            ..falloff_context(
+                &mesh,
+                &normals,
+                &layers,
+                &ex,
+                &mask,
+                falloff::FalloffAt::Texel,
+            )
+        };
+        for (ctx, want) in [(&over, 1.0f32), (&printed, shown)] {
+            let mut sum = composite::TexelSum::default();
+            let (mut values, mut sample) = (vec![0.0; 3], vec![0.0; 3]);
+            let shading = ctx.shading(0, [1.0 / 3.0; 3], Vec3::Z);
+            for i in 0..2 {
+                ctx.add_layer(i, &shading, x, Vec3::Z, &mut sum, &mut values, &mut sample);
+            }
+            assert!((sum.alpha - 1.0).abs() < 1e-5, "{tilt}°: α {}", sum.alpha);
+            let (mut source, mut uv, mut layers_seen, mut lod) = (0u32, glam::Vec2::ZERO, 0u8, 0.0);
+            ctx.finish(
+                &sum,
+                composite::TexelOut {
+                    values: &mut values,
+                    source: &mut source,
+                    uv: &mut uv,
+                    layers: &mut layers_seen,
+                    lod: &mut lod,
+                },
+            );
+            for (v, b) in values.iter().zip(&beneath) {
+                assert!((v - want * b).abs() < 1e-5, "{tilt}°: {v} != {want} × {b}");
+            }
+            let want_source = if want > 0.0 { 2 } else { SOURCE_UNCOVERED };
+            assert_eq!(source, want_source, "{tilt}°, shown {want}");
+        }
+    }
 }
 
 /// A method holding two opaque-centred trackers on a flat grid at rest.
