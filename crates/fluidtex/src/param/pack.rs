@@ -585,15 +585,24 @@ impl Space {
             let (lo, hi) = (prof.lo[i], prof.hi[i]);
             if lo < hi {
                 let runs = &self.occupied[x as usize + i];
-                let k = runs.partition_point(|&(_, e)| e <= y + lo);
+                let mut k = runs.partition_point(|&(_, e)| e <= y + lo);
                 if k < runs.len() && runs[k].0 < y + hi {
-                    y = runs[k].1 - lo;
-                    if y >= bound {
-                        *hint = i;
-                        return y;
+                    // Lifted just clear of run k, the column starts at that
+                    // run's end, so the next run that can block it is the
+                    // next one (runs are disjoint and sorted): lift past
+                    // each in turn until a gap is tall enough, without a
+                    // new search per lift.
+                    while k < runs.len() && runs[k].0 < y + hi {
+                        y = runs[k].1 - lo;
+                        if y >= bound {
+                            *hint = i;
+                            return y;
+                        }
+                        k += 1;
                     }
-                    // The column may meet its next run at the new offset.
-                    clear = 0;
+                    // Every other column may meet a run at the new offset.
+                    clear = 1;
+                    i = if i + 1 == n { 0 } else { i + 1 };
                     continue;
                 }
             }
