@@ -159,9 +159,60 @@ impl Texture {
     }
 }
 
+/// `⌊x⌋` as an integer, saturating (NaN gives 0), equal to
+/// `x.floor() as i32` for every `x`: without SSE4.1 in the baseline,
+/// `floor` is a libm call, so this truncates and corrects instead. Hot
+/// per-texel paths (exemplar lookups, patch cells) use it.
+#[inline(always)]
+pub(crate) fn floor_i32(x: f32) -> i32 {
+    let t = x as i32;
+    if (t as f32) > x {
+        t.saturating_sub(1)
+    } else {
+        t
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn floor_i32_equals_floor_then_cast() {
+        let mut cases = vec![
+            0.0f32,
+            -0.0,
+            0.5,
+            -0.5,
+            -1.0,
+            1.0 - f32::EPSILON,
+            -f32::MIN_POSITIVE,
+            8_388_607.5,
+            -8_388_607.5,
+            2_147_483_520.0,
+            -2_147_483_648.0,
+            3e9,
+            -3e9,
+            f32::MAX,
+            f32::MIN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+        ];
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        for _ in 0..100_000 {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            // Random bit patterns: every exponent, both signs.
+            cases.push(f32::from_bits(state as u32));
+            // And small coordinates, where texel lookups live.
+            cases.push(((state >> 32) as u32 as f32 / u32::MAX as f32 - 0.5) * 4096.0);
+        }
+        for x in cases {
+            assert_eq!(floor_i32(x), x.floor() as i32, "{x:e} ({:#x})", x.to_bits());
+        }
+    }
 
     fn ramp() -> Texture {
         // 4x2, one channel, value = x + 10 y.

@@ -41,15 +41,9 @@ impl Axis {
     #[inline(always)]
     fn fold(&self, coord: f32) -> (u32, u32, f32) {
         let p = coord * self.scale - 0.5;
-        // floor() without SSE4.1 is a libm call; truncate and correct
-        // instead. The float→int cast saturates, so absurd coordinates read
-        // some texel instead of panicking.
-        let t = p as i32;
-        let i = if (t as f32) > p {
-            t.saturating_sub(1)
-        } else {
-            t
-        };
+        // The cast saturates, so absurd coordinates read some texel
+        // instead of panicking.
+        let i = crate::texture::floor_i32(p);
         let frac = p - i as f32;
         match self.mask {
             Some(mask) => {

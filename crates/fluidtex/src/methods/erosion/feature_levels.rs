@@ -77,7 +77,8 @@ impl FeatureLevelSampler<'_> {
             return self.levels.first().map_or(0.0, |s| s.sample(u, v));
         }
         let lod = lod.min(top as f32);
-        let l = (lod.floor() as usize).min(top);
+        // lod > 0 here, so truncation is the floor (and no libm call).
+        let l = (lod as usize).min(top);
         let f = lod - l as f32;
         let a = self.levels[l].sample(u, v);
         if f == 0.0 || l == top {

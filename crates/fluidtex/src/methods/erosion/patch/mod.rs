@@ -84,7 +84,8 @@ pub const GAP_FRACTION: f32 = 0.25;
 /// The rest-space cell of side `cell` that holds `uv`
 /// ([`Patch::prune_hidden`]).
 pub fn rest_cell(uv: Vec2, cell: f32) -> (i32, i32) {
-    ((uv.x / cell).floor() as i32, (uv.y / cell).floor() as i32)
+    use crate::texture::floor_i32;
+    (floor_i32(uv.x / cell), floor_i32(uv.y / cell))
 }
 
 /// Where one patch vertex goes over a frame interval: a function of its
