@@ -252,36 +252,53 @@ fn falloff_context<'a>(
     }
 }
 
+/// A flat grid at z = 0, its vertex normals, the test exemplar and a
+/// derived mask of reach 0.4 whose feature weight and softness are both
+/// `soft` (0: a hard disc).
+fn flat_texels(soft: f32) -> (TriMesh, Vec<Vec3>, Arc<Exemplar>, PatchMask) {
+    let mesh = grid(4, 0.25, |_| Vec3::ZERO);
+    let normals = mesh.vertex_normals();
+    let mask = PatchMask::Derived {
+        reach: 0.4,
+        feature_weight: soft,
+        softness: soft,
+    };
+    (mesh, normals, exemplar(), mask)
+}
+
+/// An opaque, unfaded layer of exemplar size 1 centred at `origin`, its
+/// frame normal turned by `tilt` (radians) from +z about the y axis, its
+/// tangent +y.
+fn tilted_layer(id: u32, origin: Vec3, tilt: f32) -> composite::Layer {
+    let normal = Vec3::new(tilt.sin(), 0.0, tilt.cos());
+    composite::Layer {
+        id,
+        frame: Frame {
+            origin,
+            tangent: Vec3::Y,
+            binormal: normal.cross(Vec3::Y),
+            normal,
+            exemplar_size: 1.0,
+        },
+        fade: 1.0,
+        exemplar: 0,
+        feature: 0,
+    }
+}
+
 #[test]
 fn the_falloff_at_a_texel_equals_its_formula() {
     // One patch centred on a flat texel, its frame normal tilted by θ from
     // the surface's: the layer's contribution there is falloff(θ) (mask and
     // fade are 1 at the centre, nothing above it).
-    let mesh = grid(4, 0.25, |_| Vec3::ZERO);
-    let normals = mesh.vertex_normals();
-    let ex = exemplar();
-    let mask = PatchMask::Derived {
-        reach: 0.4,
-        feature_weight: 0.2,
-        softness: 0.2,
-    };
+    let (mesh, normals, ex, mask) = flat_texels(0.2);
     let (psi1, psi0) = (30f32, 60f32);
     for deg in [0.0f32, 20.0, 30.0, 37.5, 45.0, 52.5, 59.0, 60.0, 75.0] {
-        let th = deg.to_radians();
-        let normal = Vec3::new(th.sin(), 0.0, th.cos());
-        let layers = [composite::Layer {
-            id: 0,
-            frame: Frame {
-                origin: Vec3::new(0.01, 0.02, 0.0),
-                tangent: Vec3::Y,
-                binormal: normal.cross(Vec3::Y),
-                normal,
-                exemplar_size: 1.0,
-            },
-            fade: 1.0,
-            exemplar: 0,
-            feature: 0,
-        }];
+        let layers = [tilted_layer(
+            0,
+            Vec3::new(0.01, 0.02, 0.0),
+            deg.to_radians(),
+        )];
         let ctx = falloff_context(
             &mesh,
             &normals,
@@ -372,39 +389,16 @@ fn as_printed_a_clear_mask_hides_what_lies_beneath() {
     // patch beneath whole. As printed: the top layer scales what lies
     // beneath by 1 − falloff, so the texel shows 1 − falloff of it, and
     // nothing at all (uncovered, black) where the falloff is 1.
-    let mesh = grid(4, 0.25, |_| Vec3::ZERO);
-    let normals = mesh.vertex_normals();
-    let ex = exemplar();
-    let mask = PatchMask::Derived {
-        reach: 0.4,
-        feature_weight: 0.0,
-        softness: 0.0,
-    };
+    let (mesh, normals, ex, mask) = flat_texels(0.0);
     let x = Vec3::new(0.4, 0.4, 0.0);
-    let layer = |id: u32, origin: Vec3, tilt: f32| {
-        let normal = Vec3::new(tilt.sin(), 0.0, tilt.cos());
-        composite::Layer {
-            id,
-            frame: Frame {
-                origin,
-                tangent: Vec3::Y,
-                binormal: normal.cross(Vec3::Y),
-                normal,
-                exemplar_size: 1.0,
-            },
-            fade: 1.0,
-            exemplar: 0,
-            feature: 0,
-        }
-    };
     let mut beneath = vec![0.0f32; 3];
-    let below = layer(1, x, 0.0);
+    let below = tilted_layer(1, x, 0.0);
     let uv = below.frame.uv(x);
     ex.sample_all_lod(uv.x, uv.y, 0.0, &mut beneath);
     assert!(beneath.iter().any(|&v| v > 0.05), "a dark exemplar texel");
     for (tilt, shown) in [(0f32, 0.0f32), (45.0, 0.5)] {
         let layers = [
-            layer(0, x + Vec3::new(0.0, 0.45, 0.0), tilt.to_radians()),
+            tilted_layer(0, x + Vec3::new(0.0, 0.45, 0.0), tilt.to_radians()),
             below,
         ];
         let over = falloff_context(
@@ -417,14 +411,7 @@ fn as_printed_a_clear_mask_hides_what_lies_beneath() {
         );
         let printed = composite::CompositeContext {
             composite: composite::Composite::Paper,
-            ..falloff_context(
-                &mesh,
-                &normals,
-                &layers,
-                &ex,
-                &mask,
-                falloff::FalloffAt::Texel,
-            )
+            ..over.with_layers(&layers)
         };
         for (ctx, want) in [(&over, 1.0f32), (&printed, shown)] {
             let mut sum = composite::TexelSum::default();
