@@ -10,11 +10,6 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
-use fluidtex::methods::atlas_check::AtlasCheckParams;
-use fluidtex::methods::dual_rest::DualRestParams;
-use fluidtex::methods::erosion::ErosionParams;
-use fluidtex::methods::lapped_rigid::LappedRigidParams;
-use fluidtex::methods::optimization::OptimizationParams;
 use fluidtex::methods::registry::{MethodKind, MethodParams};
 use fluidtex::named::Named;
 use fluidtex::pipeline::OutputOptions;
@@ -56,12 +51,13 @@ pub struct Config {
     pub channels: BTreeMap<String, PathBuf>,
     /// Names of the three velocity properties in PLY files.
     pub velocity: Option<[String; 3]>,
-    /// Erosion method parameters.
-    pub erosion: ErosionParams,
-    /// atlas-check method parameters.
-    pub atlas_check: AtlasCheckParams,
-    /// dual-rest baseline parameters.
-    pub dual_rest: DualRestParams,
+    /// Every method's parameter section (`[erosion]`, `[lapped_rigid]`,
+    /// ...), as the methods' registry declares them: a new method's
+    /// section is a table of this file without a line here. The sections
+    /// added after runs were fingerprinted are left out while at their
+    /// defaults, so older runs resume.
+    #[serde(flatten, serialize_with = "MethodParams::serialize_as_config")]
+    pub params: MethodParams,
     /// Which files to write.
     pub outputs: OutputOptions,
     /// After the run, encode the previews as `preview.mp4` with ffmpeg
@@ -71,14 +67,6 @@ pub struct Config {
     /// USD input: the Mesh prim to read, when the stage holds several.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub prim: Option<String>,
-    /// optimization method parameters. Left out of the file when at their
-    /// defaults, so fingerprints of older runs hold.
-    #[serde(skip_serializing_if = "is_default_optimization")]
-    pub optimization: OptimizationParams,
-    /// lapped-rigid (2016 method) parameters. Left out of the file when at
-    /// their defaults, so fingerprints of older runs hold.
-    #[serde(skip_serializing_if = "is_default_rigid")]
-    pub lapped_rigid: LappedRigidParams,
     /// Several exemplars per surface, instead of `exemplar` (each with its
     /// weight, and its own feature map and extra channels). Left out of the
     /// file when empty, so fingerprints of older runs hold.
@@ -139,14 +127,6 @@ pub struct ExemplarEntry {
     /// exemplar shows (overlapping ranges share their overlap).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub range: Option<[f32; 2]>,
-}
-
-fn is_default_optimization(p: &OptimizationParams) -> bool {
-    *p == OptimizationParams::default()
-}
-
-fn is_default_rigid(p: &LappedRigidParams) -> bool {
-    *p == LappedRigidParams::default()
 }
 
 /// Inserts every key of `from` that `into` does not have, table by table.
@@ -220,7 +200,7 @@ impl Config {
         let mut table = toml::Table::try_from(self).context("cannot write the config")?;
         // Every key of every section, including those left out of the
         // fingerprint at their defaults.
-        for (name, every) in self.method_params().every_key() {
+        for (name, every) in self.params.every_key() {
             let toml::Value::Table(every) = every else {
                 continue;
             };
@@ -237,22 +217,7 @@ impl Config {
     /// Parses a config's text and makes its paths relative to `path`'s
     /// folder.
     fn parse_text(text: &str, path: &Path) -> Result<Config> {
-        let mut config: Config = toml::from_str(text).map_err(|e| {
-            let msg = e.message().to_string();
-            // Count bytes, not chars: a span need not fall on a char boundary.
-            let line = e
-                .span()
-                .map(|s| {
-                    let end = s.start.min(text.len());
-                    text.as_bytes()[..end]
-                        .iter()
-                        .filter(|&&b| b == b'\n')
-                        .count()
-                        + 1
-                })
-                .unwrap_or(0);
-            anyhow::anyhow!("{}: line {line}: {msg}", path.display())
-        })?;
+        let mut config: Config = toml::from_str(text).map_err(|e| read_error(text, path, e))?;
         let base = path.parent().unwrap_or(Path::new(""));
         let rebase = |p: &mut PathBuf| {
             // `builtin:NAME` names an exemplar, not a file.
@@ -275,7 +240,7 @@ impl Config {
         for p in config.channels.values_mut() {
             rebase(p);
         }
-        if let Some(p) = &mut config.lapped_rigid.mask {
+        if let Some(p) = &mut config.params.lapped_rigid.mask {
             rebase(p);
         }
         if let Some(p) = &mut config.exemplar_region {
@@ -314,6 +279,45 @@ impl Config {
     }
 }
 
+/// The one line of a config that does not read: `FILE: line N: what`.
+///
+/// The method sections are flattened into [`Config`], and serde reads a
+/// flattened part from a buffer that has lost toml's positions; so an
+/// error without a position is looked for again: in the sections read on
+/// their own (a key of `[erosion]`), then among the top-level keys (a key
+/// no section and no setting has).
+fn read_error(text: &str, path: &Path, e: toml::de::Error) -> anyhow::Error {
+    let placed = |e: &toml::de::Error| e.span().is_some_and(|s| !s.is_empty());
+    let e = match MethodParams::check_sections(text) {
+        Err(section) if !placed(&e) && placed(&section) => section,
+        _ => e,
+    };
+    let start = match e.span() {
+        Some(s) if !s.is_empty() => Some(s.start),
+        span => top_level_key(text, e.message()).or(span.map(|s| s.start)),
+    };
+    // Count bytes, not chars: a span need not fall on a char boundary.
+    let line = start.map_or(0, |start| {
+        let end = start.min(text.len());
+        text.as_bytes()[..end]
+            .iter()
+            .filter(|&&b| b == b'\n')
+            .count()
+            + 1
+    });
+    anyhow!("{}: line {line}: {}", path.display(), e.message())
+}
+
+/// Where the top-level key that `message` ("unknown field `KEY`, ...")
+/// names starts in `text`.
+fn top_level_key(text: &str, message: &str) -> Option<usize> {
+    let key = message.strip_prefix("unknown field `")?.split('`').next()?;
+    let keys: BTreeMap<toml::Spanned<String>, serde::de::IgnoredAny> = toml::from_str(text).ok()?;
+    keys.keys()
+        .find(|k| k.get_ref() == key)
+        .map(|k| k.span().start)
+}
+
 /// A clap parser for a [`Named`] setting: its names are the possible values
 /// (listed by `--help`, checked by clap).
 pub fn named<T: Named + Send + Sync + Clone>() -> impl clap::builder::TypedValueParser<Value = T> {
@@ -331,33 +335,6 @@ impl Config {
     /// The method the config names (erosion when none).
     pub fn method_kind(&self) -> MethodKind {
         self.method.unwrap_or_default()
-    }
-
-    /// Every method's parameter section.
-    pub fn method_params(&self) -> MethodParams {
-        MethodParams {
-            erosion: self.erosion.clone(),
-            atlas_check: self.atlas_check.clone(),
-            dual_rest: self.dual_rest.clone(),
-            optimization: self.optimization.clone(),
-            lapped_rigid: self.lapped_rigid.clone(),
-        }
-    }
-
-    /// Writes every method's parameter section back (after flags).
-    pub fn set_method_params(&mut self, params: MethodParams) {
-        let MethodParams {
-            erosion,
-            atlas_check,
-            dual_rest,
-            optimization,
-            lapped_rigid,
-        } = params;
-        self.erosion = erosion;
-        self.atlas_check = atlas_check;
-        self.dual_rest = dual_rest;
-        self.optimization = optimization;
-        self.lapped_rigid = lapped_rigid;
     }
 }
 
@@ -571,9 +548,9 @@ impl RunFlags {
             };
             config.velocity = Some([a.clone(), b.clone(), c.clone()]);
         }
-        let mut params = config.method_params();
-        self.params.apply(&mut params).map_err(|e| anyhow!(e))?;
-        config.set_method_params(params);
+        self.params
+            .apply(&mut config.params)
+            .map_err(|e| anyhow!(e))?;
         // A video needs previews: every frame unless the user chose.
         if config.preview_video == Some(true) && config.outputs.preview_every == 0 {
             config.outputs.preview_every = 1;
@@ -677,10 +654,10 @@ mod tests {
         .expect("valid flags");
         flags.apply(&mut c).expect("valid flags");
         assert_eq!(c.atlas, Some(512));
-        assert_eq!(c.erosion.epsilon, 0.05);
-        assert_eq!(c.erosion.radius, Some(0.5));
+        assert_eq!(c.params.erosion.epsilon, 0.05);
+        assert_eq!(c.params.erosion.radius, Some(0.5));
         assert_eq!(
-            c.erosion.placement,
+            c.params.erosion.placement,
             fluidtex::methods::erosion::Placement::Global
         );
         // A flag two sections declare sets both; a bad value is refused
@@ -688,8 +665,11 @@ mod tests {
         let flags = parse_flags(&["--substeps", "3", "--up-axis", "-1,0,0"]).expect("valid");
         let mut c = Config::default();
         flags.apply(&mut c).expect("valid flags");
-        assert_eq!((c.erosion.substeps, c.optimization.substeps), (3, 3));
-        assert_eq!(c.erosion.up_axis, [-1.0, 0.0, 0.0]);
+        assert_eq!(
+            (c.params.erosion.substeps, c.params.optimization.substeps),
+            (3, 3)
+        );
+        assert_eq!(c.params.erosion.up_axis, [-1.0, 0.0, 0.0]);
         for bad in [
             &["--epsilon", "small"][..],
             &["--up-axis", "1,0"],
@@ -721,6 +701,33 @@ mod tests {
             err.contains("bad.toml: line 3") && err.contains("radus"),
             "{err}"
         );
+        // The method sections are read flattened, which loses toml's
+        // positions: every kind of error still names its line.
+        for (text, line, what) in [
+            (
+                "atlas = 1\nfoo = 2\n[erosion]\nradius = 0.5\n",
+                2,
+                "unknown field `foo`",
+            ),
+            (
+                "\n[lapped_rigid]\nmask_softness = \"x\"\n",
+                3,
+                "expected f32",
+            ),
+            (
+                "[erosion]\n[optimization]\nlevels = -1\n",
+                3,
+                "expected u32",
+            ),
+            ("[outputs]\nobj = 3\n", 2, "expected a boolean"),
+            ("atlas = \"big\"\n", 1, "expected u32"),
+        ] {
+            let err = Config::parse(text, &path).expect_err(text).to_string();
+            assert!(
+                err.contains(&format!("bad.toml: line {line}: ")) && err.contains(what),
+                "{text:?}: {err}"
+            );
+        }
         let mut c = Config::default();
         let bad = RunFlags {
             channels: vec!["nodelimiter".into()],
@@ -795,10 +802,15 @@ mod tests {
         b.exemplar_rate = Some(0.5);
         assert_ne!(a.fingerprint(), b.fingerprint());
         b.exemplar_rate = None;
-        b.erosion.epsilon = 0.2;
+        b.params.erosion.epsilon = 0.2;
         assert_ne!(a.fingerprint(), b.fingerprint());
     }
 
+    use fluidtex::methods::atlas_check::AtlasCheckParams;
+    use fluidtex::methods::dual_rest::DualRestParams;
+    use fluidtex::methods::erosion::ErosionParams;
+    use fluidtex::methods::lapped_rigid::LappedRigidParams;
+    use fluidtex::methods::optimization::OptimizationParams;
     use fluidtex::methods::registry::field_names as fields_of;
 
     /// `--print-config` prints every method parameter, those left out of
@@ -824,6 +836,8 @@ mod tests {
         let mut absent = missing::<ErosionParams>(&table, "erosion");
         absent.extend(missing::<LappedRigidParams>(&table, "lapped_rigid"));
         absent.extend(missing::<OptimizationParams>(&table, "optimization"));
+        absent.extend(missing::<AtlasCheckParams>(&table, "atlas_check"));
+        absent.extend(missing::<DualRestParams>(&table, "dual_rest"));
         assert!(absent.is_empty(), "not printed: {absent:?}\n{text}");
         // Known-bad control: a table without the later keys is caught.
         let mut cut = table.clone();
@@ -836,25 +850,61 @@ mod tests {
         );
     }
 
+    /// A config with every field set, each named (no `..`): a field added
+    /// to [`Config`] does not compile here until it is named, and then
+    /// serialises, so [`config_keys`] sees it (serde cannot list the
+    /// fields of a struct that flattens another).
+    fn every_field_set() -> Config {
+        let text = || Some(String::new());
+        let file = || Some(PathBuf::new());
+        Config {
+            mesh: text(),
+            frames: text(),
+            out: file(),
+            method: Some(MethodKind::default()),
+            atlas: Some(0),
+            gutter: Some(0),
+            fps: Some(0.0),
+            seed: Some(0),
+            exemplar: file(),
+            feature: file(),
+            feature_method: text(),
+            exemplar_filter: text(),
+            channels: BTreeMap::new(),
+            velocity: Some(Default::default()),
+            params: MethodParams::default(),
+            outputs: OutputOptions::default(),
+            // Never serialised (it changes no texture): named in
+            // `config_keys` by hand.
+            preview_video: Some(true),
+            prim: text(),
+            exemplars: vec![ExemplarEntry::default()],
+            exemplar_select: text(),
+            exemplar_region: file(),
+            select_by: text(),
+            mismatch_rate: Some(0.0),
+            exemplar_rate: Some(0.0),
+            exemplar_memory: Some(0),
+            preset: text(),
+        }
+    }
+
     /// Every config key, `section.key` inside the method and output
     /// sections (tables of user names, `channels` and `exemplars`, are keys).
     fn config_keys() -> BTreeSet<String> {
-        let sections: [(&str, &[&str]); 6] = [
-            ("erosion", fields_of::<ErosionParams>()),
-            ("atlas_check", fields_of::<AtlasCheckParams>()),
-            ("dual_rest", fields_of::<DualRestParams>()),
-            ("outputs", fields_of::<OutputOptions>()),
-            ("optimization", fields_of::<OptimizationParams>()),
-            ("lapped_rigid", fields_of::<LappedRigidParams>()),
-        ];
-        let mut keys = BTreeSet::new();
-        for &k in fields_of::<Config>() {
-            match sections.iter().find(|(s, _)| *s == k) {
-                Some((s, fields)) => keys.extend(fields.iter().map(|f| format!("{s}.{f}"))),
-                None => {
-                    keys.insert(k.to_string());
-                }
-            }
+        let mut sections = MethodParams::section_keys();
+        sections.push(("outputs", fields_of::<OutputOptions>()));
+        let json = serde_json::to_value(every_field_set()).expect("json");
+        let own = json
+            .as_object()
+            .expect("an object")
+            .keys()
+            .map(String::as_str);
+        let mut keys = BTreeSet::from(["channels".to_string(), "preview_video".to_string()]);
+        keys.extend(own.map(str::to_string));
+        for (s, fields) in sections {
+            keys.remove(s);
+            keys.extend(fields.iter().map(|f| format!("{s}.{f}")));
         }
         keys
     }

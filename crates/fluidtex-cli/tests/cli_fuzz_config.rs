@@ -36,7 +36,7 @@ fn fuzz_toml_config() {
         match Config::parse(&text, Path::new("shot.toml")) {
             Ok(c) => {
                 let _ = c.fingerprint();
-                let _ = c.erosion.validate();
+                let _ = c.params.erosion.validate();
             }
             Err(e) => {
                 let line = fluidtex_cli::one_line(&e);

@@ -382,7 +382,7 @@ fn disagreements(section: &str) -> Vec<String> {
     // them set.
     let mut switch_on = Config::default();
     switch_on.outputs.switch_map = true;
-    let e = &mut switch_on.erosion;
+    let e = &mut switch_on.params.erosion;
     e.transition = 1;
     e.patch_region = erosion::PatchRegion::Paper;
     e.seed_corners = erosion::SeedCorners::Paper;

@@ -153,7 +153,7 @@ pub fn bench(a: &BenchArgs) -> Result<()> {
     if let Some(n) = a.patches {
         let area = frames[0].1.area();
         // Dart throwing reaches about 0.7 A / r² disks.
-        config.erosion.radius = Some((0.7 * area / n.max(1) as f64).sqrt() as f32);
+        config.params.erosion.radius = Some((0.7 * area / n.max(1) as f64).sqrt() as f32);
     }
     let mut source = Memory { frames };
     let title = format!("{} ({tris} triangles)", a.scene);
@@ -171,7 +171,7 @@ fn bench_config(a: &BenchArgs) -> Config {
     config.outputs.obj = true;
     config.outputs.glb = true;
     config.outputs.debug = a.debug;
-    config.erosion.placement = a.placement;
+    config.params.erosion.placement = a.placement;
     config
 }
 

@@ -122,7 +122,7 @@ fn window(scene: &str, first: i32, last: i32, range: Option<FrameRange>) -> (i32
 /// The parameters of `method` in `config` (its own section, if it has one).
 fn method_parameters(config: &Config, method: &str) -> serde_json::Value {
     // Every section, defaults included (the config leaves some out).
-    let all = serde_json::to_value(config.method_params()).unwrap_or_default();
+    let all = serde_json::to_value(&config.params).unwrap_or_default();
     let section = all
         .get(method.replace('-', "_"))
         .cloned()

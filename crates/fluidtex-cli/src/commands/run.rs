@@ -502,7 +502,7 @@ pub fn build_method(config: &Config) -> Result<Box<dyn Method>> {
 /// every scene and method it runs.
 pub fn build_method_over(config: &Config, set: &ExemplarSet) -> Result<Box<dyn Method>> {
     config
-        .method_params()
+        .params
         .build_set(config.method_kind(), config.seed.unwrap_or(0), || {
             Ok::<_, Error>(set.clone())
         })
@@ -512,7 +512,7 @@ pub fn build_method_over(config: &Config, set: &ExemplarSet) -> Result<Box<dyn M
 /// exemplars before the first frame.
 fn build_method_noting(config: &Config, notes: &mut Vec<String>) -> Result<Box<dyn Method>> {
     config
-        .method_params()
+        .params
         .build_set(config.method_kind(), config.seed.unwrap_or(0), || {
             let set = build_exemplar_set(config)?;
             notes.extend(animation_notes(&set, config));

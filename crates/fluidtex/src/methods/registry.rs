@@ -10,8 +10,10 @@
 //! 2. One line in `registry!` below: its variant, doc and
 //!    [`MethodSpec`] (name, exemplars read, how it is checked and built).
 //! 3. If it has parameters, one line in `sections!`
-//!    ([`MethodParams`]); the CLI's `Config` keeps a field per section
-//!    (`Config::method_params`), so fingerprints of older runs hold.
+//!    ([`MethodParams`]), marked `=> when_set` so that the fingerprints of
+//!    runs made before it hold. The CLI's `Config` flattens
+//!    [`MethodParams`]: the section is a config table and its flags are
+//!    `run`'s with nothing written there.
 //! 4. The README's methods table.
 //!
 //! The test-only `toy` method (`methods/toy.rs`) is added exactly so.
@@ -204,9 +206,12 @@ impl std::str::FromStr for MethodKind {
 
 /// Declares [`MethodParams`] from its sections, one line each: the
 /// struct, and the functions that reach every section's flags and keys.
+/// A section written `name: Type => when_set` is left out of a config's
+/// serialised form while at its defaults (it came after runs were
+/// fingerprinted).
 macro_rules! sections {
     ($(#[$attr:meta])* pub struct $name:ident {
-        $($(#[cfg($cfg:meta)])? $section:ident : $ty:ty),* $(,)?
+        $($(#[cfg($cfg:meta)])? $section:ident : $ty:ty $(=> $when:ident)?),* $(,)?
     }) => {
         $(#[$attr])*
         #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -215,7 +220,48 @@ macro_rules! sections {
             $($(#[cfg($cfg)])? pub $section: $ty,)*
         }
 
+        /// Every section, for reading a config's text with toml's own
+        /// deserializer (`check_sections`): the other keys of the file
+        /// are ignored, so the error of a section's key keeps its line.
+        #[derive(Default, Deserialize)]
+        #[serde(default)]
+        #[allow(dead_code)] // read only for its errors
+        struct SectionsOfAFile {
+            $($(#[cfg($cfg)])? $section: $ty,)*
+        }
+
         impl $name {
+            /// Serialises the sections as a config file keeps them: a
+            /// section marked `=> when_set` (added after runs were
+            /// fingerprinted) only when it is not at its defaults, so the
+            /// fingerprints of older runs hold. For
+            /// `#[serde(flatten, serialize_with = ...)]` in a config.
+            pub fn serialize_as_config<S: serde::Serializer>(
+                &self,
+                serializer: S,
+            ) -> Result<S::Ok, S::Error> {
+                use serde::ser::SerializeMap;
+                let mut map = serializer.serialize_map(None)?;
+                $(
+                    $(#[cfg($cfg)])?
+                    sections!(@entry map, self, $section $(, $when)?);
+                )*
+                map.end()
+            }
+
+            /// Every section's keys (its struct's fields, unset options
+            /// included), by section name, sections in order.
+            pub fn section_keys() -> Vec<(&'static str, &'static [&'static str])> {
+                vec![$( $(#[cfg($cfg)])? (stringify!($section), field_names::<$ty>()), )*]
+            }
+
+            /// Reads the method sections of a whole config file's text
+            /// (every other key ignored) with toml's own deserializer, for
+            /// the line of an error that a flattened read loses.
+            pub fn check_sections(text: &str) -> Result<(), toml::de::Error> {
+                toml::from_str::<SectionsOfAFile>(text).map(|_| ())
+            }
+
             /// Every section's flags as (section, flag), sections in order.
             /// A flag may be declared by several sections (`--substeps`):
             /// it sets each of them.
@@ -252,6 +298,14 @@ macro_rules! sections {
             }
         }
     };
+    (@entry $map:ident, $self:ident, $section:ident) => {
+        $map.serialize_entry(stringify!($section), &$self.$section)?;
+    };
+    (@entry $map:ident, $self:ident, $section:ident, when_set) => {
+        if !super::is_default(&$self.$section) {
+            $map.serialize_entry(stringify!($section), &$self.$section)?;
+        }
+    };
 }
 
 sections! {
@@ -264,8 +318,8 @@ sections! {
         erosion: ErosionParams,
         atlas_check: AtlasCheckParams,
         dual_rest: DualRestParams,
-        optimization: OptimizationParams,
-        lapped_rigid: LappedRigidParams,
+        optimization: OptimizationParams => when_set,
+        lapped_rigid: LappedRigidParams => when_set,
         #[cfg(test)]
         toy: super::toy::ToyParams,
     }
