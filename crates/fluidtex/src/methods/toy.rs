@@ -126,6 +126,16 @@ mod tests {
         bad.toy.grey = 2.0;
         assert!(bad.validate(kind).is_err());
         assert!(flags(&["--toy-grey", "grey"]).is_err());
+        // Its config section is the table `[toy]`, read as the CLI's config
+        // reads every section (a config's other keys are not the
+        // sections' business), and a typo in it is placed on its line.
+        let from_file: MethodParams = toml::from_str("[toy]\ngrey = 0.25\n").expect("[toy]");
+        assert_eq!(from_file, params);
+        assert!(MethodParams::check_sections("atlas = 1\n[toy]\ngrey = 0.25\n").is_ok());
+        let typo = MethodParams::check_sections("atlas = 1\n[toy]\ngray = 0.25\n")
+            .expect_err("an unknown key of its section");
+        assert!(typo.message().contains("`gray`"), "{typo}");
+        assert_eq!(typo.span().map(|s| s.start), Some(16), "{typo}");
 
         let mut method = params
             .build(kind, 0, || {
