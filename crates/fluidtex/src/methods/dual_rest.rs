@@ -7,7 +7,10 @@
 //! pulse per period.
 //!
 //! Each parameterization is an [`advect`] instance of the patch
-//! machinery (a lapped texture placed on the frame where it resets).
+//! machinery (a lapped texture placed on the frame where it resets). A
+//! frame's selection is the two layers' own selections and the phase
+//! origin: resampled, each layer gives its frame and the two are
+//! cross-faded, from the frame's geometry alone.
 //!
 //! With φ = (frames since the first) mod period / period, layer A resets at
 //! φ = 0 and layer B at φ = ½; their weights are the triangle waves
@@ -24,7 +27,7 @@ use super::erosion::{Erosion, ErosionParams};
 use super::lapped::VISIBLE_LAYER_WEIGHT;
 use super::{
     ChannelSpec, FrameContext, FrameResult, Method, MethodError, MethodStats, SOURCE_OUTSIDE,
-    SOURCE_UNCOVERED, Stat, StatsExt,
+    SOURCE_UNCOVERED, Selection, Stat, StatsExt,
 };
 use crate::exemplar::Exemplar;
 use crate::texture::Texture;
@@ -61,6 +64,8 @@ pub struct DualRest {
     first: Option<i32>,
 }
 
+/// The saved state, and a frame's selection: the phase origin and each
+/// layer's bytes (its state, or its own selection).
 #[derive(Serialize, Deserialize)]
 struct SavedDualRest {
     first: Option<i32>,
@@ -101,6 +106,20 @@ impl DualRest {
         })
     }
 
+    /// Fixes the phase origin on the first frame and resets the layer
+    /// whose turn frame `number` is; returns layer A's weight.
+    fn start_frame(&mut self, number: i32) -> f32 {
+        self.first.get_or_insert(number);
+        let (k, wa) = self.phase(number);
+        if k == 0 {
+            self.layers[0].reset();
+        }
+        if k == self.params.period / 2 {
+            self.layers[1].reset();
+        }
+        wa
+    }
+
     /// Frames since the first frame, modulo the period, and layer A's weight.
     fn phase(&self, number: i32) -> (u32, f32) {
         let first = self.first.unwrap_or(number);
@@ -138,16 +157,40 @@ impl Method for DualRest {
     }
 
     fn step(&mut self, ctx: &FrameContext<'_>) -> Result<FrameResult, MethodError> {
-        self.first.get_or_insert(ctx.number);
-        let (k, wa) = self.phase(ctx.number);
-        if k == 0 {
-            self.layers[0].reset();
-        }
-        if k == self.params.period / 2 {
-            self.layers[1].reset();
-        }
+        let wa = self.start_frame(ctx.number);
         let ra = self.layers[0].step(ctx)?;
         let rb = self.layers[1].step(ctx)?;
+        Ok(cross_fade(ra, rb, wa))
+    }
+
+    /// Each layer selects on its own (erosion's patches).
+    fn select(&mut self, ctx: &FrameContext<'_>) -> Result<Selection, MethodError> {
+        self.start_frame(ctx.number);
+        let [a, b] = [0, 1].map(|k| self.layers[k].select(ctx));
+        let selected = SavedDualRest {
+            first: self.first,
+            a: own_bytes(a?)?,
+            b: own_bytes(b?)?,
+        };
+        let bytes = postcard::to_allocvec(&selected).map_err(selection_error)?;
+        Ok(Selection::Own(bytes))
+    }
+
+    fn resample(
+        &mut self,
+        ctx: &FrameContext<'_>,
+        selection: &Selection,
+    ) -> Result<FrameResult, MethodError> {
+        let Selection::Own(bytes) = selection else {
+            return Err(selection_error(
+                "a replayed selection, which dual-rest does not write",
+            ));
+        };
+        let selected: SavedDualRest = postcard::from_bytes(bytes).map_err(selection_error)?;
+        self.first = selected.first;
+        let (_, wa) = self.phase(ctx.number);
+        let ra = self.layers[0].resample(ctx, &Selection::Own(selected.a))?;
+        let rb = self.layers[1].resample(ctx, &Selection::Own(selected.b))?;
         Ok(cross_fade(ra, rb, wa))
     }
 
@@ -168,6 +211,19 @@ impl Method for DualRest {
         self.layers[1].load_state(&saved.b)?;
         Ok(())
     }
+}
+
+/// A layer's own selection (the erosion family writes no other).
+fn own_bytes(selection: Selection) -> Result<Vec<u8>, MethodError> {
+    match selection {
+        Selection::Own(bytes) => Ok(bytes),
+        Selection::Replay(_) => Err(selection_error("a layer replays its frame")),
+    }
+}
+
+/// A selection that does not read, in one line.
+fn selection_error(e: impl std::fmt::Display) -> MethodError {
+    MethodError::State(format!("dual-rest selection: {e}"))
 }
 
 /// Blends layer results `a` (weight `wa`) and `b` (weight 1 − `wa`) texel

@@ -1,9 +1,9 @@
 //! Selection apart from resampling, for every method: a frame resampled
 //! from its serialised selection, by a method built afresh, is the
 //! one-pass frame bit for bit (channels, sources, uv, levels, layers,
-//! renewal, statistics). The patch methods' and the optimization's own
-//! selections need the frame's geometry alone; the others replay the
-//! frame from the state before it.
+//! renewal, statistics). The erosion family's (dual-rest's too) and the
+//! optimization's own selections need the frame's geometry alone; the
+//! others replay the frame from the state before it.
 
 use std::sync::Arc;
 
@@ -88,13 +88,15 @@ fn every_method_resamples_its_selection_into_the_one_pass_frame() {
     let params = MethodParams::default();
     for &kind in MethodKind::ALL {
         let selections = round_trip(&params, kind, &clip);
-        // The patch methods sharing erosion's patches, and the
-        // optimization's points, select on their own.
+        // The patch methods sharing erosion's patches (dual-rest through
+        // its two layers), and the optimization's points, select on their
+        // own.
         let own = matches!(
             kind,
             MethodKind::Erosion
                 | MethodKind::Advect
                 | MethodKind::BlendDeformable
+                | MethodKind::DualRest
                 | MethodKind::Optimization
         );
         assert!(
@@ -119,6 +121,31 @@ fn erosion_selections_with_a_transition_and_switches_resample_exactly() {
     let texels = (clip.atlases[0].width * clip.atlases[0].height) as usize;
     for s in &selections {
         assert!(s.bytes().len() < texels * 12, "{} bytes", s.bytes().len());
+    }
+}
+
+#[test]
+fn dual_rest_selections_resample_exactly_across_both_resets() {
+    // A period of 4 resets layer A on frames 0 and 4, layer B on 2: the
+    // clip crosses each reset, and a layer reset on a frame is selected
+    // from its fresh patches.
+    let clip = scene("vortex", 16, 6, 128);
+    let mut params = MethodParams::default();
+    params.dual_rest.period = 4;
+    let selections = round_trip(&params, MethodKind::DualRest, &clip);
+    assert!(selections.iter().all(|s| !s.needs_previous()));
+    // A damaged selection is refused in one line.
+    let mut fresh = build(&params, MethodKind::DualRest);
+    let bytes = selections[3].bytes();
+    for damaged in [
+        Selection::Own(bytes[..bytes.len() / 2].to_vec()),
+        Selection::Replay(bytes.to_vec()),
+    ] {
+        let err = fresh
+            .resample(&clip.ctx(3), &damaged)
+            .expect_err("damaged")
+            .to_string();
+        assert!(err.contains("selection") && !err.contains('\n'), "{err}");
     }
 }
 

@@ -384,6 +384,9 @@ impl Method for Erosion {
         let mut counts = StepCounts::default();
         let setup = self.carry(ctx, &mut counts, &mut clock)?;
         let bytes = self.snapshot(setup.as_ref().map(|s| s.carried), &counts)?;
+        // The selection reports the patches a reset dropped (a resampled
+        // frame's statistics take them), so the next frame must not.
+        self.dropped_by_reset = 0;
         // Only a resampled frame's switches are measured.
         let texels = self.select_texels(ctx, setup, false, &mut counts, &mut clock);
         self.keep_spare(ctx.arena, texels);
