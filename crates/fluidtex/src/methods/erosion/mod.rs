@@ -20,8 +20,11 @@ pub mod erode;
 pub mod exemplars;
 pub mod feature_levels;
 pub mod fill;
+mod lifecycle;
 mod params;
 pub mod patch;
+mod radius;
+mod resample;
 mod selection;
 mod stats;
 pub mod transition;
@@ -32,7 +35,6 @@ mod tests;
 
 use std::sync::Arc;
 
-use rand::SeedableRng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -42,14 +44,13 @@ pub use self::params::{
     ErosionParams, Falloff, FeatureFilter, Orientation, PatchRegion, SeedCorners, SeedTexel,
     WeightMode,
 };
-use self::patch::{CarryTable, FrameSurface, Patch, PatchShape};
+use self::patch::{FrameSurface, Patch, PatchShape};
+pub use self::radius::{default_radius, median_edge_length};
 use self::stats::{Blended, StepCounts};
 pub use self::update::Placement;
-use super::tone::{self, Tone, ToneMap};
 use super::{ChannelSpec, FrameContext, FrameResult, Method, MethodError, StageClock};
 use crate::exemplar::Exemplar;
 use crate::exemplar::tone::ExemplarTone;
-use crate::surface::poisson::sample_mesh;
 
 /// Patch state carried from frame to frame (saved for `--resume`).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -236,66 +237,6 @@ impl Erosion {
             Falloff::Footprint => footprint.clamp(1e-3, erode::PAPER_REACH),
         };
         ErosionTest::with_reach(feature, self.params.epsilon, reach)
-    }
-
-    /// Each exemplar's statistics, measured once: the means for mean
-    /// matching and transitions, the variance by level too for contrast
-    /// matching (which reads every mip pyramid).
-    pub(super) fn exemplar_tones(&mut self) -> &[ExemplarTone] {
-        let exemplars = match &self.multi {
-            Some(m) => m.set.exemplars(),
-            None => std::slice::from_ref(&self.exemplar),
-        };
-        let contrast = self.rules.erodes && self.params.tone == Tone::Match;
-        self.tones.get_or_insert_with(|| {
-            if !contrast {
-                // No pyramid is read: an animated exemplar's frames keep
-                // theirs unbuilt until a patch shows them.
-                return exemplars
-                    .iter()
-                    .map(|e| ExemplarTone::means_of(e))
-                    .collect();
-            }
-            // Every frame of an animated exemplar is measured, so every
-            // pyramid is built here: in parallel, not one by one.
-            if let Some(m) = &self.multi {
-                m.set.prepare(0..exemplars.len() as u32);
-            }
-            exemplars.iter().map(|e| ExemplarTone::of(e)).collect()
-        })
-    }
-
-    /// Matches the tone of the composite in `out` as the parameters say
-    /// (the erosion method only; see [`crate::methods::tone`]), with `lods`
-    /// the footprint pass's levels and `by_id` the exemplar of each patch
-    /// id (several exemplars). Returns the maps applied, one per exemplar;
-    /// none when nothing was matched.
-    fn match_tone(
-        &mut self,
-        out: &mut FillBuffers,
-        lods: Option<&[f32]>,
-        by_id: Option<&[u32]>,
-    ) -> Vec<ToneMap> {
-        if !self.rules.erodes || self.params.tone == Tone::Off {
-            return Vec::new();
-        }
-        let mode = self.params.tone;
-        let tones = self.exemplar_tones();
-        let exemplar_of = |s: u32| {
-            by_id
-                .zip((s as usize).checked_sub(1))
-                .and_then(|(b, i)| b.get(i))
-                .map_or(0, |&e| e as usize)
-        };
-        tone::match_tone(
-            mode,
-            &mut out.values,
-            out.channels,
-            &out.source,
-            lods,
-            exemplar_of,
-            tones,
-        )
     }
 
     fn shape(
@@ -586,39 +527,6 @@ impl Erosion {
         out
     }
 
-    /// The footprint pass ([`super::footprint`]) over `out` for the lapped
-    /// fills, each texel read from its patch's exemplar (`by_id`); the
-    /// levels per texel where `levels` keeps them.
-    fn filter_footprint(
-        &self,
-        out: &mut FillBuffers,
-        levels: super::footprint::Levels,
-        by_id: Option<&[u32]>,
-    ) -> Option<Vec<f32>> {
-        (!self.rules.blends)
-            .then(|| match (&self.multi, by_id) {
-                (Some(m), Some(by_id)) => {
-                    let all = m.set.exemplars();
-                    super::footprint::apply_footprint_filtering_by(
-                        out,
-                        self.exemplar.filter,
-                        levels,
-                        |s| {
-                            let e = by_id.get(s as usize - 1).copied().unwrap_or(0);
-                            all.get(e as usize).map_or(&*self.exemplar, |a| a)
-                        },
-                    )
-                }
-                _ => super::footprint::apply_footprint_filtering_by(
-                    out,
-                    self.exemplar.filter,
-                    levels,
-                    |_| &*self.exemplar,
-                ),
-            })
-            .flatten()
-    }
-
     /// What the stages of a frame on a non-empty surface share.
     fn setup(
         &mut self,
@@ -700,102 +608,6 @@ impl Erosion {
         }
         clock.lap("delete");
         Texels { out, blended }
-    }
-
-    /// Every channel from the texels' selection: the footprint pass, the
-    /// transitions, the tone; and the frame's statistics, with the levels
-    /// per texel where `wants` asks for them.
-    fn resample_texels(
-        &mut self,
-        texels: Texels,
-        counts: StepCounts,
-        mut clock: StageClock,
-        wants: super::Wants,
-    ) -> FrameResult {
-        let Texels {
-            mut out,
-            mut blended,
-        } = texels;
-        // The resampling reads each patch's slot (the frame of an animated
-        // exemplar it shows), the statistics its exemplar.
-        let by_id = self
-            .multi
-            .as_ref()
-            .map(|_| exemplars::by_id(&self.state.patches, self.state.next_id));
-        let slots = self.multi.as_ref().map(|m| {
-            if m.set.is_animated() {
-                let slots = m.slots_by_id(&self.state.patches, self.state.next_id);
-                m.set.prepare(
-                    self.state
-                        .patches
-                        .iter()
-                        .filter_map(|p| slots.get(p.id as usize).copied()),
-                );
-                slots
-            } else {
-                by_id.clone().unwrap_or_default()
-            }
-        });
-        // Contrast tone matching reads each texel's level.
-        // So does a transition, which reads the earlier source at it.
-        let levels = if wants.levels
-            || (self.rules.erodes && self.params.tone == Tone::Match)
-            || !blended.transitions.is_empty()
-        {
-            super::footprint::Levels::Keep
-        } else {
-            super::footprint::Levels::Drop
-        };
-        let exemplar_lod = self.filter_footprint(&mut out, levels, slots.as_deref());
-        clock.lap("exemplar filter");
-        let in_transition = self.blend_transitions(
-            &mut out,
-            &blended.transitions,
-            exemplar_lod.as_deref(),
-            slots.as_deref(),
-        );
-        let in_transition = in_transition.map(|(layers, blended_texels)| {
-            blended.layers = Some(layers);
-            blended_texels
-        });
-        clock.lap("transition");
-        let tone = self.match_tone(&mut out, exemplar_lod.as_deref(), slots.as_deref());
-        clock.lap("tone");
-        let mut result = FrameResult {
-            channels: crate::exemplar::channels::split_interleaved(
-                out.width,
-                out.height,
-                std::mem::take(&mut out.values),
-                &self.exemplar,
-            ),
-            exemplar_lod,
-            ..Default::default()
-        };
-        self.record_stats(&mut result.stats, &out, counts);
-        self.record_frame_extras(
-            &mut result.stats,
-            &out,
-            &tone,
-            in_transition,
-            by_id.as_deref(),
-        );
-        result.source = Some(out.source);
-        result.uv = Some(out.uv);
-        result.renewal = (!out.renewal.is_empty()).then_some(out.renewal);
-        result.layers = blended.layers;
-        result.timings = clock.stages;
-        result
-    }
-
-    /// A selected frame's buffers, handed back to `arena` for the next
-    /// (nothing resamples them in the selecting phase).
-    fn keep_spare(&mut self, arena: &super::FrameArena, texels: Texels) {
-        let Texels { out, .. } = texels;
-        arena.hand_back(super::SpentBuffers {
-            uv: Some(out.uv),
-            values: Some(out.values),
-            exemplar_lod: None,
-        });
     }
 
     /// The fill and the update on a non-empty surface.
@@ -955,113 +767,6 @@ impl Erosion {
         });
     }
 
-    /// Drops, from every patch, the triangles that can never show a texel
-    /// again ([`Patch::prune_eroded`]), so a patch's cost follows what it
-    /// can still show, not its history; returns how many went. Only the
-    /// eroding method: `advect` never erodes and `blend-deformable` blends
-    /// by weights that may rise again.
-    fn prune(&mut self, shape: &PatchShape, test: ErosionTest) -> usize {
-        if !self.rules.erodes || !self.prune_eroded {
-            return 0;
-        }
-        let tests = self.multi.as_ref().map(|m| m.tests.as_slice());
-        let weights_can_rise = self.params.weights == WeightMode::Paper;
-        let keep_earlier = self.transition_frames() > 0;
-        self.state
-            .patches
-            .par_iter_mut()
-            .map(|p| {
-                let test = (self.multi.as_ref())
-                    .zip(tests)
-                    .and_then(|(m, t)| t.get(m.feature_slot(p) as usize))
-                    .copied()
-                    .unwrap_or(test);
-                p.prune_eroded(&test, shape, weights_can_rise, keep_earlier)
-            })
-            .sum()
-    }
-
-    /// Drops, after the frame's fill, the triangles of each patch that lie
-    /// farther than `hidden_reach` × r (in its rest space) from every texel
-    /// it showed ([`Patch::prune_hidden`]); returns how many went. Only the
-    /// eroding method, and not the patches a transition still shows as an
-    /// earlier source.
-    ///
-    /// Not in the paper, which keeps a patch whole until it shows nothing.
-    /// A new patch goes under every older one, so most of its disc starts
-    /// hidden; on a splashing liquid, where hundreds of patches are made
-    /// per frame, those hidden parts piled up to 6–7 layers of patch
-    /// triangles per surface triangle, each advected, split and located
-    /// every frame. When an older patch erodes there later, a hidden part
-    /// would show a patch that has been stretched all the while; without
-    /// it the update makes a fresh one there instead. On frames 2–48 of a
-    /// Mantaflow splash (atlas 1024, default radius), a reach of 0.1 r
-    /// halved the patch triangles (6.7 → 3.3 per surface triangle), cut the
-    /// fill by 39 % and lowered the switch share (46.5 % → 44.4 %), with
-    /// 36 % more patches made per frame.
-    fn prune_hidden(&mut self, out: &FillBuffers, blended: &Blended, shape: &PatchShape) -> usize {
-        let reach = self.params.hidden_reach;
-        if !self.rules.erodes || !self.prune_eroded || reach <= 0.0 {
-            return 0;
-        }
-        let cell = reach * shape.radius / shape.exemplar_size;
-        let patches = &mut self.state.patches;
-        // Ids run below next_id (as delete_unused reads them).
-        let mut index = vec![u32::MAX; self.state.next_id as usize + 1];
-        for (i, p) in patches.iter().enumerate() {
-            if let Some(slot) = index.get_mut(p.id as usize) {
-                *slot = i as u32;
-            }
-        }
-        let of_source = |s: u32| {
-            crate::provenance::patch_of(s)
-                .and_then(|id| index.get(id as usize))
-                .filter(|&&i| i != u32::MAX)
-                .map(|&i| i as usize)
-        };
-        // Per block of texels in parallel, in order: (patch, cell) of each
-        // covered texel, a run of equal pairs kept once (neighbouring
-        // texels mostly share both). Each patch sorts its cells after.
-        const BLOCK: usize = 1 << 16;
-        let pairs: Vec<(usize, (i32, i32))> = (out.source.par_chunks(BLOCK))
-            .zip(out.uv.par_chunks(BLOCK))
-            .flat_map_iter(|(sources, uvs)| {
-                let mut block: Vec<(usize, (i32, i32))> = Vec::new();
-                for (&s, &uv) in sources.iter().zip(uvs) {
-                    if let Some(i) = of_source(s) {
-                        let pair = (i, patch::rest_cell(uv, cell));
-                        if block.last() != Some(&pair) {
-                            block.push(pair);
-                        }
-                    }
-                }
-                block
-            })
-            .collect();
-        let mut shown: Vec<Vec<(i32, i32)>> = vec![Vec::new(); patches.len()];
-        for (i, c) in pairs {
-            shown[i].push(c);
-        }
-        let mut whole = vec![false; patches.len()];
-        for t in &blended.transitions {
-            if let Some(&i) = index.get(t.patch_id as usize).filter(|&&i| i != u32::MAX) {
-                whole[i as usize] = true;
-            }
-        }
-        patches
-            .par_iter_mut()
-            .zip(shown.par_iter_mut())
-            .zip(whole.par_iter())
-            .map(|((p, cells), &whole)| {
-                if whole {
-                    0
-                } else {
-                    p.prune_hidden(cells, cell)
-                }
-            })
-            .sum()
-    }
-
     /// The erosion tests of this run, built on the first frame with a
     /// surface (they need r/S), and the exemplar set's checks of this mesh.
     fn prepare_tests(
@@ -1134,162 +839,4 @@ impl Erosion {
             uncovered
         }
     }
-
-    /// Carries every patch to this frame (or drops them all on a fresh
-    /// start of the surface); returns whether `advect` carried patches,
-    /// which then are never renewed.
-    fn advect(
-        &mut self,
-        ctx: &FrameContext<'_>,
-        shape: &PatchShape,
-        radius: f32,
-        counts: &mut StepCounts,
-    ) -> Result<bool, MethodError> {
-        let before = self.state.patches.len();
-        let mut carried = false;
-        if let Some(prev) = ctx.previous
-            && !self.state.patches.is_empty()
-            && !prev.mesh.is_empty()
-        {
-            if prev.mesh.velocity().is_none() {
-                return Err(MethodError::MissingVelocity {
-                    frame: ctx.number - 1,
-                    method: self.name(),
-                });
-            }
-            let flow = ctx.flow(self.params.substeps, 0.25 * radius).ok_or(
-                MethodError::MissingVelocity {
-                    frame: ctx.number,
-                    method: self.name(),
-                },
-            )?;
-            let table = CarryTable::new(&self.state.patches, flow, ctx.index, *shape);
-            self.state.patches.par_iter_mut().for_each(|p| {
-                if !p.advect(|x| table.carry(x), ctx.index, shape) {
-                    p.triangles.clear();
-                }
-            });
-            self.state.patches.retain(|p| !p.triangles.is_empty());
-            // `advect` carries what it has; it only places patches on a fresh start.
-            carried = !self.rules.renews && !self.state.patches.is_empty();
-        } else if ctx.previous.is_none() || ctx.previous.is_some_and(|p| p.mesh.is_empty()) {
-            // A fresh start of the surface: patches of an older surface cannot be carried.
-            self.state.patches.clear();
-        }
-        counts.deleted_before = before - self.state.patches.len();
-        Ok(carried)
-    }
-
-    /// Patches on a Poisson-disk set of the surface; returns how many.
-    fn seed_distribution(
-        &mut self,
-        ctx: &FrameContext<'_>,
-        surface: &FrameSurface<'_>,
-        shape: &PatchShape,
-        radius: f32,
-        align: Option<glam::Vec3>,
-    ) -> usize {
-        let mut rng = rand_pcg::Pcg64::seed_from_u64(mix(self.seed, 2, ctx.number as u64));
-        let samples = sample_mesh(ctx.mesh, radius, self.params.normal_dot, 30.0, &mut rng);
-        let first = self.state.next_id;
-        let (seed, random) = (self.seed, self.params.random_rotation);
-        let new: Vec<Patch> = samples
-            .par_iter()
-            .enumerate()
-            .filter_map(|(k, s)| {
-                let id = first + k as u32;
-                Patch::create(
-                    id,
-                    surface,
-                    s.location,
-                    shape,
-                    rotation_for(seed, random, id as u64),
-                    align,
-                )
-            })
-            .collect();
-        self.state.next_id += samples.len() as u32;
-        let mut new = new;
-        if let Some(m) = &self.multi {
-            let at = |p: &Patch| samples.get((p.id - first) as usize).map(|s| s.location);
-            m.assign_initial(seed, ctx.mesh, radius, &mut new, at);
-        }
-        let created = new.len();
-        self.state.patches.extend(new);
-        created
-    }
-
-    /// Deletes patches no texel used (Sec. 3); `advect` keeps everything
-    /// (a hidden patch is still part of the carried parameterization).
-    /// Returns how many went.
-    fn delete_unused(&mut self, out: &FillBuffers, blend_used: Option<&[u32]>) -> usize {
-        let alive_before = self.state.patches.len();
-        if self.rules.renews {
-            let max_id = self.state.next_id as usize;
-            let mut used = vec![false; max_id + 1];
-            for &s in &out.source {
-                if s != fill::OUTSIDE && s != fill::UNCOVERED && (s as usize) <= max_id {
-                    used[s as usize - 1] = true;
-                }
-            }
-            for &id in blend_used.into_iter().flatten() {
-                if let Some(u) = used.get_mut(id as usize) {
-                    *u = true;
-                }
-            }
-            self.state.patches.retain(|p| used[p.id as usize]);
-        }
-        alive_before - self.state.patches.len()
-    }
-}
-
-/// The default patch radius (docs/design.md, *Patch radius and exemplar
-/// size*): `radius_fraction` × the first frame's bounding-box diagonal, but
-/// never below `radius_edges` median edge lengths, so that a patch spans
-/// enough fluid triangles for its shape and its far-vertex test (r/4) to
-/// stand above the re-meshing noise of the surface. Returns r and a sentence
-/// saying which rule won.
-pub fn default_radius(mesh: &crate::mesh::TriMesh, params: &ErosionParams) -> (f32, String) {
-    let (lo, hi) = mesh.bounding_box().unwrap_or_default();
-    let diagonal = lo.distance(hi);
-    let by_extent = params.radius_fraction * diagonal;
-    let edge = median_edge_length(mesh);
-    let by_edges = params.radius_edges * edge;
-    if by_edges > by_extent {
-        (
-            by_edges,
-            format!(
-                "r = {by_edges:.4} = {} × the median edge length {edge:.4} of the first frame \
-                 (larger than {} × its bounding-box diagonal = {by_extent:.4})",
-                params.radius_edges, params.radius_fraction
-            ),
-        )
-    } else {
-        (
-            by_extent,
-            format!(
-                "r = {by_extent:.4} = {} × the first frame's bounding-box diagonal {diagonal:.4} \
-                 (at least {} median edge lengths = {by_edges:.4})",
-                params.radius_fraction, params.radius_edges
-            ),
-        )
-    }
-}
-
-/// Median length of the mesh's triangle edges (each interior edge counted
-/// twice, which does not move the median of a closed or nearly closed mesh).
-pub fn median_edge_length(mesh: &crate::mesh::TriMesh) -> f32 {
-    let mut lengths: Vec<f32> = (0..mesh.triangle_count())
-        .flat_map(|t| {
-            let [a, b, c] = mesh.corners(t);
-            [a.distance(b), b.distance(c), c.distance(a)]
-        })
-        .filter(|l| l.is_finite())
-        .collect();
-    if lengths.is_empty() {
-        return 0.0;
-    }
-    let mid = lengths.len() / 2;
-    let (_, m, _) = lengths.select_nth_unstable_by(mid, f32::total_cmp);
-    *m
 }

@@ -16,6 +16,7 @@ use crate::atlas::{Atlas, AtlasParams};
 use crate::exemplar::{Exemplar, builtin_pebbles};
 use crate::mesh::{Topology, TriMesh};
 use crate::methods::test_clip::{Clip, scene};
+use crate::methods::tone::Tone;
 use crate::methods::{
     FrameContext, FrameResult, Method, PreviousFrame, SOURCE_OUTSIDE, SOURCE_UNCOVERED,
 };
