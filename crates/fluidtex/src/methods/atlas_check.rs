@@ -6,8 +6,8 @@
 //! one shows it at once (sheared cells, seams, holes).
 
 use super::{
-    ChannelFormat, ChannelSpec, FrameContext, FrameResult, Method, MethodError, StageClock,
-    check_range, paint_charts,
+    ChannelFormat, ChannelSpec, FrameContext, FrameResult, Method, MethodError, Selection,
+    StageClock, check_range, paint_charts,
 };
 
 crate::methods::params::params! {
@@ -123,6 +123,28 @@ impl Method for AtlasCheck {
         result.stats.insert("cell".into(), serde_json::json!(cell));
         result.timings = clock.stages;
         Ok(result)
+    }
+
+    /// The checker's cell, fixed on the first frame with a surface, is the
+    /// whole selection: resampling paints the frame with it.
+    fn select(&mut self, ctx: &FrameContext<'_>) -> Result<Selection, MethodError> {
+        self.step(ctx)?;
+        Ok(Selection::Own(self.save_state()?))
+    }
+
+    fn resample(
+        &mut self,
+        ctx: &FrameContext<'_>,
+        selection: &Selection,
+    ) -> Result<FrameResult, MethodError> {
+        let Selection::Own(bytes) = selection else {
+            return Err(MethodError::State(
+                "atlas-check selection: a replayed one, which atlas-check does not write".into(),
+            ));
+        };
+        self.load_state(bytes)
+            .map_err(|e| MethodError::State(format!("atlas-check selection: {e}")))?;
+        self.step(ctx)
     }
 
     fn save_state(&self) -> Result<Vec<u8>, MethodError> {

@@ -21,9 +21,9 @@
 //! A frame is *selected* (which source shows at each texel, [`Selection`],
 //! serialisable) and *resampled* (every channel from the selection);
 //! [`Method::step`] does both in one pass, a two-phase run does them in
-//! different processes. The erosion family (its patches; dual-rest's two
-//! layers) and the optimization (its points' values) select on their own;
-//! the other methods replay the frame from the state before it.
+//! different processes. The patch methods (erosion's patches, dual-rest's
+//! two layers, lapped-rigid's trackers), the optimization (its points'
+//! values) and the checker (its cell) select on their own.
 //!
 //! [`footprint`] is a post-pass of the lapped methods: minified exemplar
 //! texels are re-read through the exemplar's mip pyramid. [`lapped`] holds

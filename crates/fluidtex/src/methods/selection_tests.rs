@@ -1,9 +1,9 @@
 //! Selection apart from resampling, for every method: a frame resampled
 //! from its serialised selection, by a method built afresh, is the
 //! one-pass frame bit for bit (channels, sources, uv, levels, layers,
-//! renewal, statistics). The erosion family's (dual-rest's too) and the
-//! optimization's own selections need the frame's geometry alone; the
-//! others replay the frame from the state before it.
+//! renewal, statistics). The patch methods' and the optimization's own
+//! selections need the frame's geometry alone; the test toy keeps the
+//! trait's default, a replay of the frame from the state before it.
 
 use std::sync::Arc;
 
@@ -88,17 +88,9 @@ fn every_method_resamples_its_selection_into_the_one_pass_frame() {
     let params = MethodParams::default();
     for &kind in MethodKind::ALL {
         let selections = round_trip(&params, kind, &clip);
-        // The patch methods sharing erosion's patches (dual-rest through
-        // its two layers), and the optimization's points, select on their
-        // own.
-        let own = matches!(
-            kind,
-            MethodKind::Erosion
-                | MethodKind::Advect
-                | MethodKind::BlendDeformable
-                | MethodKind::DualRest
-                | MethodKind::Optimization
-        );
+        // Every method of the registry selects on its own; only the test
+        // toy keeps the trait's default and replays.
+        let own = kind != MethodKind::Toy;
         assert!(
             selections.iter().all(|s| s.needs_previous() != own),
             "{}: selection kind",
@@ -143,6 +135,40 @@ fn dual_rest_selections_resample_exactly_across_both_resets() {
     ] {
         let err = fresh
             .resample(&clip.ctx(3), &damaged)
+            .expect_err("damaged")
+            .to_string();
+        assert!(err.contains("selection") && !err.contains('\n'), "{err}");
+    }
+}
+
+#[test]
+fn lapped_rigid_selections_resample_exactly_with_random_placement() {
+    // The paper's placement draws new trackers at random (a generator
+    // seeded per frame) and leaves short seed texels open: resampling
+    // makes the same trackers again from the frame's geometry alone.
+    let clip = scene("vortex", 16, 4, 128);
+    let mut params = MethodParams::default();
+    params.lapped_rigid.placement = crate::methods::lapped_rigid::distribution::Placement::Random;
+    params.lapped_rigid.seed_texel = crate::methods::erosion::SeedTexel::Paper;
+    let selections = round_trip(&params, MethodKind::LappedRigid, &clip);
+    // Compact: the trackers, not per-texel arrays (12 bytes a texel).
+    let texels = (clip.atlases[0].width * clip.atlases[0].height) as usize;
+    for s in &selections {
+        assert!(!s.needs_previous());
+        assert!(s.bytes().len() < texels, "{} bytes", s.bytes().len());
+    }
+    // Another method's selection, or a damaged one, is refused in one line.
+    let mut erosion = build(&params, MethodKind::Erosion);
+    let foreign = erosion.select(&clip.ctx(0)).expect("select");
+    let bytes = selections[1].bytes();
+    let mut fresh = build(&params, MethodKind::LappedRigid);
+    for damaged in [
+        foreign,
+        Selection::Own(bytes[..bytes.len() / 2].to_vec()),
+        Selection::Replay(bytes.to_vec()),
+    ] {
+        let err = fresh
+            .resample(&clip.ctx(1), &damaged)
             .expect_err("damaged")
             .to_string();
         assert!(err.contains("selection") && !err.contains('\n'), "{err}");

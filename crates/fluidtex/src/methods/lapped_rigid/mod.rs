@@ -53,7 +53,7 @@ use self::receivers::{ReceiverContext, Receivers};
 use self::trackers::Tracker;
 pub use super::erosion::SeedTexel;
 use super::lapped::state;
-use super::{ChannelSpec, FrameContext, FrameResult, Method, MethodError, StageClock};
+use super::{ChannelSpec, FrameContext, FrameResult, Method, MethodError, Selection, StageClock};
 use crate::exemplar::set::{Chooser, Coverage, RegionBox, SelectBy};
 use crate::exemplar::{Exemplar, ExemplarFilter, ExemplarSelect, ExemplarSet};
 use crate::surface::SurfacePoint;
@@ -211,7 +211,7 @@ fn location_key(at: SurfacePoint) -> u64 {
 }
 
 /// What a frame did, for `stats.F.json`.
-#[derive(Default)]
+#[derive(Clone, Default, Serialize, Deserialize)]
 struct FrameCounts {
     deleted_left: usize,
     deleted_sink: usize,
@@ -225,24 +225,16 @@ struct FrameCounts {
     radius_rule: Option<String>,
 }
 
-/// What the stages of a frame with a surface share.
-struct Surface<'a> {
-    radius: f32,
-    exemplar_size: f32,
-    /// The surface with its velocity (the sink test's flow).
-    here: FlowFrame<'a>,
-}
-
 impl LappedRigid {
-    /// Stages 1–5 of the module doc on a frame with a surface; returns the
-    /// ids of the patches the composite showed.
-    fn step_surface(
+    /// Stages 1–2 of the module doc and the first frame's trackers, on a
+    /// frame with a surface: what the frame's selection holds. Returns r and
+    /// the exemplar size S.
+    fn prepare_surface(
         &mut self,
         ctx: &FrameContext<'_>,
-        out: &mut CompositeBuffers,
         counts: &mut FrameCounts,
         clock: &mut StageClock,
-    ) -> Result<Vec<u32>, MethodError> {
+    ) -> Result<(f32, f32), MethodError> {
         let mesh = ctx.mesh;
         let velocity = mesh.velocity().ok_or(MethodError::MissingVelocity {
             frame: ctx.number,
@@ -263,25 +255,65 @@ impl LappedRigid {
                 m.region = RegionBox::of(mesh);
             }
         }
-        let surface = Surface {
-            radius,
-            exemplar_size,
-            here: FlowFrame {
-                mesh,
-                index: ctx.index,
-                velocity,
-            },
+        let here = FlowFrame {
+            mesh,
+            index: ctx.index,
+            velocity,
         };
         counts.deleted_left = self.advect(ctx, radius)?;
         clock.lap("advection");
         self.fade_mismatched(ctx, radius);
-        (counts.sinking, counts.deleted_sink) = self.sinks(&surface.here, radius, ctx.dt);
+        (counts.sinking, counts.deleted_sink) = self.sinks(&here, radius, ctx.dt);
         clock.lap("sinks");
         if self.state.trackers.is_empty() {
             counts.created += self.initial_distribution(ctx, radius);
         }
         clock.lap("creation");
-        self.composite_and_cover(ctx, &surface, out, counts, clock)
+        Ok((radius, exemplar_size))
+    }
+
+    /// The stages before the composite: on a frame without a surface the
+    /// trackers all go; returns r and S where there is one.
+    fn prepare(
+        &mut self,
+        ctx: &FrameContext<'_>,
+        counts: &mut FrameCounts,
+        clock: &mut StageClock,
+    ) -> Result<Option<(f32, f32)>, MethodError> {
+        if ctx.mesh.is_empty() {
+            counts.deleted_left = self.state.trackers.len();
+            self.state.trackers.clear();
+            clock.lap("advection");
+            return Ok(None);
+        }
+        self.prepare_surface(ctx, counts, clock).map(Some)
+    }
+
+    /// The composite and the coverage update (stages 3–5) from the
+    /// prepared trackers, the deletion of the unused ones, and the frame's
+    /// result: the same in a one-pass step and in a resampled selection.
+    fn finish_frame(
+        &mut self,
+        ctx: &FrameContext<'_>,
+        scale: Option<(f32, f32)>,
+        mut counts: FrameCounts,
+        mut clock: StageClock,
+    ) -> Result<FrameResult, MethodError> {
+        let atlas = ctx.atlas;
+        let channels = self.exemplar.total_channels();
+        let mut out = CompositeBuffers::new(atlas.width, atlas.height, channels).with_layers();
+        let used_ids = match scale {
+            Some(scale) => {
+                self.composite_and_cover(ctx, scale, &mut out, &mut counts, &mut clock)?
+            }
+            None => Vec::new(),
+        };
+        counts.unused = self.delete_unused(used_ids);
+        clock.lap("delete");
+        let mut result = self.frame_result(out, &counts);
+        self.record_state_agreement(ctx, &mut result);
+        result.timings = clock.stages;
+        Ok(result)
     }
 
     /// Stage 1 (Sec. 3.1.1–3.1.2): carries the trackers to this frame and
@@ -444,13 +476,12 @@ impl LappedRigid {
     fn composite_and_cover(
         &mut self,
         ctx: &FrameContext<'_>,
-        surface: &Surface<'_>,
+        (radius, exemplar_size): (f32, f32),
         out: &mut CompositeBuffers,
         counts: &mut FrameCounts,
         clock: &mut StageClock,
     ) -> Result<Vec<u32>, MethodError> {
         let mesh = ctx.mesh;
-        let (radius, exemplar_size) = (surface.radius, surface.exemplar_size);
         let rc = ReceiverContext {
             mesh,
             topology: ctx.topology,
@@ -710,24 +741,62 @@ impl Method for LappedRigid {
 
     fn step(&mut self, ctx: &FrameContext<'_>) -> Result<FrameResult, MethodError> {
         let mut clock = StageClock::default();
-        let atlas = ctx.atlas;
-        let channels = self.exemplar.total_channels();
-        let mut out = CompositeBuffers::new(atlas.width, atlas.height, channels).with_layers();
         let mut counts = FrameCounts::default();
-        let mut used_ids: Vec<u32> = Vec::new();
-        if ctx.mesh.is_empty() {
-            counts.deleted_left = self.state.trackers.len();
-            self.state.trackers.clear();
-            clock.lap("advection");
-        } else {
-            used_ids = self.step_surface(ctx, &mut out, &mut counts, &mut clock)?;
+        let scale = self.prepare(ctx, &mut counts, &mut clock)?;
+        self.finish_frame(ctx, scale, counts, clock)
+    }
+
+    /// The trackers as the frame's composite reads them, carried, faded
+    /// and seeded: resampling composites and covers from them, with the
+    /// frame's geometry alone.
+    fn select(&mut self, ctx: &FrameContext<'_>) -> Result<Selection, MethodError> {
+        let mut clock = StageClock::default();
+        let mut counts = FrameCounts::default();
+        let scale = self.prepare(ctx, &mut counts, &mut clock)?;
+        let selected = Selected {
+            tag: *SELECTION_TAG,
+            scale,
+            state: self.save_state()?,
+            counts: counts.clone(),
+        };
+        let bytes = postcard::to_allocvec(&selected).map_err(selection_error)?;
+        // The composite decides which trackers are made and kept, the
+        // state of the next frame.
+        self.finish_frame(ctx, scale, counts, clock)?;
+        Ok(Selection::Own(bytes))
+    }
+
+    fn resample(
+        &mut self,
+        ctx: &FrameContext<'_>,
+        selection: &Selection,
+    ) -> Result<FrameResult, MethodError> {
+        let Selection::Own(bytes) = selection else {
+            return Err(selection_error(
+                "a replayed selection, which lapped-rigid does not write",
+            ));
+        };
+        let selected: Selected = postcard::from_bytes(bytes).map_err(selection_error)?;
+        if selected.tag != *SELECTION_TAG {
+            return Err(selection_error("not one that lapped-rigid writes"));
         }
-        counts.unused = self.delete_unused(used_ids);
-        clock.lap("delete");
-        let mut result = self.frame_result(out, &counts);
-        self.record_state_agreement(ctx, &mut result);
-        result.timings = clock.stages;
-        Ok(result)
+        if selected.scale.is_some() == ctx.mesh.is_empty() {
+            return Err(selection_error(format!(
+                "made for a frame {} a surface, and frame {} has {}",
+                if selected.scale.is_some() {
+                    "with"
+                } else {
+                    "without"
+                },
+                ctx.number,
+                if ctx.mesh.is_empty() { "none" } else { "one" }
+            )));
+        }
+        self.load_state(&selected.state)
+            .map_err(|e| selection_error(e.to_string()))?;
+        let mut clock = StageClock::default();
+        clock.lap("selection");
+        self.finish_frame(ctx, selected.scale, selected.counts, clock)
     }
 
     fn save_state(&self) -> Result<Vec<u8>, MethodError> {
@@ -778,6 +847,26 @@ impl Method for LappedRigid {
         }
         Ok(())
     }
+}
+
+/// Marks a lapped-rigid selection (another method's bytes are refused).
+const SELECTION_TAG: &[u8; 4] = b"LRS1";
+
+/// A frame's selection: the trackers before the composite, and what the
+/// stages before it did.
+#[derive(Serialize, Deserialize)]
+struct Selected {
+    tag: [u8; 4],
+    /// r and S; `None` on a frame without a surface.
+    scale: Option<(f32, f32)>,
+    /// [`Method::save_state`]'s bytes.
+    state: Vec<u8>,
+    counts: FrameCounts,
+}
+
+/// A selection that does not read, in one line.
+fn selection_error(e: impl std::fmt::Display) -> MethodError {
+    MethodError::State(format!("lapped-rigid selection: {e}"))
 }
 
 /// The exemplar histogram of the composite: every tracker at P, weighted by
