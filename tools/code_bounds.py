@@ -9,7 +9,8 @@
 - A function outside test code spans at most MAX_FN_LINES lines, from its
   `fn` line to its closing brace.
 
-Comments and string literals are skipped when braces are matched.
+Comments and string literals are skipped when braces are matched (with
+the reader of tools/module_cycles.py).
 
 Usage: tools/code_bounds.py [DIR ...]   (default: every crates/*/src)
 Exit status 1 when a bound is broken (each one listed), else 0.
@@ -20,6 +21,9 @@ import os
 import re
 import sys
 
+# Comments and literals blanked, newlines kept (the cycle check's reader).
+from module_cycles import strip as code_only
+
 MAX_FILE_LINES = 1000
 MAX_FN_LINES = 100
 
@@ -27,56 +31,6 @@ TEST_MOD = re.compile(r"^\s*#\[cfg\(test\)\]\s*$")
 MOD_DECL = re.compile(r"^\s*(?:pub(?:\([^)]*\))?\s+)?mod\s+([A-Za-z_][A-Za-z0-9_]*)\s*;")
 MOD_INLINE = re.compile(r"^\s*(?:pub(?:\([^)]*\))?\s+)?mod\s+[A-Za-z_][A-Za-z0-9_]*\s*\{")
 FN = re.compile(r"^\s*(?:pub(?:\([^)]*\))?\s+)?(?:const\s+)?(?:async\s+)?(?:unsafe\s+)?fn\s+([A-Za-z_][A-Za-z0-9_]*)")
-
-
-def code_only(text):
-    """The text with comments and string/char literals blanked (newlines kept)."""
-    out = []
-    i, n = 0, len(text)
-    while i < n:
-        c = text[i]
-        if text.startswith("//", i):
-            j = text.find("\n", i)
-            j = n if j < 0 else j
-            out.append(" " * (j - i))
-            i = j
-        elif text.startswith("/*", i):
-            depth, j = 1, i + 2
-            while j < n and depth:
-                if text.startswith("/*", j):
-                    depth, j = depth + 1, j + 2
-                elif text.startswith("*/", j):
-                    depth, j = depth - 1, j + 2
-                else:
-                    j += 1
-            out.append("".join(ch if ch == "\n" else " " for ch in text[i:j]))
-            i = j
-        elif c == "r" and re.match(r'r#*"', text[i:i + 10]) and (i == 0 or not (text[i - 1].isalnum() or text[i - 1] == "_")):
-            hashes = re.match(r'r(#*)"', text[i:]).group(1)
-            end = text.find('"' + hashes, i + len(hashes) + 2)
-            j = n if end < 0 else end + 1 + len(hashes)
-            out.append("".join(ch if ch == "\n" else " " for ch in text[i:j]))
-            i = j
-        elif c == '"':
-            j = i + 1
-            while j < n and text[j] != '"':
-                j += 2 if text[j] == "\\" else 1
-            j += 1
-            out.append("".join(ch if ch == "\n" else " " for ch in text[i:j]))
-            i = j
-        elif c == "'":
-            # A char literal ('x', '\n', '\u{..}'), not a lifetime ('a).
-            m = re.match(r"'(?:\\.|\\u\{[0-9a-fA-F]+\}|[^\\'])'", text[i:i + 12])
-            if m:
-                out.append(" " * len(m.group(0)))
-                i += len(m.group(0))
-            else:
-                out.append(c)
-                i += 1
-        else:
-            out.append(c)
-            i += 1
-    return "".join(out)
 
 
 def test_files(src):

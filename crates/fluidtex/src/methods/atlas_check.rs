@@ -137,13 +137,9 @@ impl Method for AtlasCheck {
         ctx: &FrameContext<'_>,
         selection: &Selection,
     ) -> Result<FrameResult, MethodError> {
-        let Selection::Own(bytes) = selection else {
-            return Err(MethodError::State(
-                "atlas-check selection: a replayed one, which atlas-check does not write".into(),
-            ));
-        };
+        let bytes = selection.own(self.name())?;
         self.load_state(bytes)
-            .map_err(|e| MethodError::State(format!("atlas-check selection: {e}")))?;
+            .map_err(|e| MethodError::selection("atlas-check", e))?;
         self.step(ctx)
     }
 

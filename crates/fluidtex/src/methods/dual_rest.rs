@@ -172,8 +172,7 @@ impl Method for DualRest {
             a: own_bytes(a?)?,
             b: own_bytes(b?)?,
         };
-        let bytes = postcard::to_allocvec(&selected).map_err(selection_error)?;
-        Ok(Selection::Own(bytes))
+        Selection::encode(self.name(), &selected)
     }
 
     fn resample(
@@ -181,12 +180,7 @@ impl Method for DualRest {
         ctx: &FrameContext<'_>,
         selection: &Selection,
     ) -> Result<FrameResult, MethodError> {
-        let Selection::Own(bytes) = selection else {
-            return Err(selection_error(
-                "a replayed selection, which dual-rest does not write",
-            ));
-        };
-        let selected: SavedDualRest = postcard::from_bytes(bytes).map_err(selection_error)?;
+        let selected: SavedDualRest = selection.decode(self.name())?;
         self.first = selected.first;
         let (_, wa) = self.phase(ctx.number);
         let ra = self.layers[0].resample(ctx, &Selection::Own(selected.a))?;
@@ -217,13 +211,11 @@ impl Method for DualRest {
 fn own_bytes(selection: Selection) -> Result<Vec<u8>, MethodError> {
     match selection {
         Selection::Own(bytes) => Ok(bytes),
-        Selection::Replay(_) => Err(selection_error("a layer replays its frame")),
+        Selection::Replay(_) => Err(MethodError::selection(
+            "dual-rest",
+            "a layer replays its frame",
+        )),
     }
-}
-
-/// A selection that does not read, in one line.
-fn selection_error(e: impl std::fmt::Display) -> MethodError {
-    MethodError::State(format!("dual-rest selection: {e}"))
 }
 
 /// Blends layer results `a` (weight `wa`) and `b` (weight 1 − `wa`) texel

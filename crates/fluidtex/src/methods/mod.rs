@@ -292,6 +292,13 @@ pub enum MethodError {
     Input(String),
 }
 
+impl MethodError {
+    /// A selection of `method` that does not read, in one line.
+    pub fn selection(method: &str, e: impl std::fmt::Display) -> MethodError {
+        MethodError::State(format!("{method} selection: {e}"))
+    }
+}
+
 /// What a method holds in memory besides the per-texel result every
 /// method returns (channels and source ids), for the estimate a run makes
 /// before its first frame ([`crate::output::estimate_memory`]). Each
@@ -427,6 +434,31 @@ impl Selection {
     /// Whether resampling needs the frame before ([`Selection::Replay`]).
     pub fn needs_previous(&self) -> bool {
         matches!(self, Selection::Replay(_))
+    }
+
+    /// The bytes of a method's own selection; a replayed one is refused in
+    /// one line naming `method`, which writes only its own.
+    pub fn own(&self, method: &str) -> Result<&[u8], MethodError> {
+        match self {
+            Selection::Own(bytes) => Ok(bytes),
+            Selection::Replay(_) => Err(MethodError::selection(
+                method,
+                format!("a replayed one, which {method} does not write"),
+            )),
+        }
+    }
+
+    /// `selected` as `method`'s own selection (postcard).
+    pub fn encode<T: Serialize>(method: &str, selected: &T) -> Result<Selection, MethodError> {
+        postcard::to_allocvec(selected)
+            .map(Selection::Own)
+            .map_err(|e| MethodError::selection(method, e))
+    }
+
+    /// What [`Selection::encode`] wrote for `method`; a replayed or
+    /// damaged selection is refused in one line.
+    pub fn decode<T: serde::de::DeserializeOwned>(&self, method: &str) -> Result<T, MethodError> {
+        postcard::from_bytes(self.own(method)?).map_err(|e| MethodError::selection(method, e))
     }
 
     /// The serialised bytes, whichever the kind.

@@ -339,13 +339,7 @@ impl Method for Erosion {
         ctx: &FrameContext<'_>,
         selection: &super::Selection,
     ) -> Result<FrameResult, MethodError> {
-        let super::Selection::Own(bytes) = selection else {
-            return Err(MethodError::State(format!(
-                "frame {}: a replayed selection, which the {} method does not write",
-                ctx.number,
-                self.name()
-            )));
-        };
+        let bytes = selection.own(self.name())?;
         let mut clock = StageClock::default();
         self.show_frame(ctx.number);
         let (mut counts, carried) = self.restore(bytes)?;

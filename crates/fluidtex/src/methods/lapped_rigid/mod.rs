@@ -759,11 +759,11 @@ impl Method for LappedRigid {
             state: self.save_state()?,
             counts: counts.clone(),
         };
-        let bytes = postcard::to_allocvec(&selected).map_err(selection_error)?;
+        let selection = Selection::encode(self.name(), &selected)?;
         // The composite decides which trackers are made and kept, the
         // state of the next frame.
         self.finish_frame(ctx, scale, counts, clock)?;
-        Ok(Selection::Own(bytes))
+        Ok(selection)
     }
 
     fn resample(
@@ -771,29 +771,30 @@ impl Method for LappedRigid {
         ctx: &FrameContext<'_>,
         selection: &Selection,
     ) -> Result<FrameResult, MethodError> {
-        let Selection::Own(bytes) = selection else {
-            return Err(selection_error(
-                "a replayed selection, which lapped-rigid does not write",
-            ));
-        };
-        let selected: Selected = postcard::from_bytes(bytes).map_err(selection_error)?;
+        let selected: Selected = selection.decode(self.name())?;
         if selected.tag != *SELECTION_TAG {
-            return Err(selection_error("not one that lapped-rigid writes"));
+            return Err(MethodError::selection(
+                "lapped-rigid",
+                "not one that lapped-rigid writes",
+            ));
         }
         if selected.scale.is_some() == ctx.mesh.is_empty() {
-            return Err(selection_error(format!(
-                "made for a frame {} a surface, and frame {} has {}",
-                if selected.scale.is_some() {
-                    "with"
-                } else {
-                    "without"
-                },
-                ctx.number,
-                if ctx.mesh.is_empty() { "none" } else { "one" }
-            )));
+            return Err(MethodError::selection(
+                "lapped-rigid",
+                format!(
+                    "made for a frame {} a surface, and frame {} has {}",
+                    if selected.scale.is_some() {
+                        "with"
+                    } else {
+                        "without"
+                    },
+                    ctx.number,
+                    if ctx.mesh.is_empty() { "none" } else { "one" }
+                ),
+            ));
         }
         self.load_state(&selected.state)
-            .map_err(|e| selection_error(e.to_string()))?;
+            .map_err(|e| MethodError::selection("lapped-rigid", e))?;
         let mut clock = StageClock::default();
         clock.lap("selection");
         self.finish_frame(ctx, selected.scale, selected.counts, clock)
@@ -862,11 +863,6 @@ struct Selected {
     /// [`Method::save_state`]'s bytes.
     state: Vec<u8>,
     counts: FrameCounts,
-}
-
-/// A selection that does not read, in one line.
-fn selection_error(e: impl std::fmt::Display) -> MethodError {
-    MethodError::State(format!("lapped-rigid selection: {e}"))
 }
 
 /// The exemplar histogram of the composite: every tracker at P, weighted by

@@ -105,11 +105,7 @@ impl Optimization {
         ctx: &FrameContext<'_>,
         selection: &Selection,
     ) -> Result<FrameResult, MethodError> {
-        let Selection::Own(bytes) = selection else {
-            return Err(state_error(
-                "a replayed selection, which optimization does not write",
-            ));
-        };
+        let bytes = selection.own("optimization")?;
         let selected: Selected = postcard::from_bytes(bytes).map_err(state_error)?;
         self.show_frame(ctx.number);
         let mut result = FrameResult {
