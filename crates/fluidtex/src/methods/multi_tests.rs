@@ -450,3 +450,16 @@ end_header\n0 0 0 0\n1 0 0 1\n0 1 0 1\n3 0 1 2\n";
         Some(&Attribute::Scalar(vec![0.0, 1.0, 1.0]))
     );
 }
+
+#[test]
+fn selections_with_several_exemplars_resample_exactly() {
+    // The histogram strategy picks a new patch's exemplar from the
+    // frame's composite, and each patch shows its own exemplar: the
+    // selection carries the ids, and resampling alone picks the same.
+    let clip = scene("enright", 16, 3, 128);
+    for kind in [MethodKind::Erosion, MethodKind::LappedRigid] {
+        let make = || build(kind, black_white(ExemplarSelect::Histogram), 5);
+        let selections = super::selection_tests::round_trip_built(make, &clip);
+        assert!(selections.iter().all(|s| !s.needs_previous()), "{kind:?}");
+    }
+}

@@ -56,28 +56,33 @@ fn assert_same(label: &str, a: &FrameResult, b: &FrameResult) {
 /// Steps `kind` over `clip` in one pass, selects it in a second instance,
 /// and resamples every frame in a fresh third one; returns the selections.
 fn round_trip(params: &MethodParams, kind: MethodKind, clip: &Clip) -> Vec<Selection> {
-    let mut one_pass = build(params, kind);
-    let mut selecting = build(params, kind);
+    round_trip_built(|| build(params, kind), clip)
+}
+
+/// [`round_trip`] of the method `build` makes (the same one each call).
+pub(super) fn round_trip_built(build: impl Fn() -> Box<dyn Method>, clip: &Clip) -> Vec<Selection> {
+    let mut one_pass = build();
+    let mut selecting = build();
+    let name = one_pass.name();
     let mut selections = Vec::new();
     for k in 0..clip.meshes.len() {
         let expected = one_pass.step(&clip.ctx(k)).expect("step");
         let selection = selecting.select(&clip.ctx(k)).expect("select");
-        let mut fresh = build(params, kind);
+        let mut fresh = build();
         let mut ctx = clip.ctx(k);
         if !selection.needs_previous() {
             // The frame's geometry alone.
             ctx.previous = None;
         }
         let got = fresh.resample(&ctx, &selection).expect("resample");
-        assert_same(&format!("{} frame {k}", kind.name()), &expected, &got);
+        assert_same(&format!("{name} frame {k}"), &expected, &got);
         selections.push(selection);
     }
     // Selecting advanced the state as the one-pass run did.
     assert_eq!(
         one_pass.save_state().expect("state"),
         selecting.save_state().expect("state"),
-        "{}: state after the last frame",
-        kind.name()
+        "{name}: state after the last frame"
     );
     selections
 }
