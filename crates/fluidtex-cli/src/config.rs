@@ -288,9 +288,13 @@ impl Config {
 /// no section and no setting has).
 fn read_error(text: &str, path: &Path, e: toml::de::Error) -> anyhow::Error {
     let placed = |e: &toml::de::Error| e.span().is_some_and(|s| !s.is_empty());
-    let e = match MethodParams::check_sections(text) {
-        Err(section) if !placed(&e) && placed(&section) => section,
-        _ => e,
+    let e = if placed(&e) {
+        e
+    } else {
+        match MethodParams::check_sections(text) {
+            Err(section) if placed(&section) => section,
+            _ => e,
+        }
     };
     let start = match e.span() {
         Some(s) if !s.is_empty() => Some(s.start),

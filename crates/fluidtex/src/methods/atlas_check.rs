@@ -68,6 +68,19 @@ pub fn checker(p: glam::Vec3, cell: f32) -> [f32; 3] {
     .map(|v| v.clamp(0.0, 1.0))
 }
 
+impl AtlasCheck {
+    /// The cell size, fixed on the first frame with a surface (a
+    /// `cells_per_diagonal`-th of its bounding-box diagonal); 1 before.
+    fn fix_cell(&mut self, mesh: &crate::mesh::TriMesh) -> f32 {
+        if self.cell.is_none() && !mesh.is_empty() {
+            let (lo, hi) = mesh.bounding_box().unwrap_or_default();
+            self.cell =
+                Some((lo.distance(hi) / self.params.cells_per_diagonal).max(f32::MIN_POSITIVE));
+        }
+        self.cell.unwrap_or(1.0)
+    }
+}
+
 impl Method for AtlasCheck {
     fn name(&self) -> &'static str {
         "atlas-check"
@@ -103,12 +116,7 @@ impl Method for AtlasCheck {
         let mut clock = StageClock::default();
         let mesh = ctx.mesh;
         let atlas = ctx.atlas;
-        if self.cell.is_none() && !mesh.is_empty() {
-            let (lo, hi) = mesh.bounding_box().unwrap_or_default();
-            self.cell =
-                Some((lo.distance(hi) / self.params.cells_per_diagonal).max(f32::MIN_POSITIVE));
-        }
-        let cell = self.cell.unwrap_or(1.0);
+        let cell = self.fix_cell(mesh);
         let (colour, source) = paint_charts(atlas, 3, |span, bary, texel| {
             let [a, b, c] = mesh.corners(span.triangle as usize);
             let p = a * bary[0] + b * bary[1] + c * bary[2];
@@ -128,7 +136,7 @@ impl Method for AtlasCheck {
     /// The checker's cell, fixed on the first frame with a surface, is the
     /// whole selection: resampling paints the frame with it.
     fn select(&mut self, ctx: &FrameContext<'_>) -> Result<Selection, MethodError> {
-        self.step(ctx)?;
+        self.fix_cell(ctx.mesh);
         Ok(Selection::Own(self.save_state()?))
     }
 

@@ -169,8 +169,8 @@ impl Method for DualRest {
         let [a, b] = [0, 1].map(|k| self.layers[k].select(ctx));
         let selected = SavedDualRest {
             first: self.first,
-            a: own_bytes(a?)?,
-            b: own_bytes(b?)?,
+            a: a?.into_own(self.name())?,
+            b: b?.into_own(self.name())?,
         };
         Selection::encode(self.name(), &selected)
     }
@@ -204,17 +204,6 @@ impl Method for DualRest {
         self.layers[0].load_state(&saved.a)?;
         self.layers[1].load_state(&saved.b)?;
         Ok(())
-    }
-}
-
-/// A layer's own selection (the erosion family writes no other).
-fn own_bytes(selection: Selection) -> Result<Vec<u8>, MethodError> {
-    match selection {
-        Selection::Own(bytes) => Ok(bytes),
-        Selection::Replay(_) => Err(MethodError::selection(
-            "dual-rest",
-            "a layer replays its frame",
-        )),
     }
 }
 

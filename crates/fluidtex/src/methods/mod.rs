@@ -448,6 +448,14 @@ impl Selection {
         }
     }
 
+    /// [`Selection::own`], taking the bytes.
+    pub fn into_own(self, method: &str) -> Result<Vec<u8>, MethodError> {
+        match self {
+            Selection::Own(bytes) => Ok(bytes),
+            replayed => replayed.own(method).map(<[u8]>::to_vec),
+        }
+    }
+
     /// `selected` as `method`'s own selection (postcard).
     pub fn encode<T: Serialize>(method: &str, selected: &T) -> Result<Selection, MethodError> {
         postcard::to_allocvec(selected)

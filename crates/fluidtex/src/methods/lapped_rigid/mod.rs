@@ -211,7 +211,7 @@ fn location_key(at: SurfacePoint) -> u64 {
 }
 
 /// What a frame did, for `stats.F.json`.
-#[derive(Clone, Default, Serialize, Deserialize)]
+#[derive(Default, Serialize, Deserialize)]
 struct FrameCounts {
     deleted_left: usize,
     deleted_sink: usize,
@@ -290,8 +290,30 @@ impl LappedRigid {
     }
 
     /// The composite and the coverage update (stages 3–5) from the
-    /// prepared trackers, the deletion of the unused ones, and the frame's
-    /// result: the same in a one-pass step and in a resampled selection.
+    /// prepared trackers, and the deletion of the unused ones: what the
+    /// next frame's trackers are. The same in a step, a selection and a
+    /// resampled selection.
+    fn composite_frame(
+        &mut self,
+        ctx: &FrameContext<'_>,
+        scale: Option<(f32, f32)>,
+        counts: &mut FrameCounts,
+        clock: &mut StageClock,
+    ) -> Result<CompositeBuffers, MethodError> {
+        let atlas = ctx.atlas;
+        let channels = self.exemplar.total_channels();
+        let mut out = CompositeBuffers::new(atlas.width, atlas.height, channels).with_layers();
+        let used_ids = match scale {
+            Some(scale) => self.composite_and_cover(ctx, scale, &mut out, counts, clock)?,
+            None => Vec::new(),
+        };
+        counts.unused = self.delete_unused(used_ids);
+        clock.lap("delete");
+        Ok(out)
+    }
+
+    /// [`LappedRigid::composite_frame`] and the frame's result: the same in
+    /// a one-pass step and in a resampled selection.
     fn finish_frame(
         &mut self,
         ctx: &FrameContext<'_>,
@@ -299,17 +321,7 @@ impl LappedRigid {
         mut counts: FrameCounts,
         mut clock: StageClock,
     ) -> Result<FrameResult, MethodError> {
-        let atlas = ctx.atlas;
-        let channels = self.exemplar.total_channels();
-        let mut out = CompositeBuffers::new(atlas.width, atlas.height, channels).with_layers();
-        let used_ids = match scale {
-            Some(scale) => {
-                self.composite_and_cover(ctx, scale, &mut out, &mut counts, &mut clock)?
-            }
-            None => Vec::new(),
-        };
-        counts.unused = self.delete_unused(used_ids);
-        clock.lap("delete");
+        let out = self.composite_frame(ctx, scale, &mut counts, &mut clock)?;
         let mut result = self.frame_result(out, &counts);
         self.record_state_agreement(ctx, &mut result);
         result.timings = clock.stages;
@@ -757,12 +769,13 @@ impl Method for LappedRigid {
             tag: *SELECTION_TAG,
             scale,
             state: self.save_state()?,
-            counts: counts.clone(),
+            counts,
         };
         let selection = Selection::encode(self.name(), &selected)?;
         // The composite decides which trackers are made and kept, the
-        // state of the next frame.
-        self.finish_frame(ctx, scale, counts, clock)?;
+        // state of the next frame; the frame's channels are phase 2's.
+        let mut counts = selected.counts;
+        self.composite_frame(ctx, scale, &mut counts, &mut clock)?;
         Ok(selection)
     }
 
@@ -773,28 +786,18 @@ impl Method for LappedRigid {
     ) -> Result<FrameResult, MethodError> {
         let selected: Selected = selection.decode(self.name())?;
         if selected.tag != *SELECTION_TAG {
-            return Err(MethodError::selection(
-                "lapped-rigid",
-                "not one that lapped-rigid writes",
-            ));
+            return Err(MethodError::selection(self.name(), "another method's"));
         }
-        if selected.scale.is_some() == ctx.mesh.is_empty() {
+        let has_surface = !ctx.mesh.is_empty();
+        if selected.scale.is_some() != has_surface {
+            let made = if has_surface { "without" } else { "with" };
             return Err(MethodError::selection(
-                "lapped-rigid",
-                format!(
-                    "made for a frame {} a surface, and frame {} has {}",
-                    if selected.scale.is_some() {
-                        "with"
-                    } else {
-                        "without"
-                    },
-                    ctx.number,
-                    if ctx.mesh.is_empty() { "none" } else { "one" }
-                ),
+                self.name(),
+                format!("frame {}: made for a frame {made} a surface", ctx.number),
             ));
         }
         self.load_state(&selected.state)
-            .map_err(|e| MethodError::selection("lapped-rigid", e))?;
+            .map_err(|e| MethodError::selection(self.name(), e))?;
         let mut clock = StageClock::default();
         clock.lap("selection");
         self.finish_frame(ctx, selected.scale, selected.counts, clock)
