@@ -118,6 +118,10 @@ fn print_config_shows_the_resolved_preset() {
     assert_eq!(table["erosion"]["tone"].as_str(), Some("off"));
     assert_eq!(table["optimization"]["histogram"].as_str(), Some("paper"));
     assert_eq!(table["optimization"]["search"].as_str(), Some("exact"));
+    assert_eq!(
+        table["optimization"]["placement"].as_str(),
+        Some("repulsion")
+    );
     assert_eq!(table["lapped_rigid"]["coverage"].as_float(), Some(1.0));
     let plain = ok(&["run", "--print-config"]);
     let plain: toml::Table = toml::from_str(&plain).unwrap();

@@ -219,6 +219,7 @@ fn flag_of(key: &str) -> Option<String> {
         "erosion.random_rotation" => Some("--no-rotation".into()),
         "lapped_rigid.random_rotation" => Some("--rigid-no-rotation".into()),
         "lapped_rigid.mask" => Some("--mask".into()),
+        "optimization.placement" => Some("--point-placement".into()),
         "erosion.radius_fraction" | "erosion.exemplar_scale" | "erosion.normal_dot" => None,
         _ => match section {
             "lapped_rigid" => Some(format!("--rigid-{dashed}")),

@@ -181,6 +181,35 @@ fn lapped_rigid_selections_resample_exactly_with_random_placement() {
 }
 
 #[test]
+fn optimization_selections_with_scattered_points_resample_exactly() {
+    // The paper's placement: the frame's points are rebuilt from its mesh
+    // and the spacing the selection carries.
+    let clip = scene("vortex", 16, 3, 96);
+    let mut params = MethodParams::default();
+    params.optimization.points = 3000;
+    params.optimization.placement = crate::methods::optimization::Placement::Repulsion;
+    let selections = round_trip(&params, MethodKind::Optimization, &clip);
+    assert!(selections.iter().all(|s| !s.needs_previous()));
+    // A lattice run's selection (no spacing) does not fit scattered points,
+    // nor the other way round.
+    let mut lattice = params.clone();
+    lattice.optimization.placement = crate::methods::optimization::Placement::Lattice;
+    let from_lattice = build(&lattice, MethodKind::Optimization)
+        .select(&clip.ctx(0))
+        .expect("select");
+    for (make, selection) in [(&params, &from_lattice), (&lattice, &selections[0])] {
+        let err = build(make, MethodKind::Optimization)
+            .resample(&clip.ctx(0), selection)
+            .expect_err("misfit")
+            .to_string();
+        assert!(
+            err.contains("selection") && err.contains("placement"),
+            "{err}"
+        );
+    }
+}
+
+#[test]
 fn a_damaged_or_foreign_selection_is_refused_in_one_line() {
     let clip = scene("vortex", 16, 2, 64);
     let params = MethodParams::default();

@@ -3,7 +3,8 @@
 //! (m = 2^k), shared along edges and at corners, so the points of the
 //! finest level form a closed triangle mesh of the fluid surface.
 //!
-//! **Why a lattice and not random points + repulsion (the paper's Sec. IV-A).**
+//! **Why a lattice by default and not random points + repulsion (the
+//! paper's Sec. IV-A, selectable: [`Lattice::scattered`], [`super::scatter`]).**
 //! The paper places points by Turk's repulsion and re-tiles the surface
 //! with them (3–15 minutes per frame by its own account). A subdivision
 //! lattice gives the same three things the synthesis needs: (1) points at
@@ -17,7 +18,9 @@
 //! ([`Lattice::locate`]). The price is that point spacing follows the
 //! fluid mesh's triangle shapes (slivers stay slivers), within a factor of
 //! about two of the target; neighbourhood coordinates are measured in world
-//! units, so this changes sampling density, not texture scale.
+//! units, so this changes sampling density, not texture scale. Scattered
+//! points cost more: placing and re-tiling 200k points on three levels
+//! takes about 7 s a frame on 2 cores, against 0.3 s for the lattice.
 //!
 //! When the fluid mesh is already as coarse as a level asks for (m = 1),
 //! that level reuses the fluid vertices: denser than its texel size, which
@@ -27,6 +30,8 @@ use std::collections::HashMap;
 
 use glam::Vec3;
 
+pub use super::level::Level;
+use super::scatter::Scatter;
 use crate::mesh::TriMesh;
 
 /// The finest lattice of one frame: point ids, positions and normals.
@@ -46,6 +51,9 @@ pub struct Lattice {
     /// Position and unit normal of every point.
     pub positions: Vec<Vec3>,
     pub normals: Vec<Vec3>,
+    /// Scattered points in place of the lattice (`placement = "repulsion"`):
+    /// then every query below is answered by them.
+    scatter: Option<Box<Scatter>>,
 }
 
 fn edge_key(a: u32, b: u32) -> u64 {
@@ -138,7 +146,32 @@ impl Lattice {
             interior_per_triangle,
             positions,
             normals,
+            scatter: None,
         }
+    }
+
+    /// Random points spread by repulsion over `mesh` at spacing h, with
+    /// `levels` nested levels, drawn from `seed` ([`Scatter`]). `m` is 1
+    /// and `triangles` are the fluid mesh's own.
+    pub fn scattered(mesh: &TriMesh, h: f32, levels: usize, seed: u64) -> Lattice {
+        let scatter = Scatter::new(mesh, h, levels, seed);
+        Lattice {
+            m: 1,
+            triangles: mesh.triangles.clone(),
+            vertex_count: 0,
+            edges: HashMap::new(),
+            edge_count: 0,
+            row_offset: Vec::new(),
+            interior_per_triangle: 0,
+            positions: scatter.positions().to_vec(),
+            normals: scatter.normals().to_vec(),
+            scatter: Some(Box::new(scatter)),
+        }
+    }
+
+    /// Whether the points are scattered rather than a lattice.
+    pub fn is_scattered(&self) -> bool {
+        self.scatter.is_some()
     }
 
     /// Number of points.
@@ -181,6 +214,10 @@ impl Lattice {
     /// The three points and weights of the lattice cell (of stride
     /// `stride`) holding barycentric location `bary` of triangle `t`.
     pub fn locate_stride(&self, t: usize, bary: [f32; 3], stride: u32) -> [(u32, f32); 3] {
+        if let Some(s) = &self.scatter {
+            let (x, n) = s.fluid_point(self.triangles[t], bary);
+            return s.locate(s.level_index(stride), x, n);
+        }
         let n = (self.m / stride.max(1)).max(1);
         let nf = n as f32;
         let u = (bary[1] * nf).clamp(0.0, nf);
@@ -224,10 +261,9 @@ impl Lattice {
         }
     }
 
-    /// The level of stride `stride` (a power of two dividing m; values
-    /// above m are clamped to m: the fluid vertices themselves).
-    pub fn level(&self, stride: u32) -> Level {
-        let q = stride.clamp(1, self.m);
+    /// The lattice cells of stride `q` (a power of two dividing m) as
+    /// triangles of point ids, in each fluid triangle's orientation.
+    pub fn cells(&self, q: u32) -> Vec<[u32; 3]> {
         let n = self.m / q;
         let mut tris = Vec::with_capacity(self.triangles.len() * (n * n) as usize);
         for t in 0..self.triangles.len() {
@@ -241,6 +277,17 @@ impl Lattice {
                 }
             }
         }
+        tris
+    }
+
+    /// The level of stride `stride` (a power of two dividing m; values
+    /// above m are clamped to m: the fluid vertices themselves).
+    pub fn level(&self, stride: u32) -> Level {
+        if let Some(s) = &self.scatter {
+            return s.levels[s.level_index(stride)].clone();
+        }
+        let q = stride.clamp(1, self.m);
+        let tris = self.cells(q);
         let mut local = vec![u32::MAX; self.len()];
         let mut ids: Vec<u32> = tris.iter().flatten().copied().collect();
         ids.sort_unstable();
@@ -264,6 +311,9 @@ impl Lattice {
     /// (`to` ≤ `from`), writing into `out` indexed by fine point id. Points
     /// on shared edges are written by the first triangle that holds them.
     pub fn prolong(&self, from: &Level, values: &[f32], k: usize, to: &Level, out: &mut [f32]) {
+        if let Some(s) = &self.scatter {
+            return s.prolong(from, values, k, to, out);
+        }
         let mut done = vec![false; to.ids.len()];
         let (qf, qt) = (from.stride, to.stride);
         let nt = self.m / qt;
@@ -315,129 +365,5 @@ impl Lattice {
             up = to.smooth(&up, k);
         }
         up
-    }
-}
-
-/// One level of the hierarchy: a triangle mesh over a subset of the points.
-pub struct Level {
-    /// Lattice stride of this level (1: finest).
-    pub stride: u32,
-    /// Fine point id of each level vertex (ascending).
-    pub ids: Vec<u32>,
-    /// Fine point id → level vertex (u32::MAX when absent).
-    pub local: Vec<u32>,
-    pub positions: Vec<Vec3>,
-    pub normals: Vec<Vec3>,
-    pub triangles: Vec<[u32; 3]>,
-    adj_offsets: Vec<u32>,
-    adj: Vec<u32>,
-    tri_offsets: Vec<u32>,
-    vtris: Vec<u32>,
-    /// Mean edge length (world units).
-    pub mean_edge: f32,
-}
-
-impl Level {
-    fn new(
-        stride: u32,
-        positions: Vec<Vec3>,
-        normals: Vec<Vec3>,
-        ids: Vec<u32>,
-        local: Vec<u32>,
-        triangles: Vec<[u32; 3]>,
-    ) -> Level {
-        let n = positions.len();
-        let mut pairs: Vec<(u32, u32)> = Vec::with_capacity(triangles.len() * 6);
-        let mut vt: Vec<(u32, u32)> = Vec::with_capacity(triangles.len() * 3);
-        let mut edge_sum = 0.0f64;
-        let mut edge_n = 0usize;
-        for (t, tri) in triangles.iter().enumerate() {
-            for k in 0..3 {
-                let (a, b) = (tri[k], tri[(k + 1) % 3]);
-                pairs.push((a, b));
-                pairs.push((b, a));
-                vt.push((a, t as u32));
-                edge_sum += positions[a as usize].distance(positions[b as usize]) as f64;
-                edge_n += 1;
-            }
-        }
-        pairs.sort_unstable();
-        pairs.dedup();
-        vt.sort_unstable();
-        let csr = |list: &[(u32, u32)]| {
-            let mut off = vec![0u32; n + 1];
-            for &(a, _) in list {
-                off[a as usize + 1] += 1;
-            }
-            for i in 0..n {
-                off[i + 1] += off[i];
-            }
-            (off, list.iter().map(|&(_, b)| b).collect::<Vec<u32>>())
-        };
-        let (adj_offsets, adj) = csr(&pairs);
-        let (tri_offsets, vtris) = csr(&vt);
-        Level {
-            stride,
-            ids,
-            local,
-            positions,
-            normals,
-            triangles,
-            adj_offsets,
-            adj,
-            tri_offsets,
-            vtris,
-            mean_edge: if edge_n > 0 {
-                (edge_sum / edge_n as f64) as f32
-            } else {
-                0.0
-            },
-        }
-    }
-
-    pub fn len(&self) -> usize {
-        self.positions.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.positions.is_empty()
-    }
-
-    /// Vertices sharing an edge with `v` (ascending).
-    #[inline]
-    pub fn neighbours(&self, v: u32) -> &[u32] {
-        &self.adj[self.adj_offsets[v as usize] as usize..self.adj_offsets[v as usize + 1] as usize]
-    }
-
-    /// Triangles around `v` (ascending).
-    #[inline]
-    pub fn vertex_triangles(&self, v: u32) -> &[u32] {
-        &self.vtris
-            [self.tri_offsets[v as usize] as usize..self.tri_offsets[v as usize + 1] as usize]
-    }
-
-    /// Averages `k`-float values over each vertex and its 1-ring (Jacobi,
-    /// deterministic): the diffusion used after copying values up a level
-    /// and to filter values down one.
-    pub fn smooth(&self, values: &[f32], k: usize) -> Vec<f32> {
-        use rayon::prelude::*;
-        let mut out = vec![0.0f32; values.len()];
-        out.par_chunks_mut(k).enumerate().for_each(|(v, o)| {
-            let nb = self.neighbours(v as u32);
-            if nb.is_empty() {
-                o.copy_from_slice(&values[v * k..v * k + k]);
-                return;
-            }
-            let w_self = 1.0;
-            let w_n = 1.0 / nb.len() as f32;
-            for c in 0..k {
-                let mut s = 0.0;
-                for &u in nb {
-                    s += values[u as usize * k + c];
-                }
-                o[c] = (w_self * values[v * k + c] + w_n * s) / 2.0;
-            }
-        });
-        out
     }
 }

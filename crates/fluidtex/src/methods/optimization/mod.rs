@@ -6,7 +6,9 @@
 //! 1. [`lattice`]: points over the whole surface at about the target
 //!    spacing (the density follows the fluid mesh's triangles within about
 //!    a factor of two), connected into a triangle mesh, at `levels` nested
-//!    levels (Sec. IV-A; a departure, see `docs/departures.md`).
+//!    levels (Sec. IV-A; a departure, see `docs/departures.md`); or, with
+//!    `placement = "repulsion"`, [`scatter`]: random points spread by
+//!    repulsion and re-tiled, the paper's placement.
 //! 2. [`transport`]: the previous frame's colours (all channels) and
 //!    orientations carried to the new points through the flow (Sec. VI,
 //!    Eqs. 3–4).
@@ -32,11 +34,13 @@
 
 pub mod histogram;
 pub mod lattice;
+pub mod level;
 pub mod neighbourhood;
 pub mod orientation;
 pub mod output;
 mod params;
 pub mod polar;
+pub mod scatter;
 pub mod search;
 mod selection;
 pub mod solve;
@@ -54,7 +58,7 @@ use serde::{Deserialize, Serialize};
 
 use self::lattice::{Lattice, Level};
 use self::neighbourhood::Window;
-pub use self::params::{Histogram, OptimizationParams, Search};
+pub use self::params::{Histogram, OptimizationParams, Placement, Search};
 use self::search::{SearchIndex, WorkingExemplar};
 use super::{ChannelSpec, FrameContext, FrameResult, Method, MethodError, StageClock};
 use crate::exemplar::Exemplar;
@@ -280,10 +284,35 @@ impl Optimization {
             .filter(|p| !p.mesh.is_empty() && self.state.m > 0)?;
         let l = match cached {
             Some(l) if l.triangles.len() == p.mesh.triangle_count() && l.m == self.state.m => l,
-            _ => Lattice::new(p.mesh, self.state.m),
+            _ => match self.params.placement {
+                Placement::Lattice => Lattice::new(p.mesh, self.state.m),
+                Placement::Repulsion => self.points(p.mesh, self.state.spacing?),
+            },
         };
         (l.len() * k == self.state.values.len() && l.len() == self.state.orientation.len())
             .then_some(l)
+    }
+
+    /// Levels the points are built with: the first frame's or a later
+    /// frame's, whichever is more.
+    fn point_levels(&self) -> usize {
+        (self.params.levels.max(self.params.levels_after_first)) as usize
+    }
+
+    /// The frame's points at spacing `h`: a lattice, or scattered points
+    /// drawn from the seed and the mesh itself (so the previous frame's
+    /// are rebuilt from its mesh alone, after a resume or in a farm's
+    /// second phase).
+    fn points(&self, mesh: &crate::mesh::TriMesh, h: f32) -> Lattice {
+        match self.params.placement {
+            Placement::Lattice => Lattice::new(mesh, steps_for(mesh, h)),
+            Placement::Repulsion => Lattice::scattered(
+                mesh,
+                h,
+                self.point_levels(),
+                mix(self.seed, 0x5ca7, mesh_key(mesh)),
+            ),
+        }
     }
 
     /// Every channel resampled from the points into the atlas, and the
@@ -660,6 +689,21 @@ fn mix(seed: u64, stream: u64, index: u64) -> u64 {
     super::erosion::mix(seed, stream, index)
 }
 
+/// A 64-bit digest of `mesh` (positions and triangles), which seeds its
+/// scattered points: the same mesh gets the same points.
+fn mesh_key(mesh: &crate::mesh::TriMesh) -> u64 {
+    let mut key = mesh.positions.len() as u64;
+    for (i, p) in mesh.positions.iter().enumerate() {
+        let bits = u64::from(p.x.to_bits()) | (u64::from(p.y.to_bits()) << 32);
+        key = mix(key, bits, (i as u64) << 32 | u64::from(p.z.to_bits()));
+    }
+    for (i, t) in mesh.triangles.iter().enumerate() {
+        let bits = u64::from(t[0]) | (u64::from(t[1]) << 32);
+        key = mix(key, bits, (i as u64) << 32 | u64::from(t[2]));
+    }
+    key
+}
+
 /// Lattice steps per fluid edge for point spacing `h`: the power of two
 /// bringing the mean edge length closest to h (in ratio), at most 128.
 pub fn steps_for(mesh: &crate::mesh::TriMesh, h: f32) -> u32 {
@@ -773,8 +817,8 @@ impl Method for Optimization {
             }
             other => other,
         };
-        let m = steps_for(mesh, h);
-        let lattice = Lattice::new(mesh, m);
+        let lattice = self.points(mesh, h);
+        let m = lattice.m;
         let carried = prev_lattice.is_some();
         let synth_levels = if carried {
             self.params.levels_after_first

@@ -103,6 +103,15 @@ crate::methods::params::params! {
         #[serde(skip_serializing_if = "crate::methods::is_default")]
         pub orientation_smoothing: orientation::Smoothing = orientation::Smoothing::Projected
             => "orientation-smoothing" : "optimization: orientation smoothing by projected vectors (projected) or by polar angles through each vertex's polar map (polar, the paper's) [projected]",
+        /// How the points are placed \[lattice]: a subdivision lattice of the
+        /// fluid triangles, nested across levels
+        /// ([`lattice`](super::lattice)); `repulsion` draws random points and
+        /// spreads them by repulsion, then re-tiles the surface with them, as
+        /// the paper does (Sec. IV-A; [`scatter`](super::scatter); slower).
+        /// Left out of the settings at `lattice`.
+        #[serde(skip_serializing_if = "crate::methods::is_default")]
+        pub placement: Placement = Placement::Lattice
+            => "point-placement" : "optimization: points on a subdivision lattice of the fluid triangles (lattice) or random points spread by repulsion and re-tiled (repulsion, the paper's) [lattice]",
         /// RK4 steps per frame for transport \[1].
         pub substeps: u32 = 1
             => "substeps" : "optimization: RK4 substeps per frame of transport [1]",
@@ -223,6 +232,22 @@ pub enum Search {
 crate::named!(Search {
     Pca => "pca",
     Exact => "exact",
+});
+
+/// Where the points go ([`OptimizationParams::placement`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Placement {
+    /// A barycentric lattice subdividing every fluid triangle.
+    #[default]
+    Lattice,
+    /// Random points spread by repulsion and re-tiled (the paper's).
+    Repulsion,
+}
+
+crate::named!(Placement {
+    Lattice => "lattice",
+    Repulsion => "repulsion",
 });
 
 /// What the averaging step's result becomes before the next search.

@@ -8,8 +8,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::Optimization;
 use super::lattice::Lattice;
+use super::{Optimization, Placement};
 use crate::methods::{FrameContext, FrameResult, Method, MethodError, Selection};
 
 /// What [`Optimization::select_frame`] writes (`m` = 0: no surface).
@@ -20,6 +20,9 @@ struct Selected {
     lod: Option<f32>,
     /// `stats.F.json`'s method numbers.
     stats: Vec<(String, Json)>,
+    /// Point spacing of scattered points (`placement = "repulsion"`),
+    /// which are rebuilt from it and the mesh; `None` on a lattice.
+    spacing: Option<f32>,
 }
 
 /// A JSON value in a form postcard reads back (it cannot read an
@@ -93,6 +96,10 @@ impl Optimization {
             values: self.state.values.clone(),
             lod: self.last_lod,
             stats,
+            spacing: self
+                .state
+                .spacing
+                .filter(|_| self.params.placement == Placement::Repulsion),
         };
         postcard::to_allocvec(&selected)
             .map(Selection::Own)
@@ -126,7 +133,16 @@ impl Optimization {
                 selected.m
             )));
         }
-        let lattice = Lattice::new(ctx.mesh, selected.m);
+        let lattice = match (self.params.placement, selected.spacing) {
+            (Placement::Lattice, None) => Lattice::new(ctx.mesh, selected.m),
+            (Placement::Repulsion, Some(h)) if h.is_finite() && h > 0.0 => self.points(ctx.mesh, h),
+            (_, h) => {
+                return Err(state_error(format!(
+                    "point spacing {h:?} does not fit placement {:?}",
+                    self.params.placement
+                )));
+            }
+        };
         if lattice.len() * k != selected.values.len()
             || selected.values.iter().any(|v| !v.is_finite())
         {

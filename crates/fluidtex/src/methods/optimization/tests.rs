@@ -1141,3 +1141,85 @@ fn polar_smoothing_makes_neighbours_agree_on_a_sphere() {
     // What is left is mostly around the field's unavoidable singularities.
     assert!(last < before / 2.5, "{before} -> {last}");
 }
+
+#[test]
+fn scattered_points_are_deterministic_resume_exactly_and_differ_from_the_lattice() {
+    // The paper's placement: random points spread by repulsion. The
+    // previous frame's points are rebuilt from its mesh alone (the seed
+    // and the mesh draw them), so a resumed run carries the same texture.
+    let data = frames(3);
+    let params = || OptimizationParams {
+        placement: Placement::Repulsion,
+        ..small_params()
+    };
+    let go = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("pool");
+        pool.install(|| {
+            let mut m = Optimization::new(params(), pebbles(64), 1).expect("params");
+            run(&mut m, &data, 0)
+        })
+    };
+    let one = go(1);
+    let two = go(2);
+    assert_eq!(one, two);
+    let mut first = Optimization::new(params(), pebbles(64), 1).expect("params");
+    run(&mut first, &data[..2], 0);
+    let bytes = first.save_state().expect("save");
+    let mut resumed = Optimization::new(params(), pebbles(64), 1).expect("params");
+    resumed.load_state(&bytes).expect("load");
+    assert_eq!(run(&mut resumed, &data, 2)[0], one[2]);
+    // Control: the lattice gives another texture from the same seed.
+    let mut lattice = Optimization::new(small_params(), pebbles(64), 1).expect("params");
+    let other = run(&mut lattice, &data, 0);
+    for (a, b) in one.iter().zip(&other) {
+        assert_eq!(a.len(), b.len());
+        assert_ne!(a, b);
+    }
+    // A textured surface: not flat, and carried (later frames start from
+    // the transported texture, so they stay close to the first).
+    assert!(one[2].iter().any(|&v| (v - one[2][0]).abs() > 0.05));
+}
+
+#[test]
+fn scattered_points_keep_the_lattice_density_and_report_it() {
+    let data = frames(1);
+    let mut stats = Vec::new();
+    for placement in [Placement::Lattice, Placement::Repulsion] {
+        let params = OptimizationParams {
+            placement,
+            ..small_params()
+        };
+        let mut m = Optimization::new(params, pebbles(64), 1).expect("params");
+        let (mesh, index, atlas) = &data[0];
+        let ctx = FrameContext {
+            number: 0,
+            dt: 1.0 / 24.0,
+            mesh,
+            index,
+            topology: &crate::mesh::Topology::new(mesh.vertex_count(), &mesh.triangles),
+            normals: &mesh.vertex_normals(),
+            previous: None,
+            atlas,
+            arena: &crate::methods::arena::FRESH,
+        };
+        let r = m.step(&ctx).expect("step");
+        let get = |k: &str| r.stats[k].as_f64().expect(k);
+        stats.push((get("points"), get("spacing"), get("lattice_steps")));
+    }
+    let ((lattice, h, _), (scattered, h2, steps)) = (stats[0], stats[1]);
+    // The same spacing h, and about 2A / (√3 h²) points (area 4).
+    assert_eq!(h, h2);
+    let expected = 8.0 / (3f64.sqrt() * h * h);
+    assert!(
+        (scattered - expected).abs() <= 1.0,
+        "{scattered} {expected}"
+    );
+    assert!(
+        (0.5..2.0).contains(&(lattice / scattered)),
+        "{lattice} {scattered}"
+    );
+    assert_eq!(steps, 1.0);
+}
