@@ -1072,6 +1072,8 @@ mod tests {
                 "exact",
                 "vertex",
                 "polar",
+                "kept",
+                "repulsion",
                 "3,3,3",
             ]
             .iter()

@@ -87,6 +87,8 @@ fn the_paper_preset_changes_each_method_and_only_what_the_ledger_lists() {
         "forced",
         "--feature-filter",
         "mip",
+        "--eroded-triangles",
+        "dropped",
     ];
     run(&pattern, &restored, "erosion", &defaults);
     let (a, b) = (files(&dir.path().join("erosion-default")), files(&restored));

@@ -41,8 +41,8 @@ use serde::{Deserialize, Serialize};
 use self::erode::ErosionTest;
 use self::fill::{Candidates, FillBuffers, FillContext, LocateTolerance};
 pub use self::params::{
-    ErosionParams, Falloff, FeatureFilter, Orientation, PatchRegion, SeedCorners, SeedTexel,
-    WeightMode,
+    ErodedTriangles, ErosionParams, Falloff, FeatureFilter, Orientation, PatchRegion, SeedCorners,
+    SeedTexel, WeightMode,
 };
 use self::patch::{FrameSurface, Patch, PatchShape};
 pub use self::radius::{default_radius, median_edge_length};
@@ -130,8 +130,9 @@ pub struct Erosion {
     /// Each exemplar's statistics, measured on the first frame that
     /// matches its tone.
     tones: Option<Vec<ExemplarTone>>,
-    /// Whether wholly eroded triangles are dropped ([`Erosion::prune`]);
-    /// always, but for the tests' control run that shows what it bounds.
+    /// Whether wholly eroded and hidden triangles are dropped
+    /// ([`Erosion::prune`], [`Erosion::prune_hidden`]):
+    /// `eroded_triangles = "dropped"`.
     prune_eroded: bool,
 }
 
@@ -173,6 +174,7 @@ impl Erosion {
         seed: u64,
     ) -> Result<Erosion, MethodError> {
         params.validate()?;
+        let prune_eroded = params.eroded_triangles == ErodedTriangles::Dropped;
         Ok(Erosion {
             rules,
             params,
@@ -184,7 +186,7 @@ impl Erosion {
             dropped_by_reset: 0,
             multi: None,
             tones: None,
-            prune_eroded: true,
+            prune_eroded,
         })
     }
 

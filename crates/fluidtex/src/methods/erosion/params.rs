@@ -132,6 +132,12 @@ crate::methods::params::params! {
         #[serde(skip_serializing_if = "crate::methods::is_default")]
         pub feature_filter: FeatureFilter = FeatureFilter::Mip
             => "feature-filter" : "The erosion test reads the feature map at the atlas texel's mip level (mip) or at full resolution (full, the paper) [mip]",
+        /// What becomes of the patch triangles the erosion test erodes whole
+        /// for good \[dropped] (see [`ErodedTriangles`]). Left out of the
+        /// settings at its default.
+        #[serde(skip_serializing_if = "crate::methods::is_default")]
+        pub eroded_triangles: ErodedTriangles = ErodedTriangles::Dropped
+            => "eroded-triangles" : "Patch triangles eroded whole for good: dropped each frame (dropped) or kept until the patch dies (kept, the paper; memory grows with the run on a shearing flow) [dropped]",
     }
 }
 
@@ -326,6 +332,26 @@ crate::named!(Falloff {
 crate::named!(PatchRegion {
     Connected => "connected",
     Paper => "paper",
+});
+/// What becomes of a patch's triangles that can never show a texel again.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ErodedTriangles {
+    /// Dropped each frame, and edges stretched past δ_max are no longer
+    /// split ([`Erosion::prune`](super::Erosion)): a patch's cost follows
+    /// what it can still show, not the run's history.
+    #[default]
+    Dropped,
+    /// Kept until the patch shows nothing, as the paper keeps a patch
+    /// (hidden parts too: `hidden_reach` is then unused), and edges past
+    /// δ_max split as any other: on a flow that shears without end, a
+    /// patch's triangles and their splits grow with the length of the run.
+    Kept,
+}
+
+crate::named!(ErodedTriangles {
+    Dropped => "dropped",
+    Kept => "kept",
 });
 crate::named!(SeedCorners {
     Pinned => "pinned",
