@@ -899,6 +899,9 @@ pub fn normalised(texel: DVec2, width: u32, height: u32) -> Vec2 {
 
 #[cfg(test)]
 mod tests {
+    use rand::{Rng, SeedableRng};
+    use rand_pcg::Pcg64;
+
     use super::*;
     use crate::atlas::fixtures::{liquid_blob, splash};
     use crate::mesh::Topology;
@@ -1027,19 +1030,11 @@ mod tests {
         assert_eq!(bottom, 1 + 20);
     }
 
-    /// A small xorshift generator: test outlines without a seed dependency.
-    fn xorshift(state: &mut u64) -> u64 {
-        *state ^= *state << 13;
-        *state ^= *state >> 7;
-        *state ^= *state << 17;
-        *state
-    }
-
     #[test]
     fn random_outlines_never_overlap_nor_come_within_the_gutter() {
         for (seed, g) in [(1u64, 0), (2, 1), (3, 2), (4, 4)] {
-            let mut state = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15);
-            let mut next = |n: u64| (xorshift(&mut state) % n) as i32;
+            let mut rng = Pcg64::seed_from_u64(seed);
+            let mut next = |n: u64| rng.random_range(0..n) as i32;
             let grid = Grid {
                 cell: 1,
                 gutter: g,
