@@ -27,6 +27,19 @@ pub fn grid_triangles(nx: u32, ny: u32) -> Vec<[u32; 3]> {
     triangles
 }
 
+/// A flat square \[lo, hi]² at height `z`, `n × n` quads ([`grid_triangles`]),
+/// facing +z, or −z when `flip` (every triangle's corners reversed).
+pub fn square_sheet(n: u32, lo: f32, hi: f32, z: f32, flip: bool) -> TriMesh {
+    let at = move |k: u32| lo + (hi - lo) * (k as f32 / n as f32);
+    let positions = (0..=n)
+        .flat_map(|j| (0..=n).map(move |i| Vec3::new(at(i), at(j), z)))
+        .collect();
+    let triangles = (grid_triangles(n, n).into_iter())
+        .map(|t| if flip { [t[0], t[2], t[1]] } else { t })
+        .collect();
+    TriMesh::new(positions, triangles)
+}
+
 /// Unit sphere from an icosahedron whose faces are split into
 /// `frequency²` triangles each (20·frequency² triangles, frequency ≥ 1),
 /// counter-clockwise seen from outside.

@@ -156,29 +156,8 @@ mod tests {
 
     use super::*;
 
-    fn sheet(z: f32, flip: bool, n: usize) -> TriMesh {
-        let mut positions = Vec::new();
-        for j in 0..=n {
-            for i in 0..=n {
-                positions.push(Vec3::new(i as f32 / n as f32, j as f32 / n as f32, z));
-            }
-        }
-        let w = (n + 1) as u32;
-        let mut triangles = Vec::new();
-        for j in 0..n as u32 {
-            for i in 0..n as u32 {
-                let a = j * w + i;
-                let (t0, t1) = ([a, a + 1, a + w + 1], [a, a + w + 1, a + w]);
-                if flip {
-                    triangles.push([t0[0], t0[2], t0[1]]);
-                    triangles.push([t1[0], t1[2], t1[1]]);
-                } else {
-                    triangles.push(t0);
-                    triangles.push(t1);
-                }
-            }
-        }
-        TriMesh::new(positions, triangles)
+    fn sheet(z: f32, flip: bool, n: u32) -> TriMesh {
+        crate::atlas::fixtures::square_sheet(n, 0.0, 1.0, z, flip)
     }
 
     #[test]

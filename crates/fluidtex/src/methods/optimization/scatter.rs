@@ -505,29 +505,7 @@ mod tests {
     /// A flat square \[-1, 1]² at height `z`, n × n quads, facing +z (or −z
     /// when `flip`).
     fn square(n: u32, z: f32, flip: bool) -> TriMesh {
-        let mut positions = Vec::new();
-        for j in 0..=n {
-            for i in 0..=n {
-                let at = |k: u32| k as f32 / n as f32 * 2.0 - 1.0;
-                positions.push(Vec3::new(at(i), at(j), z));
-            }
-        }
-        let w = n + 1;
-        let mut triangles = Vec::new();
-        for j in 0..n {
-            for i in 0..n {
-                let a = j * w + i;
-                let (t1, t2) = ([a, a + 1, a + w + 1], [a, a + w + 1, a + w]);
-                if flip {
-                    triangles.push([t1[0], t1[2], t1[1]]);
-                    triangles.push([t2[0], t2[2], t2[1]]);
-                } else {
-                    triangles.push(t1);
-                    triangles.push(t2);
-                }
-            }
-        }
-        TriMesh::new(positions, triangles)
+        crate::atlas::fixtures::square_sheet(n, -1.0, 1.0, z, flip)
     }
 
     /// Distance from each point to its nearest other point, for the points

@@ -710,21 +710,27 @@ fn run(
         .collect()
 }
 
+/// [`run`] from frame 0 with `params` (seed 1, pebbles) on `threads` threads.
+fn run_on_threads(
+    threads: usize,
+    params: OptimizationParams,
+    data: &[(TriMesh, SurfaceIndex, Atlas)],
+) -> Vec<Vec<f32>> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("pool");
+    pool.install(|| {
+        let mut m = Optimization::new(params, pebbles(64), 1).expect("params");
+        run(&mut m, data, 0)
+    })
+}
+
 #[test]
 fn deterministic_across_thread_counts_and_resume_is_identical() {
     let data = frames(3);
-    let go = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .expect("pool");
-        pool.install(|| {
-            let mut m = Optimization::new(small_params(), pebbles(64), 1).expect("params");
-            run(&mut m, &data, 0)
-        })
-    };
-    let one = go(1);
-    let two = go(2);
+    let one = run_on_threads(1, small_params(), &data);
+    let two = run_on_threads(2, small_params(), &data);
     assert_eq!(one.len(), 3);
     for (a, b) in one.iter().zip(&two) {
         assert!(a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()));
@@ -1152,18 +1158,8 @@ fn scattered_points_are_deterministic_resume_exactly_and_differ_from_the_lattice
         placement: Placement::Repulsion,
         ..small_params()
     };
-    let go = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .expect("pool");
-        pool.install(|| {
-            let mut m = Optimization::new(params(), pebbles(64), 1).expect("params");
-            run(&mut m, &data, 0)
-        })
-    };
-    let one = go(1);
-    let two = go(2);
+    let one = run_on_threads(1, params(), &data);
+    let two = run_on_threads(2, params(), &data);
     assert_eq!(one, two);
     let mut first = Optimization::new(params(), pebbles(64), 1).expect("params");
     run(&mut first, &data[..2], 0);
