@@ -239,7 +239,7 @@ impl Scatter {
         (x, n.normalize_or_zero())
     }
 
-    /// [`Lattice::prolong`] on scattered points: a point of `to` that
+    /// [`Lattice::prolong`](super::lattice::Lattice::prolong) on scattered points: a point of `to` that
     /// `from` holds keeps its value (the levels are nested), any other
     /// takes the interpolation at its position in `from`'s mesh.
     pub fn prolong(&self, from: &Level, values: &[f32], k: usize, to: &Level, out: &mut [f32]) {
