@@ -228,6 +228,8 @@ fn keys_set_by(flag: &str, takes_value: bool, keys: &BTreeSet<String>) -> BTreeS
             "distance",
             "histogram",
             "off",
+            "kept",
+            "repulsion",
             "7,7,7",
             "a,b,c",
             "select",
@@ -353,6 +355,7 @@ fn documented_elsewhere(flag: &str) -> bool {
             "orientation-smoothing",
             "relaxation",
             "upsample-diffusion",
+            "point-placement",
             "preview-video",
             "prim",
         ]
@@ -388,6 +391,7 @@ fn disagreements(section: &str) -> Vec<String> {
     e.seed_corners = erosion::SeedCorners::Paper;
     e.seed_texel = erosion::SeedTexel::Paper;
     e.feature_filter = erosion::FeatureFilter::Full;
+    e.eroded_triangles = erosion::ErodedTriangles::Kept;
     all.extend(leaves(&switch_on));
     let mut keys: BTreeSet<String> = BTreeSet::new();
     for k in all.keys() {
