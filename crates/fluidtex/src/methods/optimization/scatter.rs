@@ -552,10 +552,7 @@ mod tests {
         };
         let (random_min, random_cv) = spread_after(0);
         let (min, cv) = spread_after(REPULSION_ITERATIONS);
-        let (min_more, cv_more) = spread_after(2 * REPULSION_ITERATIONS);
-        eprintln!(
-            "random {random_min} {random_cv}; repelled {min} {cv}; more {min_more} {cv_more}"
-        );
+        let (_, cv_more) = spread_after(2 * REPULSION_ITERATIONS);
         // Random points clump (the control); repelled ones keep apart.
         assert!(random_min < 0.1 * h && random_cv > 0.4);
         assert!(min > 0.6 * h && cv < 0.1, "{min} {cv}");
