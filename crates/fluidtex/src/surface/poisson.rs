@@ -101,6 +101,40 @@ impl DiskSet {
     }
 }
 
+/// Uniform random points on a mesh, by area: cumulative triangle areas
+/// pick the triangle, Osada et al. 2002's square-root rule the point in it.
+pub struct AreaDraw {
+    cdf: Vec<f64>,
+}
+
+impl AreaDraw {
+    pub fn new(mesh: &TriMesh) -> AreaDraw {
+        let mut total = 0.0f64;
+        let cdf = (0..mesh.triangles.len())
+            .map(|t| {
+                total += mesh.triangle_area(t) as f64;
+                total
+            })
+            .collect();
+        AreaDraw { cdf }
+    }
+
+    /// The mesh's area.
+    pub fn total(&self) -> f64 {
+        self.cdf.last().copied().unwrap_or(0.0)
+    }
+
+    /// A point drawn uniformly by area (the mesh must have a triangle; of
+    /// zero total area, the last triangle).
+    pub fn point<R: Rng>(&self, rng: &mut R) -> SurfacePoint {
+        let x = rng.random::<f64>() * self.total();
+        let t = (self.cdf.partition_point(|&c| c <= x)).min(self.cdf.len().saturating_sub(1));
+        let (r1, r2): (f32, f32) = (rng.random(), rng.random());
+        let s = r1.sqrt();
+        SurfacePoint::new(t as u32, [1.0 - s, s * (1.0 - r2), s * r2])
+    }
+}
+
 /// Poisson-disk samples on `mesh` with the given spacing. `candidates_per_sample`
 /// \[30] controls how close to maximal the set gets. Deterministic for a given RNG state.
 pub fn sample_mesh<R: Rng>(
@@ -113,13 +147,8 @@ pub fn sample_mesh<R: Rng>(
     if mesh.triangles.is_empty() || spacing <= 0.0 || !spacing.is_finite() {
         return Vec::new();
     }
-    // Cumulative areas for drawing triangles proportionally to area.
-    let mut cdf = Vec::with_capacity(mesh.triangles.len());
-    let mut total = 0.0f64;
-    for t in 0..mesh.triangles.len() {
-        total += mesh.triangle_area(t) as f64;
-        cdf.push(total);
-    }
+    let draw = AreaDraw::new(mesh);
+    let total = draw.total();
     if total <= 0.0 {
         return Vec::new();
     }
@@ -129,13 +158,8 @@ pub fn sample_mesh<R: Rng>(
     let mut set = DiskSet::new(spacing, normal_dot);
     let mut out = Vec::new();
     for _ in 0..count {
-        let x = rng.random::<f64>() * total;
-        let t = cdf.partition_point(|&c| c <= x).min(cdf.len() - 1);
-        // Uniform point in a triangle (Osada et al. 2002).
-        let (r1, r2): (f32, f32) = (rng.random(), rng.random());
-        let s = r1.sqrt();
-        let bary = [1.0 - s, s * (1.0 - r2), s * r2];
-        let location = SurfacePoint::new(t as u32, bary);
+        let location = draw.point(rng);
+        let t = location.triangle as usize;
         let position = location.position(mesh);
         let normal = mesh.triangle_normal(t);
         if set.try_insert(position, normal) {

@@ -44,12 +44,13 @@ use std::num::NonZeroUsize;
 
 use glam::Vec3;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
-use rand::{Rng, SeedableRng};
+use rand::SeedableRng;
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
 
 use super::level::Level;
 use crate::mesh::TriMesh;
+use crate::surface::poisson::AreaDraw;
 use crate::surface::{SurfaceIndex, SurfacePoint};
 
 /// Repulsion iterations per level \[20]: the paper names no count; after
@@ -83,24 +84,16 @@ struct Surface<'a> {
     mesh: &'a TriMesh,
     index: SurfaceIndex,
     normals: Vec<Vec3>,
-    /// Cumulative triangle areas, for drawing points by area.
-    cdf: Vec<f64>,
+    draw: AreaDraw,
 }
 
 impl<'a> Surface<'a> {
     fn new(mesh: &'a TriMesh) -> Surface<'a> {
-        let mut total = 0.0f64;
-        let cdf = (0..mesh.triangles.len())
-            .map(|t| {
-                total += mesh.triangle_area(t) as f64;
-                total
-            })
-            .collect();
         Surface {
             mesh,
             index: SurfaceIndex::new(mesh),
             normals: mesh.vertex_normals(),
-            cdf,
+            draw: AreaDraw::new(mesh),
         }
     }
 
@@ -116,19 +109,7 @@ impl<'a> Surface<'a> {
 
     /// A point drawn uniformly by area.
     fn random(&self, rng: &mut Pcg64) -> (Vec3, Vec3) {
-        let total = self.cdf.last().copied().unwrap_or(0.0);
-        let x = rng.random::<f64>() * total;
-        let t = self
-            .cdf
-            .partition_point(|&c| c <= x)
-            .min(self.cdf.len() - 1);
-        // Uniform in the triangle (Osada et al. 2002).
-        let (r1, r2): (f32, f32) = (rng.random(), rng.random());
-        let s = r1.sqrt();
-        self.point(SurfacePoint::new(
-            t as u32,
-            [1.0 - s, s * (1.0 - r2), s * r2],
-        ))
+        self.point(self.draw.point(rng))
     }
 
     /// The surface point closest to `x` within `reach`.
@@ -273,20 +254,11 @@ impl Scatter {
             return [(0, 1.0), (0, 0.0), (0, 0.0)];
         };
         let level = &self.levels[l];
-        let mut near = tree
-            .query(&x.to_array())
-            .nearest_n::<SquaredEuclidean<f32>>(NonZeroUsize::new(4).unwrap_or(NonZeroUsize::MIN))
-            .execute();
-        near.sort_unstable_by(|a, b| a.distance.total_cmp(&b.distance).then(a.item.cmp(&b.item)));
-        let facing: Vec<u32> = (near.iter())
-            .map(|c| c.item)
+        let near = nearest_four(tree, x);
+        let facing: Vec<u32> = (near.iter().copied())
             .filter(|&c| level.normals[c as usize].dot(n) > 0.0)
             .collect();
-        let nearest = facing
-            .first()
-            .copied()
-            .or(near.first().map(|c| c.item))
-            .unwrap_or(0);
+        let nearest = facing.first().or(near.first()).copied().unwrap_or(0);
         let mut best: Option<(f32, [u32; 3], [f32; 3])> = None;
         for &c in &facing {
             for &t in level.vertex_triangles(c) {
@@ -395,15 +367,23 @@ fn repel(
 /// The nearest of `points` to `x` whose normal agrees with `n` (among the
 /// four nearest; the nearest of all when none agrees).
 fn nearest_facing(tree: &ImmutableKdTree<f32, 3>, normals: &[Vec3], x: Vec3, n: Vec3) -> u32 {
+    let near = nearest_four(tree, x);
+    (near.iter())
+        .find(|&&c| normals[c as usize].dot(n) > 0.0)
+        .or(near.first())
+        .copied()
+        .unwrap_or(0)
+}
+
+/// The four points of `tree` nearest to `x`, nearest first (ties by id,
+/// so the order does not depend on how the tree was built).
+fn nearest_four(tree: &ImmutableKdTree<f32, 3>, x: Vec3) -> Vec<u32> {
     let mut near = tree
         .query(&x.to_array())
         .nearest_n::<SquaredEuclidean<f32>>(NonZeroUsize::new(4).unwrap_or(NonZeroUsize::MIN))
         .execute();
     near.sort_unstable_by(|a, b| a.distance.total_cmp(&b.distance).then(a.item.cmp(&b.item)));
-    (near.iter())
-        .find(|c| normals[c.item as usize].dot(n) > 0.0)
-        .or(near.first())
-        .map_or(0, |c| c.item)
+    near.into_iter().map(|c| c.item).collect()
 }
 
 /// The triangles connecting the points of `tree` (normals `normals`,
