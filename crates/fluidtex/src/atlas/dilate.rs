@@ -7,8 +7,10 @@
 //! row, then smaller column). Exact nearest neighbours are found per row
 //! pair: within row y + dy the nearest chart texel to column x is at one end
 //! of the chart run containing or adjacent to x, so a cursor per row walks
-//! the runs once while x increases, and a texel costs 2·radius + 1 lookups.
-//! Only texels within `radius` columns of a run in a nearby row are visited.
+//! the runs once while x increases, and a texel costs one lookup per row
+//! up to its nearest chart texel's row distance (rows are tried nearest
+//! first), at most 2·radius + 1. Only texels within `radius` columns of a
+//! run in a nearby row are visited.
 //!
 //! Sources are chart texels, which dilation never writes, so the result
 //! does not depend on order. Work is split by bands: nearest sources are
@@ -241,13 +243,27 @@ fn sources_in_band(
                     continue; // a chart texel
                 }
                 let mut best: Option<(i64, i64, i64)> = None;
-                for yy in ya..=yb {
+                // Rows nearest first (dy = 0, −1, +1, −2, ...): once dy²
+                // exceeds the best squared distance no farther row can
+                // beat or tie it, and its cursor catches up when next read.
+                for step in 0..=2 * r {
+                    let dy = if step % 2 == 1 {
+                        -(step + 1) / 2
+                    } else {
+                        step / 2
+                    };
+                    if best.is_some_and(|b| dy * dy > b.0) {
+                        break;
+                    }
+                    let yy = y as i64 + dy;
+                    if yy < ya || yy > yb {
+                        continue;
+                    }
                     let runs = rows.row(yy as u32);
                     let cur = &mut cursor[(yy - ya) as usize];
                     while *cur < runs.len() && (runs[*cur][1] as i64) <= x {
                         *cur += 1;
                     }
-                    let dy = yy - y as i64;
                     let mut consider = |xs: i64| {
                         let key = ((xs - x) * (xs - x) + dy * dy, yy, xs);
                         if key.0 <= r2 && best.is_none_or(|b| key < b) {

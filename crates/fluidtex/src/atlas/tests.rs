@@ -388,8 +388,10 @@ fn dilation_copies_the_nearest_chart_texel_and_leaves_charts_alone() {
     }
     let before = tex.clone();
     // The first dilation keeps its gutter map: the second radius is
-    // found afresh, the third reuses the map of the first.
-    for radius in [3i64, 1, 3] {
+    // found afresh, the third reuses the map of the first. The last is the
+    // run's radius (twice the default gutter), where the rows nearest
+    // first end most searches early.
+    for radius in [3i64, 1, 3, 8] {
         let mut tex = before.clone();
         atlas.dilate(&mut tex, radius as u32).expect("same size");
         let mut filled = 0;

@@ -193,7 +193,14 @@ pub(super) fn write_source_ids(
         channels: 1,
         data,
     };
-    let options = exr_channel_options();
+    // Ids are constant over each patch's piece of a row, which zlib after
+    // EXR's byte split and delta takes better than PIZ's wavelets: at
+    // 6144² (a splash frame, 1,200 charts) 5.1 MB in 1.1 s of CPU, where
+    // PIZ took 9.4 MB in 1.5 s.
+    let options = ExrOptions {
+        compression: crate::io::image::ExrCompression::Zip16,
+        ..exr_channel_options()
+    };
     let exact = source
         .par_iter()
         .with_min_len(1 << 16)

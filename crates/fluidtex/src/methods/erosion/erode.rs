@@ -97,7 +97,14 @@ impl ErosionTest {
     /// True when the texel is eroded (rejected) for weight `w`.
     #[inline]
     pub fn eroded(&self, feature: f32, u: f32, v: f32, w: f32) -> bool {
-        self.lhs(feature, u, v) < 1.0 - w
+        ErosionTest::eroded_lhs(self.lhs(feature, u, v), w)
+    }
+
+    /// [`ErosionTest::eroded`] once the left-hand side `lhs` is known: the
+    /// test at several weights of one point computes it once.
+    #[inline]
+    pub fn eroded_lhs(lhs: f32, w: f32) -> bool {
+        lhs < 1.0 - w
     }
 }
 

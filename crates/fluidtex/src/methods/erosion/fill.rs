@@ -323,9 +323,19 @@ impl FillContext<'_> {
     /// [`super::feature_levels`]).
     #[inline]
     pub fn kept(&self, i: u32, uv: Vec2, w: f32, lod: f32) -> bool {
+        !ErosionTest::eroded_lhs(self.erosion_lhs(i, uv, lod), w)
+    }
+
+    /// The left-hand side of patch `i`'s erosion test at uv `uv`, its
+    /// feature map read at level `lod` ([`ErosionTest::lhs`]): what
+    /// [`FillContext::kept`] compares with 1 − w. It does not depend on the
+    /// weight, so one point tested at several frames' weights reads the
+    /// feature map once ([`FillContext::resolve_with_holders`]).
+    #[inline]
+    pub(super) fn erosion_lhs(&self, i: u32, uv: Vec2, lod: f32) -> f32 {
         let (feature, test) = self.erosion_of(i);
         let f = feature.sample(uv.x, uv.y, lod);
-        !test.eroded(f, uv.x, uv.y, w)
+        test.lhs(f, uv.x, uv.y)
     }
 
     /// The feature map and erosion test of patch `i`.

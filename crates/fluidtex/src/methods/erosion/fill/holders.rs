@@ -18,8 +18,8 @@
 
 use glam::{Vec2, Vec3};
 
-use super::super::erode::Verdict;
-use super::{CornerData, FillContext, Hit, SpanCandidate, verdict_in};
+use super::super::erode::{ErosionTest, Verdict};
+use super::{CornerData, FillContext, Hit, Located, SpanCandidate, verdict_in};
 
 /// The longest transition, in frames ([`super::super::transition`]): each
 /// frame of it is one more lapped decision per texel in the fill.
@@ -72,11 +72,22 @@ impl FillContext<'_> {
                 continue;
             };
             let located = c.corners.located(c.tri, bary);
+            // Every frame's test at this point reads the same feature
+            // value and uv: only the weight differs.
+            let mut lhs = None;
             if hit.is_none() {
-                hit = self.decide(c.patch, located, c.verdict);
+                let kept = match c.verdict {
+                    Verdict::Kept => true,
+                    Verdict::Eroded => false,
+                    Verdict::Test => self.kept_with(&mut lhs, c.patch, located, located.w),
+                };
+                hit = kept.then_some(Hit {
+                    patch: c.patch,
+                    uv: located.uv,
+                });
             }
             for (level, holder) in holders.iter_mut().enumerate().take(levels) {
-                if holder.is_none() && self.held_at(c, bary, level) {
+                if holder.is_none() && self.held_at(c, bary, level, located, &mut lhs) {
                     let forced = Forced {
                         distorted: c.corners.distorted,
                         mismatched: c.corners.mismatched,
@@ -118,8 +129,18 @@ impl FillContext<'_> {
 
     /// Whether candidate `c`'s texel at barycentrics `bary` survived
     /// erosion at the weights of `level` + 1 frames before.
+    /// `located`: the point in `c` at this frame's weights, whose uv and
+    /// level every frame's test shares; `lhs`: the erosion test's
+    /// left-hand side there, once read.
     #[inline]
-    fn held_at(&self, c: &SpanCandidate, bary: [f32; 3], level: usize) -> bool {
+    fn held_at(
+        &self,
+        c: &SpanCandidate,
+        bary: [f32; 3],
+        level: usize,
+        located: Located,
+        lhs: &mut Option<f32>,
+    ) -> bool {
         let verdict = match level {
             0 => c.verdict_before,
             _ => self
@@ -131,8 +152,8 @@ impl FillContext<'_> {
             Verdict::Kept => true,
             Verdict::Eroded => false,
             Verdict::Test => {
-                let l = match level {
-                    0 => c.corners.located_before(c.tri, bary),
+                let w = match level {
+                    0 => c.corners.located_before(c.tri, bary).w,
                     _ => {
                         let patch = &self.patches[c.patch as usize];
                         let Some(weights) = patch
@@ -148,11 +169,21 @@ impl FillContext<'_> {
                             ..c.corners
                         }
                         .located(c.tri, bary)
+                        .w
                     }
                 };
-                self.kept(c.patch, l.uv, l.w, l.lod)
+                self.kept_with(lhs, c.patch, located, w)
             }
         }
+    }
+
+    /// [`FillContext::kept`] at `located` with weight `w`, reading the
+    /// left-hand side from `lhs` when an earlier test of the same point
+    /// read it (the same value: same patch, uv and level).
+    #[inline]
+    fn kept_with(&self, lhs: &mut Option<f32>, i: u32, located: Located, w: f32) -> bool {
+        let value = *lhs.get_or_insert_with(|| self.erosion_lhs(i, located.uv, located.lod));
+        !ErosionTest::eroded_lhs(value, w)
     }
 }
 
