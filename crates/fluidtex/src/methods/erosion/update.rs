@@ -227,27 +227,41 @@ impl<'u> Holes<'u> {
             frames.first().map_or(&[][..], Vec::as_slice),
             template.tolerance,
         );
-        let mut shown = 0usize;
-        for (f, list) in candidates.groups() {
-            let Some(texels) = self.by_triangle.get(&f) else {
-                continue;
-            };
-            let [a, b, c] = mesh.corners(f as usize);
-            let n = (b - a).cross(c - a).normalize_or_zero();
-            for &k in texels {
-                let k = k as usize;
-                if self.covered[k] {
-                    continue;
+        // The patch's hits, found in parallel by fluid triangle: a texel's
+        // hit depends only on the patch and the texel, and each texel lies
+        // in one fluid triangle, so writing them afterwards gives what a
+        // walk in order writes. The default (local) placement makes one
+        // patch at a time, so this is where the update uses every core.
+        let groups: Vec<(u32, &[(u32, u32)])> = candidates.groups().collect();
+        let (covered, by_triangle, uncovered) = (&self.covered, &self.by_triangle, self.uncovered);
+        let hits: Vec<(u32, Hit)> = groups
+            .par_iter()
+            .flat_map_iter(|&(f, list)| {
+                let mut found = Vec::new();
+                if let Some(texels) = by_triangle.get(&f) {
+                    let [a, b, c] = mesh.corners(f as usize);
+                    let n = (b - a).cross(c - a).normalize_or_zero();
+                    for &k in texels {
+                        if covered[k as usize] {
+                            continue;
+                        }
+                        let u = &uncovered[k as usize];
+                        let x = a * u.bary[0] + b * u.bary[1] + c * u.bary[2];
+                        if let Some(hit) = ctx.resolve(list, x, n) {
+                            found.push((k, hit));
+                        }
+                    }
                 }
-                let u = &self.uncovered[k];
-                let x = a * u.bary[0] + b * u.bary[1] + c * u.bary[2];
-                if let Some(hit) = ctx.resolve(list, x, n) {
-                    out.write(u.texel as usize, hit, patch.id, ctx.exemplar_of(0));
-                    self.covered[k] = true;
-                    shown += 1;
-                }
-            }
+                found
+            })
+            .collect();
+        let shown = hits.len();
+        for (k, hit) in hits {
+            let u = &self.uncovered[k as usize];
+            out.write(u.texel as usize, hit, patch.id, ctx.exemplar_of(0));
+            self.covered[k as usize] = true;
         }
+        let mut shown = shown;
         let forced = !self.covered[seed] && inputs.force_seed;
         if forced {
             // See the module doc: the creating texel is the patch centre.
