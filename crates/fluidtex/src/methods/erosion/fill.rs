@@ -38,12 +38,12 @@ use crate::methods::lapped::{BandResult, TexelBuffers, fill_bands};
 pub mod candidates;
 pub mod holders;
 
-pub(crate) use self::candidates::patch_pairs;
-#[cfg(test)]
-pub(crate) use self::candidates::prism_box;
+pub(crate) use self::candidates::patch_pairs_list;
 pub use self::candidates::{
     Candidates, FluidTriangle, FluidTriangles, LocateTolerance, TriFrame, patch_frames,
 };
+#[cfg(test)]
+pub(crate) use self::candidates::{patch_pairs, prism_box};
 
 pub use crate::provenance::{SOURCE_OUTSIDE as OUTSIDE, SOURCE_UNCOVERED as UNCOVERED};
 

@@ -305,10 +305,7 @@ impl PatchCandidates {
         frames: &[Option<TriFrame>],
         tolerance: LocateTolerance,
     ) -> PatchCandidates {
-        let mut pairs = Vec::new();
-        super::fill::patch_pairs(fluid, index, patch, frames, tolerance, |f, j| {
-            pairs.push((f, j));
-        });
+        let mut pairs = super::fill::patch_pairs_list(fluid, index, patch, frames, tolerance);
         pairs.sort_unstable();
         let entries = pairs.iter().map(|&(_, j)| (0, j)).collect();
         PatchCandidates { pairs, entries }
@@ -382,5 +379,51 @@ mod tests {
             checked += 1;
         }
         assert!(checked > 5, "{checked} patches");
+    }
+
+    /// The pair search split into ranges of patch triangles (on several
+    /// threads) lists exactly the pairs, in the order, of the search in
+    /// one piece, for ranges of 1, 3 and 64 triangles.
+    #[test]
+    fn pairs_searched_in_ranges_are_those_searched_in_one_piece() {
+        let c = scene("differential-rotation", 12, 1, 64);
+        let (mesh, index) = (&c.meshes[0], &c.indices[0]);
+        let surface = FrameSurface {
+            mesh,
+            topology: &c.topologies[0],
+            vertex_normals: &c.normals[0],
+            index: Some(index),
+        };
+        let (lo, hi) = mesh.bounding_box().expect("surface");
+        let radius = (hi - lo).length() / 8.0;
+        let shape = super::super::tests::shape(radius);
+        let tolerance = LocateTolerance::for_radius(radius);
+        let fluid = FluidTriangles::new(mesh);
+        let mut split = 0;
+        for t in (0..mesh.triangle_count() as u32).step_by(53) {
+            let at = SurfacePoint::new(t, [0.3, 0.3, 0.4]);
+            let Some(patch) = Patch::create(t, &surface, at, &shape, 0.7, None) else {
+                continue;
+            };
+            let frames = patch_frames(std::slice::from_ref(&patch));
+            let mut whole = Vec::new();
+            super::super::fill::patch_pairs(
+                &fluid,
+                index,
+                &patch,
+                &frames[0],
+                tolerance,
+                |f, j| whole.push((f, j)),
+            );
+            assert!(!whole.is_empty(), "patch at {t}");
+            for range in [1, 3, 64] {
+                let ranged = super::super::fill::candidates::patch_pairs_ranged(
+                    &fluid, index, &patch, &frames[0], tolerance, range,
+                );
+                assert_eq!(ranged, whole, "patch at {t}, ranges of {range}");
+            }
+            split += usize::from(patch.triangles.len() > 3);
+        }
+        assert!(split > 5, "{split} patches");
     }
 }

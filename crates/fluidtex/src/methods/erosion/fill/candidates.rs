@@ -239,45 +239,124 @@ pub(crate) fn patch_pairs(
     tolerance: LocateTolerance,
     mut emit: impl FnMut(u32, u32),
 ) {
-    let boxes: Vec<Option<(Vec3, Vec3)>> = patch
-        .triangles
-        .iter()
-        .zip(frames)
-        .map(|(t, frame)| {
-            let frame = frame.as_ref()?;
-            Some(prism_box(
-                t.map(|v| patch.positions[v as usize]),
-                frame,
-                tolerance,
-            ))
-        })
-        .collect();
-    let Some((lo, hi)) = boxes
-        .iter()
-        .flatten()
-        .copied()
-        .reduce(|(l0, h0), (l1, h1)| (l0.min(l1), h0.max(h1)))
-    else {
-        return;
+    if let Some(search) = PairSearch::new(index, patch, frames, tolerance) {
+        search.walk(fluid, frames, tolerance, 0..frames.len(), &mut emit);
+    }
+}
+
+/// [`patch_pairs`] as a list, the patch's triangles split between threads:
+/// each range of patch triangles keeps its own record of tested fluid
+/// triangles, and the ranges' pairs are joined in order, so the list is
+/// the one [`patch_pairs`] emits. For one large patch at a time (the
+/// update's), where nothing else runs beside it.
+pub(crate) fn patch_pairs_list(
+    fluid: &FluidTriangles,
+    index: &SurfaceIndex,
+    patch: &Patch,
+    frames: &[Option<TriFrame>],
+    tolerance: LocateTolerance,
+) -> Vec<(u32, u32)> {
+    /// Patch triangles per range: a few BVH-cell walks each, enough to
+    /// outweigh a range's own record.
+    const RANGE: usize = 64;
+    patch_pairs_ranged(fluid, index, patch, frames, tolerance, RANGE)
+}
+
+/// [`patch_pairs_list`] in ranges of `range` patch triangles.
+pub(crate) fn patch_pairs_ranged(
+    fluid: &FluidTriangles,
+    index: &SurfaceIndex,
+    patch: &Patch,
+    frames: &[Option<TriFrame>],
+    tolerance: LocateTolerance,
+    range: usize,
+) -> Vec<(u32, u32)> {
+    let range = range.max(1);
+    let Some(search) = PairSearch::new(index, patch, frames, tolerance) else {
+        return Vec::new();
     };
-    let grid = NearGrid::new(index, lo, hi);
-    // The patch triangle that last tested each gathered fluid triangle: one
-    // found in several cells of a query is tested once.
-    let mut tested = vec![u32::MAX; grid.triangles.len()];
-    for (j, (b, frame)) in boxes.iter().zip(frames).enumerate() {
-        let (Some((lo, hi)), Some(frame)) = (b, frame) else {
-            continue;
-        };
-        let (j, lo, hi) = (j as u32, *lo, *hi);
-        grid.visit(lo, hi, |k| {
-            let (f, (a, b)) = (grid.triangles[k], grid.boxes[k]);
-            if std::mem::replace(&mut tested[k], j) != j
-                && boxes_meet(a, b, lo, hi)
-                && fluid.get(f).is_some_and(|t| frame.may_cover(t, tolerance))
-            {
-                emit(f, j);
-            }
-        });
+    let ranges: Vec<std::ops::Range<usize>> = (0..frames.len())
+        .step_by(range)
+        .map(|a| a..(a + range).min(frames.len()))
+        .collect();
+    ranges
+        .into_par_iter()
+        .flat_map_iter(|range| {
+            let mut pairs = Vec::new();
+            search.walk(fluid, frames, tolerance, range, &mut |f, j| {
+                pairs.push((f, j))
+            });
+            pairs
+        })
+        .collect()
+}
+
+/// One patch's pair search: its triangles' prism boxes and the fluid
+/// triangles near the patch ([`patch_pairs`]).
+struct PairSearch {
+    boxes: Vec<Option<(Vec3, Vec3)>>,
+    grid: NearGrid,
+}
+
+impl PairSearch {
+    /// `None` when no triangle of the patch can hold a point.
+    fn new(
+        index: &SurfaceIndex,
+        patch: &Patch,
+        frames: &[Option<TriFrame>],
+        tolerance: LocateTolerance,
+    ) -> Option<PairSearch> {
+        let boxes: Vec<Option<(Vec3, Vec3)>> = patch
+            .triangles
+            .iter()
+            .zip(frames)
+            .map(|(t, frame)| {
+                let frame = frame.as_ref()?;
+                Some(prism_box(
+                    t.map(|v| patch.positions[v as usize]),
+                    frame,
+                    tolerance,
+                ))
+            })
+            .collect();
+        let (lo, hi) = boxes
+            .iter()
+            .flatten()
+            .copied()
+            .reduce(|(l0, h0), (l1, h1)| (l0.min(l1), h0.max(h1)))?;
+        let grid = NearGrid::new(index, lo, hi);
+        Some(PairSearch { boxes, grid })
+    }
+
+    /// Emits the pairs of the patch triangles in `range`, in order.
+    fn walk(
+        &self,
+        fluid: &FluidTriangles,
+        frames: &[Option<TriFrame>],
+        tolerance: LocateTolerance,
+        range: std::ops::Range<usize>,
+        emit: &mut impl FnMut(u32, u32),
+    ) {
+        let grid = &self.grid;
+        // The patch triangle that last tested each gathered fluid triangle:
+        // one found in several cells of a query is tested once.
+        let mut tested = vec![u32::MAX; grid.triangles.len()];
+        for j in range {
+            let (Some(Some((lo, hi))), Some(Some(frame))) = (self.boxes.get(j), frames.get(j))
+            else {
+                continue;
+            };
+            let (j, lo, hi) = (j as u32, *lo, *hi);
+            grid.visit(lo, hi, |k| {
+                let (f, (a, b)) = (grid.triangles[k], grid.boxes[k]);
+                if std::mem::replace(&mut tested[k], j) != j
+                    && boxes_meet(a, b, lo, hi)
+                    && fluid.get(f).is_some_and(|t| frame.may_cover(t, tolerance))
+                {
+                    emit(f, j);
+                }
+            });
+        }
     }
 }
 
