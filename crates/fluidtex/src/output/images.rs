@@ -195,8 +195,9 @@ pub(super) fn write_source_ids(
     };
     // Ids are constant over each patch's piece of a row, which zlib after
     // EXR's byte split and delta takes better than PIZ's wavelets: at
-    // 6144² (a splash frame, 1,200 charts) 5.1 MB in 1.1 s of CPU, where
-    // PIZ took 9.4 MB in 1.5 s.
+    // 6144² (a splash frame, 1,200 charts) 5.1 MB where PIZ took 9.4 MB,
+    // for about the same CPU (1.1–1.5 s of one core either way, measured
+    // alone and in a whole run).
     let options = ExrOptions {
         compression: crate::io::image::ExrCompression::Zip16,
         ..exr_channel_options()
