@@ -7,6 +7,14 @@
 //! update only ever re-tests the uncovered texels, and only those whose
 //! fluid triangle lies near the new patch.
 //!
+//! **Cores.** The default placement makes one patch at a time, each
+//! depending on what the ones before it covered, so the loop itself is
+//! sequential. Within one patch the work is split: its candidate pairs are
+//! searched in ranges of patch triangles, and its hits found by fluid
+//! triangle, on every core, then written in order (the same texels and
+//! values as a walk in order: each texel lies in one fluid triangle and its
+//! hit depends only on the patch).
+//!
 //! Two placements:
 //! - [`Placement::Local`], the paper's: a new patch at the first uncovered
 //!   texel in atlas order, fill what it covers, repeat.

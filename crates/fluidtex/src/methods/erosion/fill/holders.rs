@@ -14,7 +14,10 @@
 //! The search walks the candidates once, in the fill's order, and goes past
 //! this frame's hit only while some earlier frame has no holder yet (weights
 //! that rise again, a texel new to the surface), so it costs little beyond
-//! the hit's own search.
+//! the hit's own search. A point's erosion test at this frame's and at
+//! the earlier frames' weights reads the feature map once: the test's
+//! left-hand side depends on the point's patch uv and feature level, not
+//! on the weight (on a splash frame at 6144², 13–19 % off the fill).
 
 use glam::{Vec2, Vec3};
 
