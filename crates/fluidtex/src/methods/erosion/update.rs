@@ -340,60 +340,18 @@ impl PatchCandidates {
 mod tests {
     use super::super::fill::Candidates;
     use super::*;
+    use crate::mesh::TriMesh;
     use crate::methods::test_clip::scene;
     use crate::surface::SurfacePoint;
 
-    /// The sparse candidates of a new patch are those of the whole-mesh
-    /// array, fluid triangle by fluid triangle and in the same order, for
-    /// patches all over a curved surface (so the update's results are
-    /// unchanged; the golden outputs check the same end to end).
-    #[test]
-    fn patch_candidates_are_those_of_the_whole_mesh_array() {
-        let c = scene("differential-rotation", 12, 1, 64);
-        let (mesh, index) = (&c.meshes[0], &c.indices[0]);
-        let surface = FrameSurface {
-            mesh,
-            topology: &c.topologies[0],
-            vertex_normals: &c.normals[0],
-            index: Some(index),
-        };
-        let (lo, hi) = mesh.bounding_box().expect("surface");
-        let radius = (hi - lo).length() / 8.0;
-        let shape = super::super::tests::shape(radius);
-        let tolerance = LocateTolerance::for_radius(radius);
-        let mut checked = 0;
-        for t in (0..mesh.triangle_count() as u32).step_by(37) {
-            let at = SurfacePoint::new(t, [0.2, 0.3, 0.5]);
-            let Some(patch) = Patch::create(t, &surface, at, &shape, 0.3, None) else {
-                continue;
-            };
-            let one = std::slice::from_ref(&patch);
-            let frames = patch_frames(one);
-            let fluid = FluidTriangles::new(mesh);
-            let whole = Candidates::build(&fluid, index, one, &frames, tolerance);
-            let local = PatchCandidates::build(&fluid, index, &patch, &frames[0], tolerance);
-            let mut groups = local.groups();
-            let mut fluid = 0;
-            for f in 0..mesh.triangle_count() as u32 {
-                let want = whole.of(f);
-                if want.is_empty() {
-                    continue;
-                }
-                assert_eq!(groups.next(), Some((f, want)), "patch at {t}");
-                fluid += 1;
-            }
-            assert_eq!(groups.next(), None, "patch at {t}");
-            assert!(fluid > 10, "patch at {t}: {fluid} fluid triangles");
-            checked += 1;
-        }
-        assert!(checked > 5, "{checked} patches");
-    }
-
-    /// The pair search split into ranges of patch triangles (on several
-    /// threads) lists exactly the pairs, in the order, of the search in
-    /// one piece, for ranges of 1, 3 and 64 triangles.
-    #[test]
-    fn pairs_searched_in_ranges_are_those_searched_in_one_piece() {
+    /// New patches made every `step`-th triangle of the differential
+    /// rotation's first frame (radius 1/8 of its box diagonal), each
+    /// handed to `visit` with the frame's mesh, index and triangles and
+    /// the locating tolerance.
+    fn each_patch(
+        step: usize,
+        mut visit: impl FnMut(u32, &Patch, &TriMesh, &SurfaceIndex, &FluidTriangles, LocateTolerance),
+    ) {
         let c = scene("differential-rotation", 12, 1, 64);
         let (mesh, index) = (&c.meshes[0], &c.indices[0]);
         let surface = FrameSurface {
@@ -407,31 +365,64 @@ mod tests {
         let shape = super::super::tests::shape(radius);
         let tolerance = LocateTolerance::for_radius(radius);
         let fluid = FluidTriangles::new(mesh);
+        for t in (0..mesh.triangle_count() as u32).step_by(step) {
+            let at = SurfacePoint::new(t, [0.2, 0.3, 0.5]);
+            if let Some(patch) = Patch::create(t, &surface, at, &shape, 0.3, None) {
+                visit(t, &patch, mesh, index, &fluid, tolerance);
+            }
+        }
+    }
+
+    /// The sparse candidates of a new patch are those of the whole-mesh
+    /// array, fluid triangle by fluid triangle and in the same order, for
+    /// patches all over a curved surface (so the update's results are
+    /// unchanged; the golden outputs check the same end to end).
+    #[test]
+    fn patch_candidates_are_those_of_the_whole_mesh_array() {
+        let mut checked = 0;
+        each_patch(37, |t, patch, mesh, index, fluid, tolerance| {
+            let one = std::slice::from_ref(patch);
+            let frames = patch_frames(one);
+            let whole = Candidates::build(fluid, index, one, &frames, tolerance);
+            let local = PatchCandidates::build(fluid, index, patch, &frames[0], tolerance);
+            let mut groups = local.groups();
+            let mut covered = 0;
+            for f in 0..mesh.triangle_count() as u32 {
+                let want = whole.of(f);
+                if want.is_empty() {
+                    continue;
+                }
+                assert_eq!(groups.next(), Some((f, want)), "patch at {t}");
+                covered += 1;
+            }
+            assert_eq!(groups.next(), None, "patch at {t}");
+            assert!(covered > 10, "patch at {t}: {covered} fluid triangles");
+            checked += 1;
+        });
+        assert!(checked > 5, "{checked} patches");
+    }
+
+    /// The pair search split into ranges of patch triangles (on several
+    /// threads) lists exactly the pairs, in the order, of the search in
+    /// one piece, for ranges of 1, 3 and 64 triangles.
+    #[test]
+    fn pairs_searched_in_ranges_are_those_searched_in_one_piece() {
         let mut split = 0;
-        for t in (0..mesh.triangle_count() as u32).step_by(53) {
-            let at = SurfacePoint::new(t, [0.3, 0.3, 0.4]);
-            let Some(patch) = Patch::create(t, &surface, at, &shape, 0.7, None) else {
-                continue;
-            };
-            let frames = patch_frames(std::slice::from_ref(&patch));
+        each_patch(53, |t, patch, _, index, fluid, tolerance| {
+            let frames = patch_frames(std::slice::from_ref(patch));
             let mut whole = Vec::new();
-            super::super::fill::patch_pairs(
-                &fluid,
-                index,
-                &patch,
-                &frames[0],
-                tolerance,
-                |f, j| whole.push((f, j)),
-            );
+            super::super::fill::patch_pairs(fluid, index, patch, &frames[0], tolerance, |f, j| {
+                whole.push((f, j))
+            });
             assert!(!whole.is_empty(), "patch at {t}");
             for range in [1, 3, 64] {
                 let ranged = super::super::fill::candidates::patch_pairs_ranged(
-                    &fluid, index, &patch, &frames[0], tolerance, range,
+                    fluid, index, patch, &frames[0], tolerance, range,
                 );
                 assert_eq!(ranged, whole, "patch at {t}, ranges of {range}");
             }
             split += usize::from(patch.triangles.len() > 3);
-        }
+        });
         assert!(split > 5, "{split} patches");
     }
 }
