@@ -283,10 +283,23 @@ impl FillContext<'_> {
     /// texel there survives erosion.
     #[inline]
     pub(super) fn decide(&self, i: u32, l: Located, verdict: Verdict) -> Option<Hit> {
+        self.decide_with(&mut None, i, l, verdict)
+    }
+
+    /// [`FillContext::decide`], reading the erosion test's left-hand side
+    /// at `l` from `lhs` when it was read already (and keeping it there).
+    #[inline]
+    pub(super) fn decide_with(
+        &self,
+        lhs: &mut Option<f32>,
+        i: u32,
+        l: Located,
+        verdict: Verdict,
+    ) -> Option<Hit> {
         let kept = match verdict {
             Verdict::Kept => true,
             Verdict::Eroded => false,
-            Verdict::Test => self.kept(i, l.uv, l.w, l.lod),
+            Verdict::Test => self.kept_with(lhs, i, l, l.w),
         };
         kept.then_some(Hit { patch: i, uv: l.uv })
     }
@@ -324,6 +337,21 @@ impl FillContext<'_> {
     #[inline]
     pub fn kept(&self, i: u32, uv: Vec2, w: f32, lod: f32) -> bool {
         !ErosionTest::eroded_lhs(self.erosion_lhs(i, uv, lod), w)
+    }
+
+    /// [`FillContext::kept`] at `located` with weight `w`, reading the
+    /// left-hand side from `lhs` when an earlier test of the same point
+    /// read it (the same value: same patch, uv and level).
+    #[inline]
+    pub(super) fn kept_with(
+        &self,
+        lhs: &mut Option<f32>,
+        i: u32,
+        located: Located,
+        w: f32,
+    ) -> bool {
+        let value = *lhs.get_or_insert_with(|| self.erosion_lhs(i, located.uv, located.lod));
+        !ErosionTest::eroded_lhs(value, w)
     }
 
     /// The left-hand side of patch `i`'s erosion test at uv `uv`, its

@@ -263,13 +263,12 @@ impl<'u> Holes<'u> {
                 found
             })
             .collect();
-        let shown = hits.len();
+        let mut shown = hits.len();
         for (k, hit) in hits {
             let u = &self.uncovered[k as usize];
             out.write(u.texel as usize, hit, patch.id, ctx.exemplar_of(0));
             self.covered[k as usize] = true;
         }
-        let mut shown = shown;
         let forced = !self.covered[seed] && inputs.force_seed;
         if forced {
             // See the module doc: the creating texel is the patch centre.

@@ -21,7 +21,7 @@
 
 use glam::{Vec2, Vec3};
 
-use super::super::erode::{ErosionTest, Verdict};
+use super::super::erode::Verdict;
 use super::{CornerData, FillContext, Hit, Located, SpanCandidate, verdict_in};
 
 /// The longest transition, in frames ([`super::super::transition`]): each
@@ -79,15 +79,7 @@ impl FillContext<'_> {
             // value and uv: only the weight differs.
             let mut lhs = None;
             if hit.is_none() {
-                let kept = match c.verdict {
-                    Verdict::Kept => true,
-                    Verdict::Eroded => false,
-                    Verdict::Test => self.kept_with(&mut lhs, c.patch, located, located.w),
-                };
-                hit = kept.then_some(Hit {
-                    patch: c.patch,
-                    uv: located.uv,
-                });
+                hit = self.decide_with(&mut lhs, c.patch, located, c.verdict);
             }
             for (level, holder) in holders.iter_mut().enumerate().take(levels) {
                 if holder.is_none() && self.held_at(c, bary, level, located, &mut lhs) {
@@ -178,15 +170,6 @@ impl FillContext<'_> {
                 self.kept_with(lhs, c.patch, located, w)
             }
         }
-    }
-
-    /// [`FillContext::kept`] at `located` with weight `w`, reading the
-    /// left-hand side from `lhs` when an earlier test of the same point
-    /// read it (the same value: same patch, uv and level).
-    #[inline]
-    fn kept_with(&self, lhs: &mut Option<f32>, i: u32, located: Located, w: f32) -> bool {
-        let value = *lhs.get_or_insert_with(|| self.erosion_lhs(i, located.uv, located.lod));
-        !ErosionTest::eroded_lhs(value, w)
     }
 }
 
