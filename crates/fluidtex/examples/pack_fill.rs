@@ -44,7 +44,7 @@ fn report(name: &str, mesh: &TriMesh, side: u32) {
         }
     };
     println!(
-        "{name:>12} {:7} tris {:5} charts  fill {:5.1}%  scale {:9.2}  segmentation {:6.1} ms  lscm {:6.1} ms  packing {:7.1} ms  rasterization {:5.1} ms  p95 {:.3}  overlap {}",
+        "{name:>12} {:7} tris {:5} charts  fill {:5.1}%  scale {:9.2}  segmentation {:6.1} ms  lscm {:6.1} ms  packing {:7.1} ms ({} tries)  rasterization {:5.1} ms  p95 {:.3}  overlap {}",
         mesh.triangles.len(),
         atlas.chart_count,
         100.0 * stats.fill_ratio,
@@ -52,6 +52,7 @@ fn report(name: &str, mesh: &TriMesh, side: u32) {
         atlas.timings.segmentation.as_secs_f64() * 1e3,
         atlas.timings.lscm.as_secs_f64() * 1e3,
         atlas.timings.packing.as_secs_f64() * 1e3,
+        atlas.timings.packing_attempts,
         atlas.timings.rasterization.as_secs_f64() * 1e3,
         stats.p95,
         stats.overlapping_texels,
