@@ -44,7 +44,7 @@ pub enum Command {
     Compare(Box<commands::compare::CompareArgs>),
     /// Show an output folder in a web browser: play, scrub, texture / patch view, stats
     View(commands::view::ViewArgs),
-    /// Run a shot on a render farm's scheduler (Slurm), in two phases
+    /// Run a shot on a render farm's scheduler (Slurm, Open Job Description), in two phases
     Farm(commands::farm::FarmArgs),
     /// Converts a USD stage to PLY frames (run by `--mesh FILE.usd`, in a
     /// child process so a damaged file cannot bring the tool down)

@@ -2,8 +2,10 @@
 //! chunks, phase-2 chunk k after phase-1 chunk k), what it refuses, and a
 //! shot submitted to a real single-node Slurm cluster
 //! (`tools/slurm_cluster.sh`) whose files are byte for byte those of a
-//! one-pass run. Without Slurm here that test says so and is skipped,
-//! except with FLUIDTEX_REQUIRE_TOOLS=1 (CI), where it must run.
+//! one-pass run. `fluidtex farm openjd`: the job template, checked and run
+//! by the Open Job Description command line (`openjd`), to the same bytes.
+//! Without Slurm or `openjd` here those tests say so and are skipped,
+//! except with FLUIDTEX_REQUIRE_TOOLS=1 (CI), where they must run.
 
 #![allow(clippy::unwrap_used)]
 
@@ -32,7 +34,15 @@ fn shot(pattern: &Path, out: &Path) -> Vec<std::ffi::OsString> {
 }
 
 fn farm(options: &[&str], run: &[std::ffi::OsString]) -> Vec<std::ffi::OsString> {
-    let mut a: Vec<std::ffi::OsString> = vec!["farm".into(), "slurm".into()];
+    farm_on("slurm", options, run)
+}
+
+fn farm_on(
+    scheduler: &str,
+    options: &[&str],
+    run: &[std::ffi::OsString],
+) -> Vec<std::ffi::OsString> {
+    let mut a: Vec<std::ffi::OsString> = vec!["farm".into(), scheduler.into()];
     a.extend(options.iter().map(std::ffi::OsString::from));
     a.push("--".into());
     a.extend(run.iter().cloned());
@@ -299,4 +309,205 @@ fn a_shots_file_writes_each_shot_and_names_the_shot_it_refuses() {
     std::fs::write(&bad, "[[shot]]\nargz = []\n").unwrap();
     let err = user_error(&run(&bad));
     assert!(err.contains("bad.toml: unknown field `argz`"), "{err}");
+}
+
+/// The Open Job Description command line: `FLUIDTEX_OPENJD`, the one
+/// `.ci/run` installs (`.tools/openjd/bin/openjd`), or `openjd` on the
+/// path. `None` (the test skipped) when there is none, unless
+/// FLUIDTEX_REQUIRE_TOOLS=1.
+fn openjd() -> Option<PathBuf> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let candidates = [
+        std::env::var_os("FLUIDTEX_OPENJD").map(PathBuf::from),
+        Some(root.join(".tools/openjd/bin/openjd")),
+        Some(PathBuf::from("openjd")),
+    ];
+    for c in candidates.into_iter().flatten() {
+        let works = Command::new(&c)
+            .arg("--version")
+            .output()
+            .is_ok_and(|o| o.status.success());
+        if works {
+            return Some(c);
+        }
+    }
+    missing_tool(
+        "the Open Job Description test",
+        "no `openjd`: run `python3 -m venv .tools/openjd && .tools/openjd/bin/pip install \
+         openjd-cli==0.8.0` at the workspace root, or set FLUIDTEX_OPENJD",
+    );
+    None
+}
+
+fn read_json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+#[test]
+fn the_job_template_selects_the_shot_once_then_resamples_each_chunk() {
+    let dir = tempfile::tempdir().unwrap();
+    let pattern = small_vortex(dir.path());
+    let out = dir.path().join("shot");
+    let mut run = shot(&pattern, &out);
+    run.extend(["--frames".into(), "1-5".into()]);
+    let said = ok(&farm_on("openjd", &["--chunk", "2", "--cpus", "3"], &run));
+    assert!(said.contains("3 chunks of 2 frames"), "{said}");
+    let path = out.join("farm/openjd/template.json");
+    let t = read_json(&path);
+    assert_eq!(t["specificationVersion"], "jobtemplate-2023-09");
+    assert_eq!(t["parameterDefinitions"][1]["name"], "Threads");
+    assert_eq!(t["parameterDefinitions"][1]["default"], 3);
+    let steps = t["steps"].as_array().unwrap();
+    assert_eq!(steps.len(), 2);
+    assert_eq!(steps[0]["name"], "Select");
+    assert!(steps[0].get("parameterSpace").is_none(), "one phase-1 task");
+    assert_eq!(steps[1]["name"], "Resample");
+    assert_eq!(steps[1]["dependencies"][0]["dependsOn"], "Select");
+    // 5 frames in chunks of 2: three tasks, the last of one frame.
+    let space = &steps[1]["parameterSpace"]["taskParameterDefinitions"][0];
+    assert_eq!(space["name"], "Chunk");
+    assert_eq!(space["range"], "0-2");
+    for s in steps {
+        assert_eq!(
+            s["hostRequirements"]["amounts"][0]["name"],
+            "amount.worker.vcpu"
+        );
+        assert_eq!(s["hostRequirements"]["amounts"][0]["min"], 3);
+    }
+    // Each step's script, run by bash as the template's action runs it,
+    // with a stand-in for fluidtex that records its threads and arguments.
+    let fake = dir.path().join("fake-fluidtex");
+    let record = dir.path().join("record");
+    std::fs::write(
+        &fake,
+        format!(
+            "#!/bin/bash\nprintf '%s\\n' \"$RAYON_NUM_THREADS\" \"$@\" > '{}'\n",
+            record.display()
+        ),
+    )
+    .unwrap();
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&fake, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let script = |step: usize| -> String {
+        let action = &steps[step]["script"]["actions"]["onRun"];
+        assert_eq!(action["command"], "bash");
+        let args: Vec<&str> = (action["args"].as_array().unwrap().iter())
+            .map(|a| a.as_str().unwrap())
+            .collect();
+        let expected: &[&str] = if step == 0 {
+            &[
+                "{{Task.File.Run}}",
+                "{{Param.Fluidtex}}",
+                "{{Param.Threads}}",
+            ]
+        } else {
+            &[
+                "{{Task.File.Run}}",
+                "{{Param.Fluidtex}}",
+                "{{Param.Threads}}",
+                "{{Task.Param.Chunk}}",
+            ]
+        };
+        assert_eq!(args, expected);
+        let file = &steps[step]["script"]["embeddedFiles"][0];
+        assert_eq!(file["name"], "Run");
+        file["data"].as_str().unwrap().to_string()
+    };
+    let run_script = |text: &str, args: &[&str]| -> Vec<String> {
+        let file = dir.path().join("task.sh");
+        std::fs::write(&file, text).unwrap();
+        let status = Command::new("bash")
+            .arg(&file)
+            .arg(&fake)
+            .args(args)
+            .status()
+            .unwrap();
+        assert!(status.success());
+        let recorded = std::fs::read_to_string(&record).unwrap();
+        recorded.lines().map(str::to_string).collect()
+    };
+    let tail = |words: &[String], n: usize| words[words.len() - n..].join(" ");
+    let select = run_script(&script(0), &["3"]);
+    assert_eq!(select[0], "3", "RAYON_NUM_THREADS");
+    assert_eq!(select[1], "run");
+    assert_eq!(
+        tail(&select, 6),
+        "--frames 1-5 --phase select --resume --quiet"
+    );
+    // The shot's own --frames is not repeated (each task gives its own).
+    assert_eq!(select.iter().filter(|w| *w == "--frames").count(), 1);
+    assert!(
+        select.contains(&"--preview-every".to_string()),
+        "{select:?}"
+    );
+    let chunks: Vec<String> = (0..3)
+        .map(|k| tail(&run_script(&script(1), &["2", &k.to_string()]), 6))
+        .collect();
+    assert_eq!(
+        chunks,
+        [
+            "--frames 1-2 --phase resample --resume --quiet",
+            "--frames 3-4 --phase resample --resume --quiet",
+            "--frames 5-5 --phase resample --resume --quiet"
+        ]
+    );
+    // The Open Job Description command line accepts the template.
+    if let Some(openjd) = openjd() {
+        let check = Command::new(&openjd)
+            .arg("check")
+            .arg(&path)
+            .output()
+            .unwrap();
+        assert!(check.status.success(), "openjd check: {check:?}");
+    }
+}
+
+#[test]
+fn a_shot_run_by_the_open_job_description_command_line_writes_the_one_pass_files() {
+    let Some(openjd) = openjd() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let pattern = small_vortex(dir.path());
+    let reference = dir.path().join("one-pass");
+    let mut one = vec!["run".into()];
+    one.extend(shot(&pattern, &reference));
+    one.push("--quiet".into());
+    ok(&one);
+    let out = dir.path().join("shot");
+    ok(&farm_on(
+        "openjd",
+        &["--chunk", "4", "--cpus", "1"],
+        &shot(&pattern, &out),
+    ));
+    let template = out.join("farm/openjd/template.json");
+    // Phase 1's one task, then phase 2's two chunks (frames 0-3 and 4-5).
+    let ran = Command::new(&openjd)
+        .args(["run", "--step", "Resample", "--run-dependencies"])
+        .arg(&template)
+        .output()
+        .unwrap();
+    let log = String::from_utf8_lossy(&ran.stdout);
+    assert!(ran.status.success(), "openjd run: {ran:?}");
+    assert!(log.contains("Session ended successfully"), "{log}");
+    let moved = dir.path().join("farm-files");
+    std::fs::rename(out.join("farm"), &moved).unwrap();
+    assert_two_phase_matches(&reference, &out);
+    // A task that fails fails the job: here the binary is not fluidtex.
+    let failed = Command::new(&openjd)
+        .args(["run", "--step", "Select", "-p", "Fluidtex=/bin/false"])
+        .arg(moved.join("openjd/template.json"))
+        .output()
+        .unwrap();
+    assert!(!failed.status.success(), "{failed:?}");
+}
+
+#[test]
+fn a_shot_whose_arguments_hold_a_template_expression_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let pattern = small_vortex(dir.path());
+    let out = dir.path().join("sh{{Param.X}}");
+    let err = user_error(&farm_on("openjd", &[], &shot(&pattern, &out)));
+    assert!(err.contains("sh{{Param.X}}: holds `{{`"), "{err}");
+    assert!(!out.exists());
 }

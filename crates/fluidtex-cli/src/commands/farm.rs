@@ -1,16 +1,21 @@
-//! `fluidtex farm slurm`: a shot as jobs of an existing Slurm cluster, in
-//! the two phases of `fluidtex run --phase` (see the library's
-//! `pipeline::phases`). Every job runs `fluidtex run` with the shot's own
-//! arguments (given after `--`, exactly as to `fluidtex run`) plus
-//! `--phase`, `--frames` for its chunk and `--resume`, so a killed or
-//! requeued job goes on from its last finished frame. Phase 1 runs as a
-//! chain of array tasks, one per chunk of frames, one at a time; phase-2
-//! task k depends on phase-1 task k only (`aftercorr`), so a chunk is
-//! resampled while phase 1 goes on with the next ones. The scripts are
-//! written to `OUT/farm/`, with logs in `OUT/farm/logs/`; `--submit`
-//! hands them to `sbatch`.
+//! `fluidtex farm`: a shot as jobs of an existing scheduler, in the two
+//! phases of `fluidtex run --phase` (see the library's `pipeline::phases`).
+//! Every job runs `fluidtex run` with the shot's own arguments (given after
+//! `--`, exactly as to `fluidtex run`) plus `--phase`, `--frames` for its
+//! chunk and `--resume`, so a killed or requeued job goes on from its last
+//! finished frame.
+//!
+//! - `farm slurm`: phase 1 runs as a chain of array tasks, one per chunk of
+//!   frames, one at a time; phase-2 task k depends on phase-1 task k only
+//!   (`aftercorr`), so a chunk is resampled while phase 1 goes on with the
+//!   next ones. The scripts are written to `OUT/farm/`, with logs in
+//!   `OUT/farm/logs/`; `--submit` hands them to `sbatch`.
+//! - `farm openjd`: an Open Job Description job template (`openjd.rs`), the
+//!   format of AWS Deadline Cloud and of the `openjd` command line.
 //!
 //! No scheduler of our own: the cluster's, through its command line.
+
+mod openjd;
 
 use std::ffi::{OsStr, OsString};
 use std::path::{Path, PathBuf};
@@ -32,25 +37,23 @@ pub enum Scheduler {
     /// slurm [OPTIONS] -- RUN ARGUMENTS (as for `fluidtex run`), or
     /// --shots FILE for several
     Slurm(SlurmArgs),
+    /// Write a shot's Open Job Description job template (a Deadline Cloud
+    /// job bundle; `openjd run` runs it on this machine): fluidtex farm
+    /// openjd [OPTIONS] -- RUN ARGUMENTS, or --shots FILE for several
+    Openjd(openjd::OpenjdArgs),
 }
 
+/// What every scheduler's command takes: the shot (or shots) and how its
+/// frames are split.
 #[derive(Args, Debug)]
-pub struct SlurmArgs {
+pub struct ShotArgs {
     /// Frames per phase-2 task [10]
     #[arg(long, default_value_t = 10)]
     pub chunk: u32,
-    /// Slurm partition of every job (sbatch --partition) [the cluster's default]
-    #[arg(long)]
-    pub partition: Option<String>,
-    /// CPUs per job (sbatch --cpus-per-task; fluidtex uses as many threads) [2]
+    /// CPUs per job, and fluidtex's threads in it (Slurm: --cpus-per-task;
+    /// Open Job Description: the worker's vCPUs, at least) [2]
     #[arg(long, default_value_t = 2)]
     pub cpus: u32,
-    /// Time limit per job (sbatch --time, e.g. 2:00:00) [the partition's]
-    #[arg(long)]
-    pub time: Option<String>,
-    /// Submit the jobs through sbatch (otherwise only write the scripts)
-    #[arg(long)]
-    pub submit: bool,
     /// Several shots: a TOML file of `[[shot]]` tables, each with `args`
     /// (its `fluidtex run` arguments) and an optional `name`
     #[arg(long, value_name = "FILE", conflicts_with = "run")]
@@ -62,6 +65,21 @@ pub struct SlurmArgs {
         value_name = "RUN ARGUMENTS"
     )]
     pub run: Vec<OsString>,
+}
+
+#[derive(Args, Debug)]
+pub struct SlurmArgs {
+    #[command(flatten)]
+    pub shot: ShotArgs,
+    /// Slurm partition of every job (sbatch --partition) [the cluster's default]
+    #[arg(long)]
+    pub partition: Option<String>,
+    /// Time limit per job (sbatch --time, e.g. 2:00:00) [the partition's]
+    #[arg(long)]
+    pub time: Option<String>,
+    /// Submit the jobs through sbatch (otherwise only write the scripts)
+    #[arg(long)]
+    pub submit: bool,
 }
 
 /// `--shots FILE`: one table per shot.
@@ -82,7 +100,7 @@ struct ShotEntry {
 
 /// The shots of `--shots FILE`, each with the name messages give it, or
 /// the one after `--` (no name).
-fn listed_shots(a: &SlurmArgs) -> Result<Vec<(Option<String>, Vec<OsString>)>> {
+fn listed_shots(a: &ShotArgs) -> Result<Vec<(Option<String>, Vec<OsString>)>> {
     let Some(path) = &a.shots else {
         return Ok(vec![(None, a.run.clone())]);
     };
@@ -110,7 +128,18 @@ fn listed_shots(a: &SlurmArgs) -> Result<Vec<(Option<String>, Vec<OsString>)>> {
 
 pub fn farm(a: &FarmArgs) -> Result<()> {
     match &a.scheduler {
-        Scheduler::Slurm(s) => slurm(s),
+        Scheduler::Slurm(s) => {
+            for (_, shot) in checked_shots(&s.shot)? {
+                write_shot(s, &shot)?;
+            }
+            Ok(())
+        }
+        Scheduler::Openjd(o) => {
+            for (_, shot) in checked_shots(&o.shot)? {
+                openjd::write_template(&o.shot, &shot)?;
+            }
+            Ok(())
+        }
     }
 }
 
@@ -126,14 +155,15 @@ struct Shot {
     binary: PathBuf,
 }
 
-fn slurm(a: &SlurmArgs) -> Result<()> {
+/// Every shot of `a`, checked before anything is written or submitted,
+/// each with the label its messages carry ("" for the one after `--`).
+fn checked_shots(a: &ShotArgs) -> Result<Vec<(String, Shot)>> {
     if a.chunk == 0 {
         bail!("--chunk 0: give at least one frame per task");
     }
     if !(1..=4096).contains(&a.cpus) {
         bail!("--cpus {}: allowed 1 to 4096", a.cpus);
     }
-    // Every shot checked before anything is written or submitted.
     let mut shots = Vec::new();
     for (label, run) in listed_shots(a)? {
         let s = match &label {
@@ -146,10 +176,14 @@ fn slurm(a: &SlurmArgs) -> Result<()> {
         }
         shots.push((label, s));
     }
-    for (_, s) in &shots {
-        write_shot(a, s)?;
+    Ok(shots)
+}
+
+impl Shot {
+    /// Phase-2 tasks of `chunk` frames each (the last may hold fewer).
+    fn tasks(&self, chunk: u32) -> u32 {
+        ((i64::from(self.last) - i64::from(self.first)) / i64::from(chunk) + 1) as u32
     }
-    Ok(())
 }
 
 /// Writes one shot's scripts (and submits them, with `--submit`).
@@ -157,7 +191,7 @@ fn write_shot(a: &SlurmArgs, shot: &Shot) -> Result<()> {
     let farm = shot.out.join("farm");
     std::fs::create_dir_all(farm.join("logs"))
         .with_context(|| format!("{}: cannot create the folder", farm.display()))?;
-    let tasks = ((i64::from(shot.last) - i64::from(shot.first)) / i64::from(a.chunk) + 1) as u32;
+    let tasks = shot.tasks(a.shot.chunk);
     let select = farm.join("select.sbatch");
     let resample = farm.join("resample.sbatch");
     write_script(&select, &select_script(a, shot, tasks))?;
@@ -166,7 +200,7 @@ fn write_shot(a: &SlurmArgs, shot: &Shot) -> Result<()> {
     println!(
         "{}: {tasks} chunks of {} frames, phase 1 in {}, phase 2 in {}",
         shot.out.display(),
-        a.chunk,
+        a.shot.chunk,
         select.display(),
         resample.display()
     );
@@ -261,7 +295,7 @@ fn header(a: &SlurmArgs, shot: &Shot, name: &str, log: &str, extra: &str) -> Str
          #SBATCH --requeue\n",
         shot.out.join("farm/logs").join(log).display(),
         shot.workdir.display(),
-        a.cpus
+        a.shot.cpus
     );
     if let Some(p) = &a.partition {
         h.push_str(&format!("#SBATCH --partition={p}\n"));
@@ -273,30 +307,30 @@ fn header(a: &SlurmArgs, shot: &Shot, name: &str, log: &str, extra: &str) -> Str
     h.push_str(&format!(
         "set -euo pipefail\n\
          export RAYON_NUM_THREADS=\"${{SLURM_CPUS_PER_TASK:-{}}}\"\n",
-        a.cpus
+        a.shot.cpus
     ));
     h
 }
 
 /// `fluidtex run` with the shot's arguments, as a shell command.
 fn run_command(shot: &Shot) -> String {
-    let mut c = quote(shot.binary.as_os_str());
-    c.push_str(" run");
-    for arg in &shot.args {
-        c.push(' ');
-        c.push_str(&quote(arg));
-    }
-    c
+    format!("{} run{}", quote(shot.binary.as_os_str()), shot_words(shot))
 }
 
-/// The shell lines that set `a` and `b`, the frames of task
-/// `SLURM_ARRAY_TASK_ID` (chunk k: FIRST + k * CHUNK onwards).
-fn chunk_lines(a: &SlurmArgs, shot: &Shot) -> String {
+/// The shot's run arguments as shell words, each after a space.
+fn shot_words(shot: &Shot) -> String {
+    shot.args.iter().map(|a| format!(" {}", quote(a))).collect()
+}
+
+/// The shell lines that set `a` and `b`, the frames of the task whose
+/// chunk number is in shell variable `task` (chunk k: FIRST + k · CHUNK
+/// onwards, `chunk` frames or up to the shot's last).
+fn chunk_lines(chunk: u32, shot: &Shot, task: &str) -> String {
     format!(
         "first={}; last={}; chunk={}\n\
-         a=$((first + SLURM_ARRAY_TASK_ID * chunk))\n\
+         a=$((first + {task} * chunk))\n\
          b=$((a + chunk - 1)); if [ \"$b\" -gt \"$last\" ]; then b=$last; fi\n",
-        shot.first, shot.last, a.chunk
+        shot.first, shot.last, chunk
     )
 }
 
@@ -319,7 +353,7 @@ fn select_script(a: &SlurmArgs, shot: &Shot, tasks: u32) -> String {
             "select-%A_%a.log",
             &format!("#SBATCH --array=0-{}%1\n", tasks - 1)
         ),
-        chunk_lines(a, shot),
+        chunk_lines(a.shot.chunk, shot, "SLURM_ARRAY_TASK_ID"),
         run_command(shot),
     )
 }
@@ -337,7 +371,7 @@ fn resample_script(a: &SlurmArgs, shot: &Shot, tasks: u32) -> String {
             "resample-%A_%a.log",
             &format!("#SBATCH --array=0-{}\n", tasks - 1)
         ),
-        chunk_lines(a, shot),
+        chunk_lines(a.shot.chunk, shot, "SLURM_ARRAY_TASK_ID"),
         run_command(shot)
     )
 }
