@@ -49,13 +49,31 @@ fn farm_on(
     a
 }
 
+/// Frames 1-5 of the small vortex into `dir/shot`: the shot's folder and
+/// run arguments.
+fn frames_1_to_5(dir: &Path) -> (PathBuf, Vec<std::ffi::OsString>) {
+    let pattern = small_vortex(dir);
+    let out = dir.join("shot");
+    let mut run = shot(&pattern, &out);
+    run.extend(["--frames".into(), "1-5".into()]);
+    (out, run)
+}
+
+/// A one-pass run of the shot into `dir/one-pass`: the files the farm's
+/// jobs must write.
+fn one_pass(dir: &Path, pattern: &Path) -> PathBuf {
+    let reference = dir.join("one-pass");
+    let mut one = vec!["run".into()];
+    one.extend(shot(pattern, &reference));
+    one.push("--quiet".into());
+    ok(&one);
+    reference
+}
+
 #[test]
 fn the_scripts_chain_phase_1_by_chunks_and_resample_each_chunk_after_its_own() {
     let dir = tempfile::tempdir().unwrap();
-    let pattern = small_vortex(dir.path());
-    let out = dir.path().join("shot");
-    let mut run = shot(&pattern, &out);
-    run.extend(["--frames".into(), "1-5".into()]);
+    let (out, run) = frames_1_to_5(dir.path());
     ok(&farm(
         &["--chunk", "2", "--cpus", "3", "--partition", "gpu"],
         &run,
@@ -189,11 +207,7 @@ fn a_shot_on_a_real_slurm_cluster_writes_the_one_pass_files() {
         }
     };
     let pattern = small_vortex(dir.path());
-    let reference = dir.path().join("one-pass");
-    let mut one = vec!["run".into()];
-    one.extend(shot(&pattern, &reference));
-    one.push("--quiet".into());
-    ok(&one);
+    let reference = one_pass(dir.path(), &pattern);
     let out = dir.path().join("shot");
     let submitted = fluidtex()
         .args(farm(
@@ -346,10 +360,7 @@ fn read_json(path: &Path) -> serde_json::Value {
 #[test]
 fn the_job_template_selects_the_shot_once_then_resamples_each_chunk() {
     let dir = tempfile::tempdir().unwrap();
-    let pattern = small_vortex(dir.path());
-    let out = dir.path().join("shot");
-    let mut run = shot(&pattern, &out);
-    run.extend(["--frames".into(), "1-5".into()]);
+    let (out, run) = frames_1_to_5(dir.path());
     let said = ok(&farm_on("openjd", &["--chunk", "2", "--cpus", "3"], &run));
     assert!(said.contains("3 chunks of 2 frames"), "{said}");
     let path = out.join("farm/openjd/template.json");
@@ -469,11 +480,7 @@ fn a_shot_run_by_the_open_job_description_command_line_writes_the_one_pass_files
     };
     let dir = tempfile::tempdir().unwrap();
     let pattern = small_vortex(dir.path());
-    let reference = dir.path().join("one-pass");
-    let mut one = vec!["run".into()];
-    one.extend(shot(&pattern, &reference));
-    one.push("--quiet".into());
-    ok(&one);
+    let reference = one_pass(dir.path(), &pattern);
     let out = dir.path().join("shot");
     ok(&farm_on(
         "openjd",
