@@ -474,6 +474,35 @@ fn the_job_template_selects_the_shot_once_then_resamples_each_chunk() {
 }
 
 #[test]
+fn a_long_folder_name_and_a_single_chunk_still_make_a_valid_template() {
+    let dir = tempfile::tempdir().unwrap();
+    let pattern = small_vortex(dir.path());
+    // The specification caps a job's name at 128 characters.
+    let out = dir.path().join("x".repeat(200));
+    ok(&farm_on(
+        "openjd",
+        &["--chunk", "10"],
+        &shot(&pattern, &out),
+    ));
+    let path = out.join("farm/openjd/template.json");
+    let t = read_json(&path);
+    let name = t["name"].as_str().unwrap();
+    assert_eq!(name.chars().count(), 128, "{name}");
+    assert!(name.starts_with("fluidtex xxx"), "{name}");
+    // Six frames in chunks of 10: one phase-2 task.
+    let range = &t["steps"][1]["parameterSpace"]["taskParameterDefinitions"][0]["range"];
+    assert_eq!(range, "0-0");
+    if let Some(openjd) = openjd() {
+        let check = Command::new(&openjd)
+            .arg("check")
+            .arg(&path)
+            .output()
+            .unwrap();
+        assert!(check.status.success(), "openjd check: {check:?}");
+    }
+}
+
+#[test]
 fn a_shot_run_by_the_open_job_description_command_line_writes_the_one_pass_files() {
     let Some(openjd) = openjd() else {
         return;

@@ -60,10 +60,9 @@ pub(super) fn write_template(a: &ShotArgs, shot: &Shot) -> Result<()> {
 /// The job template of `shot`, split as `a` says.
 fn template(a: &ShotArgs, shot: &Shot) -> Result<Template> {
     refuse_format_strings(shot)?;
-    let name = shot
-        .out
-        .file_name()
-        .map_or_else(|| "shot".into(), |n| n.to_string_lossy());
+    // The specification caps a job's name at 128 characters.
+    let folder = (shot.out.file_name()).map_or_else(|| "shot".into(), |n| n.to_string_lossy());
+    let name: String = format!("fluidtex {folder}").chars().take(128).collect();
     let cd = format!("cd {}\n", quote(shot.workdir.as_os_str()));
     let run = format!("exec \"$fluidtex\" run{}", shot_words(shot));
     let select = format!(
@@ -109,13 +108,12 @@ fn template(a: &ShotArgs, shot: &Shot) -> Result<Template> {
     };
     Ok(Template {
         specification_version: "jobtemplate-2023-09",
-        name: format!("fluidtex {name}"),
+        name,
+        // Without the output folder, which can be longer than a
+        // description may be (2,048 characters); the scripts hold it.
         description: format!(
-            "fluidtex in two phases: frames {}-{} into {}, phase 2 in {tasks} chunks of {} frames",
-            shot.first,
-            shot.last,
-            shot.out.display(),
-            a.chunk
+            "fluidtex in two phases: frames {}-{}, phase 2 in {tasks} chunks of {} frames",
+            shot.first, shot.last, a.chunk
         ),
         parameter_definitions: vec![
             Parameter {
