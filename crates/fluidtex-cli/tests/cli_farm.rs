@@ -353,6 +353,19 @@ fn openjd() -> Option<PathBuf> {
     None
 }
 
+/// The Open Job Description command line accepts the template at `path`
+/// (`openjd check`), where there is one (see [`openjd`]).
+fn assert_openjd_accepts(path: &Path) {
+    if let Some(openjd) = openjd() {
+        let check = Command::new(&openjd)
+            .arg("check")
+            .arg(path)
+            .output()
+            .unwrap();
+        assert!(check.status.success(), "openjd check: {check:?}");
+    }
+}
+
 fn read_json(path: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
@@ -462,15 +475,7 @@ fn the_job_template_selects_the_shot_once_then_resamples_each_chunk() {
             "--frames 5-5 --phase resample --resume --quiet"
         ]
     );
-    // The Open Job Description command line accepts the template.
-    if let Some(openjd) = openjd() {
-        let check = Command::new(&openjd)
-            .arg("check")
-            .arg(&path)
-            .output()
-            .unwrap();
-        assert!(check.status.success(), "openjd check: {check:?}");
-    }
+    assert_openjd_accepts(&path);
 }
 
 #[test]
@@ -492,14 +497,7 @@ fn a_long_folder_name_and_a_single_chunk_still_make_a_valid_template() {
     // Six frames in chunks of 10: one phase-2 task.
     let range = &t["steps"][1]["parameterSpace"]["taskParameterDefinitions"][0]["range"];
     assert_eq!(range, "0-0");
-    if let Some(openjd) = openjd() {
-        let check = Command::new(&openjd)
-            .arg("check")
-            .arg(&path)
-            .output()
-            .unwrap();
-        assert!(check.status.success(), "openjd check: {check:?}");
-    }
+    assert_openjd_accepts(&path);
 }
 
 #[test]
