@@ -331,17 +331,11 @@ impl FillContext<'_> {
         }
     }
 
-    /// True when uv `uv` of patch `i` with weight `w` survives erosion,
-    /// the patch's feature map read at level `lod` (see
-    /// [`super::feature_levels`]).
-    #[inline]
-    pub fn kept(&self, i: u32, uv: Vec2, w: f32, lod: f32) -> bool {
-        !ErosionTest::eroded_lhs(self.erosion_lhs(i, uv, lod), w)
-    }
-
-    /// [`FillContext::kept`] at `located` with weight `w`, reading the
-    /// left-hand side from `lhs` when an earlier test of the same point
-    /// read it (the same value: same patch, uv and level).
+    /// True when patch `i` survives erosion at `located` with weight `w`,
+    /// its feature map read at the point's level (see
+    /// [`super::feature_levels`]). The left-hand side comes from `lhs`
+    /// when an earlier test of the same point read it (the same value:
+    /// same patch, uv and level), and is kept there otherwise.
     #[inline]
     pub(super) fn kept_with(
         &self,
@@ -356,7 +350,7 @@ impl FillContext<'_> {
 
     /// The left-hand side of patch `i`'s erosion test at uv `uv`, its
     /// feature map read at level `lod` ([`ErosionTest::lhs`]): what
-    /// [`FillContext::kept`] compares with 1 − w. It does not depend on the
+    /// [`FillContext::kept_with`] compares with 1 − w. It does not depend on the
     /// weight, so one point tested at several frames' weights reads the
     /// feature map once ([`FillContext::resolve_with_holders`]).
     #[inline]
