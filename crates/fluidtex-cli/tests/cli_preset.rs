@@ -125,11 +125,21 @@ fn print_config_shows_the_resolved_preset() {
         Some("repulsion")
     );
     assert_eq!(table["lapped_rigid"]["coverage"].as_float(), Some(1.0));
+    // The paper's masks are images; without one the preset takes the
+    // plain radial mask, not the one the feature map moves.
+    assert_eq!(
+        table["lapped_rigid"]["mask_feature_weight"].as_float(),
+        Some(0.0)
+    );
     let plain = ok(&["run", "--print-config"]);
     let plain: toml::Table = toml::from_str(&plain).unwrap();
     assert!(plain.get("preset").is_none());
     assert_eq!(plain["erosion"]["tone"].as_str(), Some("mean"));
     assert_eq!(plain["optimization"]["search"].as_str(), Some("pca"));
+    assert_eq!(
+        plain["lapped_rigid"]["mask_feature_weight"].as_float(),
+        Some(0.05)
+    );
     let line = user_error(&["run", "--preset", "papr", "--print-config"]);
     assert!(
         line.starts_with("error: invalid value 'papr' for '--preset"),

@@ -203,7 +203,7 @@ pub const AS_PUBLISHED: &[(&str, &str)] = &[
     (
         "lapped_rigid.mask_feature_weight",
         "No paper counterpart: how far the features move the derived mask's border (see \
-         `lapped_rigid.mask`), 0.05.",
+         `lapped_rigid.mask`), 0.05; `--preset paper` sets 0, a plain radial mask.",
     ),
     (
         "lapped_rigid.mask_softness",

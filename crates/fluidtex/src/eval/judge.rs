@@ -1,16 +1,16 @@
 //! The verdicts that need more than one run: each method's switch share,
-//! popping and aligned share judged against the floor method's on the
-//! same scene and frames (the evaluation's relative rules), and the notes
-//! on a run's worst frames.
+//! popping, colour follow and flow fidelity judged against the floor
+//! method's on the same scene and frames (the evaluation's relative rules
+//! and rulings, [`judge_against_floor_on`]), and the notes on a run's
+//! causes of switches and worst frames.
 
 use super::MethodRun;
-use crate::metrics::{self, Metric, Thresholds};
+use crate::metrics::{self, Metric, Thresholds, Verdict};
 
-/// Judges every run's source switch share against the floor method's
-/// (`thresholds.source_switch.floor_method`, advect) on the same scene,
-/// frame by frame ([`Thresholds::summarize_against_floor`]): call it with
+/// Judges every run against the floor method's run on the same scene and
+/// frames (`thresholds.source_switch.floor_method`, advect): call it with
 /// all the runs of one scene once they are done. Without a floor run the
-/// verdicts stay n/a and each run gets a note saying so.
+/// switch verdicts stay n/a and each run gets a note saying so.
 ///
 /// A frame is judged on the points both runs cover at both ends (the
 /// evaluation's common support, [`FrameRecord::switch_same_points`](super::FrameRecord::switch_same_points)): a
@@ -19,21 +19,100 @@ use crate::metrics::{self, Metric, Thresholds};
 /// credited for the points it leaves uncovered. Where the points were not
 /// recorded (a run measured on other points), each run's own share stands
 /// in. The cell shows the judged shares; each run's own-point share is
-/// kept in a note, for information.
+/// kept in a note, for information. [`judge_against_floor_on`] gives the
+/// rules.
 pub fn judge_against_floor(runs: &mut [MethodRun], thresholds: &Thresholds) {
     judge_against_floor_on(runs, thresholds, "");
 }
 
-/// [`judge_against_floor`] for the runs of scene `scene`. On a scene of
-/// `popping.strong_shear_scenes` (ruling 4: the flow shears the surface
-/// faster than a patch can live, so the distortion bound forces renewal)
-/// every frame is judged against the *renewal floor* too: the share of
-/// points whose previous patch, carried by the floor method (advect, which
-/// never erodes), is past δ_max at the carried point
-/// ([`FrameRecord::switch_causes`](super::FrameRecord::switch_causes)). A run's switch share passes a frame
-/// at most `source_switch.max_excess_over_floor` above advect's plus that
-/// floor, and its popped share at most the same excess above the floor
-/// (instead of the absolute popping rule).
+/// What the floor run (advect) says of one frame, for the other runs'
+/// verdicts.
+#[derive(Clone, Copy, Debug)]
+struct FloorFrame {
+    frame: i32,
+    /// Its switch share on its own points.
+    switch: f64,
+    /// Its holder-past-δ_max share: the cumulative renewal floor.
+    renewal: f64,
+    /// The growth of that share on this frame: the per-frame renewal floor.
+    renewal_new: f64,
+    /// Its popped share.
+    popping: f64,
+}
+
+/// The floor run's frames, in order.
+struct Floor {
+    name: String,
+    frames: Vec<FloorFrame>,
+    /// Above this per-frame renewal floor a frame is violent.
+    violent_above: f64,
+}
+
+impl Floor {
+    fn of(run: &MethodRun, thresholds: &Thresholds) -> Floor {
+        Floor {
+            name: run.method.clone(),
+            frames: (run.frames.iter())
+                .map(|f| FloorFrame {
+                    frame: f.frame,
+                    switch: f.value(Metric::SourceSwitch),
+                    renewal: f.switch_causes.holder_distorted,
+                    renewal_new: f.switch_causes.holder_distorted_new,
+                    popping: f.value(Metric::Popping),
+                })
+                .collect(),
+            violent_above: thresholds.popping.violent_min_new_floor,
+        }
+    }
+
+    fn at(&self, frame: i32) -> Option<&FloorFrame> {
+        self.frames.iter().find(|f| f.frame == frame)
+    }
+
+    /// Ruling 2: the flow itself pushes more than `violent_min_new_floor`
+    /// of the never-renewed surface past δ_max on this frame.
+    fn violent(&self, frame: i32) -> bool {
+        self.at(frame)
+            .is_some_and(|f| f.renewal_new > self.violent_above)
+    }
+
+    /// The violent frames, in order.
+    fn violent_frames(&self) -> Vec<i32> {
+        (self.frames.iter())
+            .map(|f| f.frame)
+            .filter(|&n| self.violent(n))
+            .collect()
+    }
+}
+
+/// The rules a scene's runs are judged by against the floor run, beyond
+/// each metric's absolute rule (docs/evaluation.md, "Rulings"):
+/// - **Switch share, forced and unforced** (ruling 1 of the violent-liquid
+///   rulings): a run that records why its points switched (erosion,
+///   advect) passes when its *unforced* share is at most
+///   `source_switch.max_excess_over_floor` above advect's switch share on
+///   every frame from the first lifetime on ([`FIRST_LIFETIME_FRAMES`]);
+///   renewal of a holder past δ_max or being eroded there (weight below
+///   1) is forced and not charged. A run that records no causes is judged
+///   on its whole share against advect's, plus, on a scene of
+///   `popping.strong_shear_scenes`, the cumulative renewal floor.
+/// - **Methods that blend layers** (`lapped-rigid`, `blend-deformable`,
+///   `dual-rest`, [`MethodRun::blends`](super::MethodRun::blends)): the
+///   switch share of their heaviest layer is information; popping and
+///   ghosting judge them.
+/// - **Violent frames** (ruling 2): where advect's per-frame renewal floor
+///   is above `popping.violent_min_new_floor`, a run's popped share may be
+///   at most `popping.violent_max_excess_over_floor` above advect's on that
+///   frame, its switch share there is information, and its colour follow
+///   ratio is judged from the first lifetime on. Calm frames keep every
+///   absolute rule.
+/// - **Strong shear** (ruling 4 of the fast-flow rulings, the vortex at
+///   T = 8 s): on its calm frames, popping at most `max_excess_over_floor`
+///   above the cumulative renewal floor.
+/// - **Flow fidelity where advect itself fails**: the aligned share at
+///   most `flow.max_aligned_shortfall_under_floor` below advect's, the
+///   median end-point error at most `flow.max_epe_excess_over_floor_px`
+///   above advect's (ruling 5).
 pub fn judge_against_floor_on(runs: &mut [MethodRun], thresholds: &Thresholds, scene: &str) {
     let floor_name = thresholds.source_switch.floor_method.clone();
     compare_on_same_points(runs, &floor_name);
@@ -42,105 +121,340 @@ pub fn judge_against_floor_on(runs: &mut [MethodRun], thresholds: &Thresholds, s
         .strong_shear_scenes
         .iter()
         .any(|s| s == scene);
-    // The floor run's renewal floor per frame (0 where it recorded none:
-    // the stricter reading).
-    let renewal: Vec<(i32, f64)> = runs
+    let Some(floor) = runs
         .iter()
-        .find(|r| r.method == floor_name && strong_shear)
-        .map(|r| {
-            (r.frames.iter())
-                .map(|f| (f.frame, f.switch_causes[2]))
-                .map(|(n, v)| (n, if v.is_finite() { v } else { 0.0 }))
-                .collect()
-        })
-        .unwrap_or_default();
-    let renewal_at = |frame: i32| {
-        renewal
-            .iter()
-            .find(|(n, _)| *n == frame)
-            .map_or(0.0, |&(_, v)| v)
-    };
-    let floor: Option<Vec<(i32, f64)>> = runs.iter().find(|r| r.method == floor_name).map(|r| {
-        r.frames
-            .iter()
-            .map(|f| (f.frame, f.value(Metric::SourceSwitch)))
-            .collect()
-    });
-    for run in runs.iter_mut() {
-        let Some(floor) = &floor else {
+        .find(|r| r.method == floor_name)
+        .map(|r| Floor::of(r, thresholds))
+    else {
+        for run in runs.iter_mut() {
             run.notes.push(format!(
                 "source switch share: not judged, it is judged against {floor_name} on the \
                  same frames and {floor_name} was not run"
             ));
-            continue;
-        };
-        let (values, floor_values): (Vec<f64>, Vec<f64>) = run
-            .frames
-            .iter()
-            .map(|f| {
-                let (mine, theirs) = match f.switch_same_points {
-                    [mine, theirs] if mine.is_finite() && theirs.is_finite() => (mine, theirs),
-                    _ => (
-                        f.value(Metric::SourceSwitch),
-                        floor
-                            .iter()
-                            .find(|(n, _)| *n == f.frame)
-                            .map_or(f64::NAN, |&(_, v)| v),
-                    ),
-                };
-                (mine, theirs + renewal_at(f.frame))
-            })
-            .unzip();
-        let summary = thresholds.summarize_against_floor(&values, &floor_values);
-        if let Some(s) = run.summary_mut(Metric::SourceSwitch) {
-            *s = summary;
         }
-    }
-    if !renewal.is_empty() {
-        judge_popping_against_renewal(runs, thresholds, &renewal);
-    }
-    judge_aligned_against_floor(runs, thresholds);
-    note_switch_peaks(runs);
-}
-
-/// Ruling 4's popping rule on a strongly sheared scene: every frame's
-/// popped share at most `source_switch.max_excess_over_floor` above that
-/// frame's renewal floor (`renewal`, per frame number), with a note giving
-/// the floor.
-fn judge_popping_against_renewal(
-    runs: &mut [MethodRun],
-    thresholds: &Thresholds,
-    renewal: &[(i32, f64)],
-) {
-    let excess = thresholds.source_switch.max_excess_over_floor;
-    let lead = "popping: judged against the renewal floor";
-    let Some((median, (_, worst))) = median_and_worst(renewal) else {
+        note_switch_peaks(runs);
         return;
     };
     for run in runs.iter_mut() {
-        run.notes.retain(|n| !n.starts_with(lead));
-        let verdicts: Vec<bool> = run
-            .frames
-            .iter()
-            .filter_map(|f| {
-                let p = f.value(Metric::Popping);
-                let floor = renewal.iter().find(|(n, _)| *n == f.frame)?.1;
-                p.is_finite().then_some(p <= floor + excess + 1e-12)
-            })
+        judge_switch(run, &floor, thresholds, strong_shear);
+        note_unforced_causes(run);
+    }
+    judge_popping(runs, &floor, thresholds, strong_shear);
+    judge_follow_on_violent_frames(runs, &floor, thresholds);
+    judge_aligned_against_floor(runs, thresholds);
+    judge_epe_against_floor(runs, thresholds);
+    note_switch_peaks(runs);
+}
+
+/// The first frame of `run` that the rules after the first lifetime judge:
+/// [`FIRST_LIFETIME_FRAMES`] after its first, or its first when the run is
+/// shorter than two lifetimes.
+fn after_first_lifetime(run: &MethodRun) -> i32 {
+    let first = run.frames.iter().map(|f| f.frame).min().unwrap_or(0);
+    let last = run.frames.iter().map(|f| f.frame).max().unwrap_or(0);
+    if last - first + 1 >= 2 * FIRST_LIFETIME_FRAMES {
+        first + FIRST_LIFETIME_FRAMES
+    } else {
+        first
+    }
+}
+
+/// Whether `run` recorded why its points switched (forced or unforced).
+fn records_causes(run: &MethodRun) -> bool {
+    run.frames
+        .iter()
+        .any(|f| f.switch_causes.unforced.is_finite())
+}
+
+/// The lead of the notes [`judge_switch`] writes.
+const SWITCH_RULE: &str = "source switch share: judged";
+
+/// One run's switch verdict against the floor (see
+/// [`judge_against_floor_on`] for the rules).
+fn judge_switch(run: &mut MethodRun, floor: &Floor, thresholds: &Thresholds, strong_shear: bool) {
+    run.notes.retain(|n| !n.starts_with(SWITCH_RULE));
+    let excess = thresholds.source_switch.max_excess_over_floor;
+    let by_cause = records_causes(run);
+    let from = after_first_lifetime(run);
+    // (shown share, floor share) per frame, and the judged frames' verdicts.
+    let mut shown = Vec::new();
+    let mut floor_shown = Vec::new();
+    let mut verdicts = Vec::new();
+    let mut worst: Option<(i32, f64, f64)> = None;
+    for f in &run.frames {
+        let (mine, theirs) = match f.switch_same_points {
+            [mine, theirs] if mine.is_finite() && theirs.is_finite() => (mine, theirs),
+            _ => (
+                f.value(Metric::SourceSwitch),
+                floor.at(f.frame).map_or(f64::NAN, |x| x.switch),
+            ),
+        };
+        shown.push(mine);
+        floor_shown.push(theirs);
+        if run.blends || floor.violent(f.frame) {
+            continue;
+        }
+        let (value, bar) = if by_cause {
+            if f.frame < from {
+                continue;
+            }
+            (f.switch_causes.unforced, theirs)
+        } else {
+            let renewal = match floor.at(f.frame) {
+                Some(x) if strong_shear && x.renewal.is_finite() => x.renewal,
+                _ => 0.0,
+            };
+            (mine, theirs + renewal)
+        };
+        let v = thresholds.switch_verdict(value, bar);
+        if v == Verdict::NoData {
+            continue;
+        }
+        if worst.is_none_or(|w| value - bar > w.1 - w.2) {
+            worst = Some((f.frame, value, bar));
+        }
+        verdicts.push(v);
+    }
+    let mut summary = thresholds.summarize_against_floor(&shown, &floor_shown);
+    summary.verdict = if verdicts.is_empty() {
+        Verdict::NoData
+    } else {
+        Verdict::of(verdicts.iter().all(|v| v.is_pass()))
+    };
+    if let Some(s) = run.summary_mut(Metric::SourceSwitch) {
+        *s = summary;
+    }
+    let violent = floor.violent_frames();
+    let leave_out = if violent.is_empty() {
+        String::new()
+    } else {
+        format!(
+            "; {} violent frame(s) ({}) are information",
+            violent.len(),
+            frame_list(&violent)
+        )
+    };
+    let note = if run.blends {
+        format!(
+            "{SWITCH_RULE} as information: the method blends layers, so a flip of its heaviest \
+             layer need not change a texel; popping and ghosting judge it"
+        )
+    } else if by_cause {
+        format!(
+            "{SWITCH_RULE} on unforced switches (ruling 1): at most {excess} above {}'s share on \
+             every frame from {from} on{leave_out}{}",
+            floor.name,
+            worst.map_or(String::new(), |(n, v, b)| format!(
+                "; closest frame {n}: unforced {v:.3} against {b:.3}"
+            ))
+        )
+    } else {
+        format!(
+            "{SWITCH_RULE} on the whole share (the method records no causes): at most {excess} \
+             above {}'s{}{leave_out}",
+            floor.name,
+            if strong_shear {
+                " plus the renewal floor"
+            } else {
+                ""
+            }
+        )
+    };
+    run.notes.push(note);
+}
+
+/// Frame numbers as ranges: "3–5, 9".
+fn frame_list(frames: &[i32]) -> String {
+    let mut parts: Vec<String> = Vec::new();
+    let mut i = 0;
+    while i < frames.len() {
+        let mut j = i;
+        while j + 1 < frames.len() && frames[j + 1] == frames[j] + 1 {
+            j += 1;
+        }
+        parts.push(if i == j {
+            frames[i].to_string()
+        } else {
+            format!("{}–{}", frames[i], frames[j])
+        });
+        i = j + 1;
+    }
+    parts.join(", ")
+}
+
+/// The lead of the note [`note_unforced_causes`] writes.
+const CAUSES_NOTE: &str = "unforced switches by cause";
+
+/// A note with the median share of each cause of the unforced switches
+/// (border crossings, patches drawn on top, the rest), where the run
+/// records them.
+fn note_unforced_causes(run: &mut MethodRun) {
+    run.notes.retain(|n| !n.starts_with(CAUSES_NOTE));
+    if !records_causes(run) {
+        return;
+    }
+    let median = |pick: fn(&super::CauseShares) -> f64| {
+        let values: Vec<(i32, f64)> = (run.frames.iter())
+            .map(|f| (f.frame, pick(&f.switch_causes)))
+            .filter(|(_, v)| v.is_finite())
             .collect();
+        median_and_worst(&values).map_or(f64::NAN, |(m, _)| m)
+    };
+    let [border, on_top, other, eroding] = [
+        median(|c| c.unforced_border),
+        median(|c| c.unforced_on_top),
+        median(|c| c.unforced_other),
+        median(|c| c.forced_eroding),
+    ];
+    run.notes.push(format!(
+        "{CAUSES_NOTE} (median frame, information): border crossings {:.1} %, new patches drawn \
+         on top {:.1} %, other {:.1} %; forced by the erosion of a distorted holder {:.1} %",
+        100.0 * border,
+        100.0 * on_top,
+        100.0 * other,
+        100.0 * eroding
+    ));
+}
+
+/// The lead of the notes [`judge_popping`] writes.
+const POPPING_RULE: &str = "popping: judged";
+
+/// Popping frame by frame where a ruling replaces the absolute rule on
+/// some frames: violent frames against advect's popping on the same frame
+/// (ruling 2), the calm frames of a strongly sheared scene against the
+/// cumulative renewal floor (ruling 4), the other frames by the absolute
+/// rule (mean and worst over those frames).
+fn judge_popping(
+    runs: &mut [MethodRun],
+    floor: &Floor,
+    thresholds: &Thresholds,
+    strong_shear: bool,
+) {
+    let violent = floor.violent_frames();
+    if violent.is_empty() && !strong_shear {
+        return;
+    }
+    let p = &thresholds.popping;
+    let excess = thresholds.source_switch.max_excess_over_floor;
+    for run in runs.iter_mut() {
+        run.notes.retain(|n| !n.starts_with(POPPING_RULE));
+        let mut verdicts = Vec::new();
+        let mut calm = Vec::new();
+        for f in &run.frames {
+            let popped = f.value(Metric::Popping);
+            let Some(x) = floor.at(f.frame).filter(|_| popped.is_finite()) else {
+                continue;
+            };
+            if floor.violent(f.frame) {
+                if x.popping.is_finite() {
+                    verdicts.push(popped <= x.popping + p.violent_max_excess_over_floor + 1e-12);
+                }
+            } else if strong_shear {
+                let renewal = if x.renewal.is_finite() {
+                    x.renewal
+                } else {
+                    0.0
+                };
+                verdicts.push(popped <= renewal + excess + 1e-12);
+            } else {
+                calm.push(popped);
+            }
+        }
+        if !calm.is_empty() {
+            let mean = calm.iter().sum::<f64>() / calm.len() as f64;
+            let worst = calm.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            verdicts.push(mean <= p.max_mean_share && worst <= p.max_worst_share);
+        }
         let Some(s) = run.summary_mut(Metric::Popping) else {
             continue;
         };
         if verdicts.is_empty() {
             continue;
         }
-        s.verdict = metrics::Verdict::of(verdicts.iter().all(|&v| v));
-        run.notes.push(format!(
-            "{lead} (strong shear): every frame at most {excess} above the share of points whose \
-             never-eroded patch is past δ_max there (median {:.3}, worst {:.3} over {} frames)",
+        s.verdict = Verdict::of(verdicts.iter().all(|&v| v));
+        run.notes
+            .push(popping_note(floor, &violent, thresholds, strong_shear));
+    }
+}
+
+/// The note that says how [`judge_popping`] judged a run.
+fn popping_note(floor: &Floor, violent: &[i32], t: &Thresholds, strong_shear: bool) -> String {
+    let p = &t.popping;
+    let mut parts = Vec::new();
+    if !violent.is_empty() {
+        let floors: Vec<(i32, f64)> = (floor.frames.iter())
+            .filter(|f| violent.contains(&f.frame))
+            .map(|f| (f.frame, f.renewal_new))
+            .collect();
+        let (median, (n, worst)) = median_and_worst(&floors).unwrap_or((f64::NAN, (0, f64::NAN)));
+        parts.push(format!(
+            "on {} violent frame(s) ({}; per-frame renewal floor above {}: median {:.3}, worst \
+             {:.3} at frame {n}) at most {} above advect's popping on the same frame",
+            violent.len(),
+            frame_list(violent),
+            p.violent_min_new_floor,
             median,
             worst,
-            renewal.len()
+            p.violent_max_excess_over_floor
+        ));
+    }
+    if strong_shear {
+        let renewal: Vec<(i32, f64)> = (floor.frames.iter())
+            .filter(|f| f.renewal.is_finite() && !violent.contains(&f.frame))
+            .map(|f| (f.frame, f.renewal))
+            .collect();
+        if let Some((median, (_, worst))) = median_and_worst(&renewal) {
+            parts.push(format!(
+                "against the renewal floor (strong shear) on the other frames: every frame at \
+                 most {} above the share of points whose never-eroded patch is past δ_max there \
+                 (median {median:.3}, worst {worst:.3} over {} frames)",
+                t.source_switch.max_excess_over_floor,
+                renewal.len()
+            ));
+        }
+    } else {
+        parts.push("by the absolute rule on the other frames".into());
+    }
+    format!("{POPPING_RULE} {}", parts.join("; "))
+}
+
+/// The lead of the note [`judge_follow_on_violent_frames`] writes.
+const FOLLOW_RULE: &str = "colour follow ratio: judged";
+
+/// Ruling 2's colour follow rule on a scene with violent frames: the worst
+/// of the calm frames and of the violent frames from the first lifetime on
+/// ([`FIRST_LIFETIME_FRAMES`]) must pass; violent frames inside the first
+/// lifetime are information.
+fn judge_follow_on_violent_frames(runs: &mut [MethodRun], floor: &Floor, thresholds: &Thresholds) {
+    let violent = floor.violent_frames();
+    if violent.is_empty() {
+        return;
+    }
+    let max = thresholds.colour_follow.max_ratio;
+    for run in runs.iter_mut() {
+        run.notes.retain(|n| !n.starts_with(FOLLOW_RULE));
+        let from = after_first_lifetime(run);
+        let judged: Vec<f64> = (run.frames.iter())
+            .filter(|f| f.frame >= from || !violent.contains(&f.frame))
+            .map(|f| f.value(Metric::ColourFollow))
+            .filter(|v| v.is_finite())
+            .collect();
+        let Some(s) = run.summary_mut(Metric::ColourFollow) else {
+            continue;
+        };
+        if !s.median.is_finite() {
+            continue;
+        }
+        s.verdict = if judged.is_empty() {
+            Verdict::NoData
+        } else {
+            Verdict::of(judged.iter().all(|&v| v <= max))
+        };
+        run.notes.push(format!(
+            "{FOLLOW_RULE} on {} of {} frames: the violent ones from frame {from} on and every \
+             calm one (ruling 2)",
+            judged.len(),
+            run.frames.len()
         ));
     }
 }
@@ -173,12 +487,48 @@ fn judge_aligned_against_floor(runs: &mut [MethodRun], thresholds: &Thresholds) 
         if !s.median.is_finite() {
             continue;
         }
-        s.verdict = metrics::Verdict::of(s.median >= allowed);
+        s.verdict = Verdict::of(s.median >= allowed);
         run.notes.push(format!(
             "{lead} {floor_name}'s {:.3} less {} ({floor_name} is below the absolute {:.2} here)",
             floor,
             thresholds.flow.max_aligned_shortfall_under_floor,
             thresholds.flow.min_aligned_share
+        ));
+    }
+}
+
+/// Ruling 5: the median end-point error where the floor method itself
+/// misses the absolute rule on the scene: every run then passes when its
+/// median is at most `flow.max_epe_excess_over_floor_px` above the
+/// floor's (a violent flow that the texture of a method riding it by
+/// construction cannot follow within a quarter pixel either). Elsewhere
+/// the absolute rule stands.
+fn judge_epe_against_floor(runs: &mut [MethodRun], thresholds: &Thresholds) {
+    let floor_name = &thresholds.source_switch.floor_method;
+    let Some(floor) = runs
+        .iter()
+        .find(|r| &r.method == floor_name)
+        .and_then(|r| r.summary(Metric::FlowEpe))
+        .map(|s| s.median)
+        .filter(|m| m.is_finite() && *m > thresholds.flow.max_median_epe_px)
+    else {
+        return;
+    };
+    let allowed = floor + thresholds.flow.max_epe_excess_over_floor_px;
+    let lead = "flow median EPE: judged against";
+    for run in runs.iter_mut() {
+        run.notes.retain(|n| !n.starts_with(lead));
+        let Some(s) = run.summary_mut(Metric::FlowEpe) else {
+            continue;
+        };
+        if !s.median.is_finite() {
+            continue;
+        }
+        s.verdict = Verdict::of(s.median <= allowed + 1e-12);
+        run.notes.push(format!(
+            "{lead} {floor_name}'s {floor:.3} px plus {} px ({floor_name} misses the absolute \
+             {} px here)",
+            thresholds.flow.max_epe_excess_over_floor_px, thresholds.flow.max_median_epe_px
         ));
     }
 }
@@ -214,13 +564,7 @@ pub const FIRST_LIFETIME_FRAMES: i32 = 12;
 fn note_switch_peaks(runs: &mut [MethodRun]) {
     for run in runs.iter_mut() {
         run.notes.retain(|n| !n.starts_with(PEAK_NOTE));
-        let first = run.frames.iter().map(|f| f.frame).min().unwrap_or(0);
-        let last = run.frames.iter().map(|f| f.frame).max().unwrap_or(0);
-        let from = if last - first + 1 >= 2 * FIRST_LIFETIME_FRAMES {
-            first + FIRST_LIFETIME_FRAMES
-        } else {
-            first
-        };
+        let from = after_first_lifetime(run);
         let shares: Vec<(i32, f64)> = run
             .frames
             .iter()

@@ -101,6 +101,8 @@ impl RenderPair<'_> {
 }
 
 #[cfg(test)]
+mod rulings_tests;
+#[cfg(test)]
 mod tests;
 
 use std::sync::Arc;
@@ -291,14 +293,84 @@ pub struct FrameRecord {
     /// ([`metrics::source_switch_same_points`]), set by
     /// [`judge_against_floor`]; NaN where not measured.
     pub switch_same_points: [f64; 2],
-    /// For information beside the switch share: the shares of forced and
-    /// unforced switches and of points whose previous patch is past δ_max
-    /// ([`metrics::SwitchCauses`]; on advect, the renewal floor); NaN where
-    /// the method records no renewal.
-    pub switch_causes: [f64; 3],
+    /// Beside the switch share: the switches by cause and the share of
+    /// points whose previous patch is past δ_max (on advect, the renewal
+    /// floor); NaN where the method records no renewal.
+    pub switch_causes: CauseShares,
     /// For information: the method's state agreement (exemplars chosen by
     /// an attribute, [`Stat::StateAgreement`]); NaN where it has none.
     pub state_agreement: f64,
+}
+
+/// One frame's switches by cause, as shares of the points covered at both
+/// ends whose renewal the method records ([`metrics::SwitchCauses`]); NaN
+/// where it records none.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct CauseShares {
+    /// Forced switches: no previous holder, or one past δ_max, being eroded
+    /// (weight below 1) or showing an exemplar the state no longer selects.
+    pub forced: f64,
+    /// Of those, forced by the erosion of a distorted holder alone.
+    pub forced_eroding: f64,
+    /// Unforced switches: the holder is whole at the point.
+    pub unforced: f64,
+    /// Of those, border crossings: the holder still shows the point by the
+    /// method's own carry.
+    pub unforced_border: f64,
+    /// Of those, a patch drawn on top of a holder that still keeps it.
+    pub unforced_on_top: f64,
+    /// The unforced switches of no cause above.
+    pub unforced_other: f64,
+    /// Points whose previous holder is past δ_max at the point, switched or
+    /// not: on advect, which never renews, the cumulative renewal floor.
+    pub holder_distorted: f64,
+    /// How much `holder_distorted` grew since the frame before (0 where it
+    /// fell; NaN on the first measured frame): on advect, the share of the
+    /// surface the flow pushed past δ_max on this frame alone, the
+    /// per-frame renewal floor of the violent-flow ruling.
+    pub holder_distorted_new: f64,
+}
+
+impl CauseShares {
+    /// Nothing recorded.
+    pub const NONE: CauseShares = CauseShares {
+        forced: f64::NAN,
+        forced_eroding: f64::NAN,
+        unforced: f64::NAN,
+        unforced_border: f64::NAN,
+        unforced_on_top: f64::NAN,
+        unforced_other: f64::NAN,
+        holder_distorted: f64::NAN,
+        holder_distorted_new: f64::NAN,
+    };
+
+    /// The shares of `c`, with the growth of the holder-past-δ_max share
+    /// from `before` (that share on the frame before, NaN if unknown).
+    pub fn of(c: &metrics::SwitchCauses, before: f64) -> CauseShares {
+        let holder_distorted = c.distorted_share();
+        CauseShares {
+            forced: c.forced_share(),
+            forced_eroding: c.forced_eroding_share(),
+            unforced: c.unforced_share(),
+            unforced_border: c.unforced_shown_share(),
+            unforced_on_top: c.unforced_on_top_share(),
+            unforced_other: c.unforced_other_share(),
+            holder_distorted,
+            holder_distorted_new: renewal_floor_growth(before, holder_distorted),
+        }
+    }
+}
+
+/// The per-frame renewal floor from the cumulative one on the frame before
+/// (`before`) and this frame (`now`): its growth, never below 0 (patches
+/// that relax back under δ_max do not make room for others); NaN where
+/// either is unknown.
+pub fn renewal_floor_growth(before: f64, now: f64) -> f64 {
+    if before.is_finite() && now.is_finite() {
+        (now - before).max(0.0)
+    } else {
+        f64::NAN
+    }
 }
 
 impl FrameRecord {
@@ -324,6 +396,10 @@ pub struct MethodRun {
     pub renders: Vec<(i32, Texture)>,
     /// Exemplar texels per atlas texel the fidelity reference was built at.
     pub fidelity_scale: f64,
+    /// The method blends layers (it reported per-texel layer counts,
+    /// [`FrameResult::layers`]): its switch share is that of its heaviest
+    /// layer, information only ([`judge_against_floor_on`]).
+    pub blends: bool,
 }
 
 impl MethodRun {
@@ -398,6 +474,7 @@ pub fn evaluate(
         previous_texels: None,
         image_flow_noted: false,
         rest_scale: f64::NAN,
+        blends: false,
     };
     let mut driver = Driver::new(method, scene.dt, settings.dilate_radius);
     for frame in &scene.frames {
@@ -458,6 +535,8 @@ struct MetricsSink<'a> {
     /// s₀ of the distortion metric (exemplar texels per world unit at the
     /// patches' creation), fixed at the first frame that gives it.
     rest_scale: f64,
+    /// A frame reported blended layers ([`MethodRun::blends`]).
+    blends: bool,
 }
 
 /// What the atlas of one frame holds, as the metrics read it.
@@ -527,6 +606,7 @@ impl FrameSink for MetricsSink<'_> {
                 lit_render(frame, &scene.camera, colour, self.settings.supersample),
             ));
         }
+        self.blends |= result.layers.is_some();
         let patches = result.stats.number(Stat::PatchesAlive);
         self.records.push(FrameRecord {
             frame: number,
@@ -832,7 +912,7 @@ impl MetricsSink<'_> {
         prev: Option<&PreparedFrame>,
         view: &AtlasView<'_>,
         set: &mut impl FnMut(Metric, f64),
-    ) -> Result<(Vec<[u32; 2]>, [f64; 3]), EvalError> {
+    ) -> Result<(Vec<[u32; 2]>, CauseShares), EvalError> {
         let n_texels = view.charts.len();
         let texels = (
             view.source
@@ -840,7 +920,7 @@ impl MetricsSink<'_> {
             metrics::luminance(view.colour),
         );
         let mut points = Vec::new();
-        let mut causes = [f64::NAN; 3];
+        let mut causes = CauseShares::NONE;
         if let (Some(p), Some((ps, pg))) = (prev, &self.previous_texels)
             && let Some(carried) = &p.carried
         {
@@ -864,11 +944,11 @@ impl MetricsSink<'_> {
             set(Metric::SourceSwitch, c.switch_share());
             set(Metric::ColourFollow, c.follow_ratio());
             points = sources;
-            causes = [
-                c.causes.forced_share(),
-                c.causes.unforced_share(),
-                c.causes.distorted_share(),
-            ];
+            let before = self
+                .records
+                .last()
+                .map_or(f64::NAN, |r| r.switch_causes.holder_distorted);
+            causes = CauseShares::of(&c.causes, before);
         }
         self.previous_texels = Some(texels);
         Ok((points, causes))
@@ -906,6 +986,7 @@ impl MetricsSink<'_> {
             notes: self.notes,
             renders: self.renders,
             fidelity_scale: self.fidelity_scale,
+            blends: self.blends,
         }
     }
 }

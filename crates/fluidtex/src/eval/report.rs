@@ -54,9 +54,10 @@ pub struct FrameJson {
     /// This method's and the floor method's source switch share on the
     /// points both cover at both ends (information beside the switch share).
     pub switch_same_points: [f64; 2],
-    /// Shares of forced and unforced switches and of points whose previous
-    /// patch is past δ_max (information beside the switch share).
-    pub switch_causes: [f64; 3],
+    /// The switches by cause and the shares of points whose previous patch
+    /// is past δ_max, in all and newly on this frame (information beside
+    /// the switch share).
+    pub switch_causes: super::CauseShares,
     /// Exemplars chosen by an attribute: the share of covered texels whose
     /// exemplar matches it (absent otherwise).
     #[serde(skip_serializing_if = "is_nan")]
@@ -81,6 +82,9 @@ pub struct MethodReport {
     /// Per-frame share of points whose previous patch is past δ_max; on
     /// advect, the renewal floor (information only).
     pub holder_distorted: Option<Spread>,
+    /// Per-frame growth of that share; on advect, the per-frame renewal
+    /// floor that marks a violent frame (information only).
+    pub holder_distorted_new: Option<Spread>,
     /// Per-frame state agreement over frames, where the exemplars are
     /// chosen by an attribute (information only).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -101,9 +105,12 @@ impl MethodReport {
             seconds_per_frame: Spread { median, min, max },
             patches: patch_counts(run).map(|(median, min, max)| Spread { median, min, max }),
             anisotropy: spread(run.frames.iter().map(|r| r.anisotropy)),
-            switch_forced: spread(run.frames.iter().map(|r| r.switch_causes[0])),
-            switch_unforced: spread(run.frames.iter().map(|r| r.switch_causes[1])),
-            holder_distorted: spread(run.frames.iter().map(|r| r.switch_causes[2])),
+            switch_forced: spread(run.frames.iter().map(|r| r.switch_causes.forced)),
+            switch_unforced: spread(run.frames.iter().map(|r| r.switch_causes.unforced)),
+            holder_distorted: spread(run.frames.iter().map(|r| r.switch_causes.holder_distorted)),
+            holder_distorted_new: spread(
+                (run.frames.iter()).map(|r| r.switch_causes.holder_distorted_new),
+            ),
             state_agreement: spread(run.frames.iter().map(|r| r.state_agreement)),
             fidelity_scale: run.fidelity_scale,
             metrics: run
@@ -277,19 +284,21 @@ fn spread(values: impl Iterator<Item = f64>) -> Option<Spread> {
 /// Title of the information column shown after distortion.
 const ANISOTROPY: &str = "anisotropy p95 (info)";
 /// Titles of the information columns shown after the source switch share.
-const SWITCH_SPLIT: [&str; 3] = [
+const SWITCH_SPLIT: [&str; 4] = [
     "switches forced (info)",
     "switches unforced (info)",
     "holder past δ_max (info; advect: renewal floor)",
+    "newly past δ_max (info; advect: per-frame renewal floor)",
 ];
 
 impl MethodReport {
     /// The texts of the [`SWITCH_SPLIT`] columns.
-    fn switch_split_texts(&self) -> [String; 3] {
+    fn switch_split_texts(&self) -> [String; 4] {
         [
             &self.switch_forced,
             &self.switch_unforced,
             &self.holder_distorted,
+            &self.holder_distorted_new,
         ]
         .map(|s| s.as_ref().map_or("—".into(), spread_text))
     }
@@ -378,8 +387,11 @@ impl Report {
             s,
             "`{}`  \natlas {}², seed {}, exemplar {}, {:.0} s in all. Thresholds: \
              `metrics/thresholds.toml` (committed). Cells: median [min, max] over frames, \
-             PASS/FAIL of the committed rule (source switch share: every frame at most 0.02 \
-             above advect's on the same frame and the points both cover; n/a without an advect run).\n",
+             PASS/FAIL of the committed rule and the rulings of docs/evaluation.md (source switch \
+             share: the whole share on the points both cover, judged by its unforced part where \
+             the method records causes, at most 0.02 above advect's; information on violent frames \
+             and for methods that blend; n/a without an advect run). Each run's notes say which \
+             rule judged a cell.\n",
             self.command, self.atlas_size, self.seed, self.exemplar, self.seconds
         );
         for n in &self.not_measured {
@@ -449,8 +461,11 @@ impl Report {
             "<h1>fluidtex compare</h1><p><code>{}</code><br>atlas {}², seed {}, exemplar {}, \
              {:.0} s in all. Thresholds: <code>metrics/thresholds.toml</code> (committed). \
              Cells: median [min, max] over frames, PASS/FAIL of the committed rule \
-             (contrast: min; flow: median; popping: mean and worst; source switch share: \
-             every frame at most 0.02 above advect's on the same frame and the points both cover; others: worst).</p>",
+             and the rulings of docs/evaluation.md (contrast: min; flow: median; popping: mean \
+             and worst, or per frame against advect on violent frames; source switch share: the \
+             unforced part, or the whole share where a method records no causes, at most 0.02 \
+             above advect's on the points both cover; others: worst). Each run's notes say \
+             which rule judged a cell.</p>",
             esc(&self.command),
             self.atlas_size,
             self.seed,

@@ -713,7 +713,7 @@ fn on_a_strongly_sheared_scene_the_renewal_floor_raises_both_bars() {
         for (f, v) in r.frames.iter_mut().skip(1).zip(frames) {
             f.values[ks] = v[0];
             f.values[kp] = v[1];
-            f.switch_causes[2] = v[2];
+            f.switch_causes.holder_distorted = v[2];
             f.point_sources.clear();
         }
         let popped: Vec<f64> = r.frames.iter().map(|f| f.values[kp]).collect();

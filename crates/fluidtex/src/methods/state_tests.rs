@@ -325,14 +325,16 @@ fn switches_the_state_forces_count_as_forced() {
         let causes = crate::metrics::switch_causes(before, after, renewal).expect("lengths");
         switched += causes.forced + causes.unforced;
         with_state += causes.unforced;
-        // Control: the same bytes without the state bit.
+        // Control: the same bytes without the state bit, nor the eroding
+        // bit that the state's lowered weights set (the plane at rest is
+        // not distorted anywhere).
         let plain: Vec<u8> = renewal
             .iter()
             .map(|&r| {
                 if r == crate::provenance::RENEWAL_UNKNOWN {
                     r
                 } else {
-                    r & !crate::provenance::RENEWAL_STATE
+                    r & !(crate::provenance::RENEWAL_STATE | crate::provenance::RENEWAL_ERODING)
                 }
             })
             .collect();

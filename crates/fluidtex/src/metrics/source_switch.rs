@@ -30,7 +30,8 @@
 
 use super::{MetricsError, SOURCE_OUTSIDE, SOURCE_UNCOVERED};
 use crate::provenance::{
-    RENEWAL_DISTORTED, RENEWAL_SHOWN, RENEWAL_UNKNOWN, renewal_forced, renewal_unforced,
+    RENEWAL_DISTORTED, RENEWAL_KEPT, RENEWAL_SHOWN, RENEWAL_UNKNOWN, renewal_forced,
+    renewal_forced_by_erosion, renewal_unforced,
 };
 
 /// Source switches of one frame pair.
@@ -110,22 +111,35 @@ pub fn source_switch(before: &[u32], after: &[u32]) -> Result<SourceSwitch, Metr
 /// The switches of one frame pair split by what forced them, from the
 /// renewal byte at each point's end (t+1) that the method recorded
 /// ([`crate::provenance::RENEWAL_HELD`]): *forced* where the patch that
-/// showed the point at t is past the distortion bound δ_max there or no
-/// patch showed it, *unforced* where that patch is within the bound yet
-/// no longer shows it. Counted on the points [`source_switch`] covers.
+/// showed the point at t is past the distortion bound δ_max there, is
+/// being eroded there (its weight below 1), shows an exemplar the state no
+/// longer selects, or no patch showed it; *unforced* where that patch is
+/// whole there yet no longer shows it. Counted on the points
+/// [`source_switch`] covers.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct SwitchCauses {
     /// Points with a patch at both ends whose renewal is known.
     pub covered: usize,
     /// Of those, switched and forced.
     pub forced: usize,
+    /// Of the forced, those forced only by the erosion of a holder whose
+    /// weight is below 1 at the point
+    /// ([`crate::provenance::renewal_forced_by_erosion`]): renewal by
+    /// distortion before δ_max.
+    pub forced_eroding: usize,
     /// Of those, switched and unforced.
     pub unforced: usize,
     /// Of the unforced, those whose previous patch still shows the point by
     /// the method's own reckoning ([`crate::provenance::RENEWAL_SHOWN`]):
     /// the velocity carried the point across a border that the method's
-    /// own advection of the patch did not, so no patch was renewed there.
+    /// own advection of the patch did not, so no patch was renewed there
+    /// (a border crossing).
     pub unforced_shown: usize,
+    /// Of the unforced, those whose previous patch still keeps the point
+    /// at this frame's weights but does not show it
+    /// ([`crate::provenance::RENEWAL_KEPT`]): another patch is drawn on top
+    /// of it there.
+    pub unforced_on_top: usize,
     /// Of those, points whose previous patch is past δ_max at t+1, switched
     /// or not: on a run that never renews a patch (advect) this is the
     /// *renewal floor*, the share of the surface the distortion bound
@@ -155,6 +169,22 @@ impl SwitchCauses {
     /// unforced_shown / covered (NaN when no renewal is known).
     pub fn unforced_shown_share(&self) -> f64 {
         self.share(self.unforced_shown)
+    }
+
+    /// forced_eroding / covered (NaN when no renewal is known).
+    pub fn forced_eroding_share(&self) -> f64 {
+        self.share(self.forced_eroding)
+    }
+
+    /// unforced_on_top / covered (NaN when no renewal is known).
+    pub fn unforced_on_top_share(&self) -> f64 {
+        self.share(self.unforced_on_top)
+    }
+
+    /// The unforced switches that are neither border crossings nor under a
+    /// patch on top, over covered (NaN when no renewal is known).
+    pub fn unforced_other_share(&self) -> f64 {
+        self.share(self.unforced - self.unforced_shown - self.unforced_on_top)
     }
 
     /// distorted / covered (NaN when no renewal is known).
@@ -194,9 +224,13 @@ pub fn switch_causes(
         out.covered += 1;
         out.distorted += usize::from(r & RENEWAL_DISTORTED != 0);
         if a != b {
+            let unforced = renewal_unforced(r);
             out.forced += usize::from(renewal_forced(r));
-            out.unforced += usize::from(renewal_unforced(r));
-            out.unforced_shown += usize::from(renewal_unforced(r) && r & RENEWAL_SHOWN != 0);
+            out.forced_eroding += usize::from(renewal_forced_by_erosion(r));
+            out.unforced += usize::from(unforced);
+            let shown = r & RENEWAL_SHOWN != 0;
+            out.unforced_shown += usize::from(unforced && shown);
+            out.unforced_on_top += usize::from(unforced && !shown && r & RENEWAL_KEPT != 0);
         }
     }
     Ok(out)
@@ -238,30 +272,53 @@ mod tests {
 
     #[test]
     fn switches_split_by_the_renewal_at_their_end() {
-        use crate::provenance::{RENEWAL_HELD as H, RENEWAL_SHOWN as S};
+        use crate::provenance::{
+            RENEWAL_ERODING as E, RENEWAL_HELD as H, RENEWAL_KEPT as K, RENEWAL_SHOWN as S,
+        };
         const D: u8 = RENEWAL_DISTORTED;
         const U: u8 = RENEWAL_UNKNOWN;
-        let before = [1, 1, 1, 1, 1, 1, 1, SOURCE_UNCOVERED, 1];
-        let after = [2, 2, 2, 2, 1, 1, 2, 2, 2];
-        let renewal = [0, H | D, H, H | S, H | S | D, H | S, U, 0, H];
+        let before = [1, 1, 1, 1, 1, 1, 1, SOURCE_UNCOVERED, 1, 1, 1, 1];
+        let after = [2, 2, 2, 2, 1, 1, 2, 2, 2, 2, 2, 1];
+        let renewal = [
+            0,
+            H | D,
+            H,
+            H | S | K,
+            H | S | D,
+            H | S,
+            U,
+            0,
+            H,
+            H | E,
+            H | K,
+            H | E,
+        ];
         let c = switch_causes(&before, &after, &renewal).expect("same lengths");
         // Point 6 has no known renewal, point 7 no patch at t.
         assert_eq!(
             c,
             SwitchCauses {
-                covered: 7,
-                forced: 2,
-                unforced: 3,
+                covered: 10,
+                forced: 3,
+                forced_eroding: 1,
+                unforced: 4,
                 unforced_shown: 1,
+                unforced_on_top: 1,
                 distorted: 2,
             }
         );
-        // Of the unforced switches (points 2, 3, 8), point 3's previous
-        // patch still shows it; point 5's does too, but it did not switch.
-        assert_eq!(c.unforced_shown_share(), 1.0 / 7.0);
-        assert_eq!(c.forced_share(), 2.0 / 7.0);
-        assert_eq!(c.unforced_share(), 3.0 / 7.0);
-        assert_eq!(c.distorted_share(), 2.0 / 7.0);
+        // Of the unforced switches (points 2, 3, 8, 10), point 3's previous
+        // patch still shows it (point 5's does too, but it did not switch),
+        // point 10's keeps it under another patch, points 2 and 8 lost it
+        // otherwise. Point 9's holder was being eroded: forced; point 11's
+        // too, but it did not switch.
+        assert_eq!(c.unforced_shown_share(), 1.0 / 10.0);
+        assert_eq!(c.unforced_on_top_share(), 1.0 / 10.0);
+        assert_eq!(c.unforced_other_share(), 2.0 / 10.0);
+        assert_eq!(c.forced_share(), 3.0 / 10.0);
+        assert_eq!(c.forced_eroding_share(), 1.0 / 10.0);
+        assert_eq!(c.unforced_share(), 4.0 / 10.0);
+        assert_eq!(c.distorted_share(), 2.0 / 10.0);
         let none = switch_causes(&[1], &[2], &[U]).expect("same lengths");
         assert!(none.unforced_share().is_nan());
         assert!(matches!(

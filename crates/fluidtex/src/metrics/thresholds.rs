@@ -116,6 +116,10 @@ pub struct FlowThresholds {
     /// `min_aligned_share`, a method passes when its aligned share is at
     /// most this much below the floor's instead, in [0, 1]. 0.03.
     pub max_aligned_shortfall_under_floor: f64,
+    /// On a scene where the floor method itself misses
+    /// `max_median_epe_px`, a method passes when its median end-point
+    /// error is at most this much above the floor's instead (px). 0.1.
+    pub max_epe_excess_over_floor_px: f64,
 }
 
 /// Silhouette margin used by flow and popping in renders.
@@ -141,6 +145,14 @@ pub struct PoppingThresholds {
     /// Scenes judged against the renewal floor instead (the vortex at
     /// T = 8 s): see [`crate::eval::judge_against_floor_on`].
     pub strong_shear_scenes: Vec<String>,
+    /// A frame is *violent* where the floor method's per-frame renewal
+    /// floor (the share of points its never-renewed patches pushed past
+    /// δ_max on that frame alone) is above this, in [0, 1]. 0.05.
+    pub violent_min_new_floor: f64,
+    /// On a violent frame a method's popped share may be at most this much
+    /// above the floor method's on the same frame (instead of the absolute
+    /// rule), in [0, 1]. 0.02.
+    pub violent_max_excess_over_floor: f64,
 }
 
 /// Source switch share (points carried by the flow whose patch changes).
@@ -476,6 +488,12 @@ impl Thresholds {
                 "[0, 1]",
             ),
             (
+                "flow.max_epe_excess_over_floor_px",
+                fl.max_epe_excess_over_floor_px,
+                fl.max_epe_excess_over_floor_px >= 0.0,
+                "[0, inf)",
+            ),
+            (
                 "silhouette.radius_px",
                 s.radius_px as f64,
                 s.radius_px <= 32,
@@ -503,6 +521,18 @@ impl Thresholds {
                 "popping.max_worst_share",
                 p.max_worst_share,
                 share(p.max_worst_share),
+                "[0, 1]",
+            ),
+            (
+                "popping.violent_min_new_floor",
+                p.violent_min_new_floor,
+                share(p.violent_min_new_floor),
+                "[0, 1]",
+            ),
+            (
+                "popping.violent_max_excess_over_floor",
+                p.violent_max_excess_over_floor,
+                share(p.violent_max_excess_over_floor),
                 "[0, 1]",
             ),
             (
@@ -705,6 +735,9 @@ mod tests {
         assert_eq!(t.flow.max_median_epe_px, 0.25);
         assert_eq!(t.flow.min_aligned_share, 0.90);
         assert_eq!(t.flow.max_aligned_shortfall_under_floor, 0.03);
+        assert_eq!(t.flow.max_epe_excess_over_floor_px, 0.1);
+        assert_eq!(t.popping.violent_min_new_floor, 0.05);
+        assert_eq!(t.popping.violent_max_excess_over_floor, 0.02);
         assert_eq!(t.popping.sigma_factor, 0.5);
         assert_eq!(t.popping.max_mean_share, 0.02);
         assert_eq!(t.popping.max_worst_share, 0.05);

@@ -117,29 +117,36 @@ impl WrittenFrameSink for CoherenceSink {
         }
         let current = WrittenTexels::of(frame.specs, &g.atlas, ids, frame.channels)
             .with_renewal(frame.renewal.unwrap_or_default());
+        let mut distorted = None;
         if let Some(before) = &self.previous
             && Some(before.number) == frame.previous_number
             && let Some((c, ends)) = self.measure(out.files, prev, before, g, &current)?
         {
-            record(out.stats, g, &c, &ends);
+            record(out.stats, g, &c, &ends, before.holder_distorted);
+            distorted = out.stats.holder_distorted_share;
         }
-        self.previous = Some(CoherencePrevious::of(
-            &current,
-            g,
-            &self.settings.measure,
-            self.settings.switch_map,
-        ));
+        self.previous = Some(CoherencePrevious {
+            holder_distorted: distorted,
+            ..CoherencePrevious::of(
+                &current,
+                g,
+                &self.settings.measure,
+                self.settings.switch_map,
+            )
+        });
         out.clock.lap("coherence");
         Ok(())
     }
 }
 
-/// Puts a measured frame's numbers into its stats.
+/// Puts a measured frame's numbers into its stats; `distorted_before`:
+/// the frame before's `holder_distorted_share`, where it was measured.
 fn record(
     stats: &mut FrameStats,
     g: &FrameGeometry,
     c: &crate::coherence::Coherence,
     ends: &[CarriedEnds],
+    distorted_before: Option<f64>,
 ) {
     // By region needs the patch radius, which the lapped methods report.
     let radius = stats
@@ -158,7 +165,14 @@ fn record(
         stats.switch_forced_share = Some(c.causes.forced_share());
         stats.switch_unforced_share = Some(c.causes.unforced_share());
         stats.switch_unforced_shown_share = Some(c.causes.unforced_shown_share());
-        stats.holder_distorted_share = Some(c.causes.distorted_share());
+        stats.switch_forced_eroding_share = Some(c.causes.forced_eroding_share());
+        stats.switch_unforced_on_top_share = Some(c.causes.unforced_on_top_share());
+        stats.switch_unforced_other_share = Some(c.causes.unforced_other_share());
+        let distorted = c.causes.distorted_share();
+        stats.holder_distorted_share = Some(distorted);
+        stats.holder_distorted_new_share = distorted_before
+            .map(|before| crate::eval::renewal_floor_growth(before, distorted))
+            .filter(|v| v.is_finite());
     }
     stats.colour_follow_ratio = Some(c.follow_ratio());
 }
@@ -180,6 +194,9 @@ struct CoherencePrevious {
     points: Option<(Departure, Vec<crate::coherence::PointValue>)>,
     /// Written source and grey per texel, for `switch.F.png` only.
     full: Option<(Vec<u32>, Vec<f32>)>,
+    /// Its `holder_distorted_share`, where measured: the growth of that
+    /// share is the next frame's per-frame renewal floor.
+    holder_distorted: Option<f64>,
 }
 
 /// The sample points of the pair (frame `number`, the next): one set per
@@ -234,6 +251,7 @@ impl CoherencePrevious {
             number: g.number,
             points,
             full,
+            holder_distorted: None,
         }
     }
 }
@@ -445,6 +463,7 @@ impl CoherenceSink {
                 number: last,
                 points,
                 full,
+                holder_distorted: self.reload_holder_distorted(last),
             })
         };
         match load() {
@@ -457,6 +476,17 @@ impl CoherenceSink {
                 None
             }
         }
+    }
+
+    /// After `--resume`: the last finished frame's `holder_distorted_share`
+    /// from its `stats.F.json`, so that the first resumed frame's per-frame
+    /// renewal floor is the one an uninterrupted run writes. `None` where
+    /// the file or the value is missing (that frame then has none).
+    fn reload_holder_distorted(&self, last: i32) -> Option<f64> {
+        let path = self.out_dir.join(format!("stats.{}.json", frame_tag(last)));
+        let text = std::fs::read_to_string(path).ok()?;
+        let stats: serde_json::Value = serde_json::from_str(&text).ok()?;
+        stats.get("holder_distorted_share")?.as_f64()
     }
 
     /// Source switch share and colour follow ratio from the frame before

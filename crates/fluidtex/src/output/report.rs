@@ -55,11 +55,32 @@ pub struct FrameStats {
     /// between the two carries, no renewal).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub switch_unforced_shown_share: Option<f64>,
+    /// Of the points of `source_switch_share`, the share forced by the
+    /// erosion of a patch whose weight at the point is below 1 (stretched
+    /// past δ_onset), within δ_max: renewal by distortion before the bound.
+    /// Counted in `switch_forced_share`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub switch_forced_eroding_share: Option<f64>,
+    /// Of the unforced switches, the share whose patch of the frame before
+    /// still passes the erosion test there, with another patch drawn on
+    /// top of it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub switch_unforced_on_top_share: Option<f64>,
+    /// The unforced switches that are neither border crossings
+    /// (`switch_unforced_shown_share`) nor under a patch on top.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub switch_unforced_other_share: Option<f64>,
     /// The share whose patch of the frame before is past δ_max there,
     /// switched or not; on `advect`, which never renews, the share of the
     /// surface the distortion bound would renew (the renewal floor).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub holder_distorted_share: Option<f64>,
+    /// How much `holder_distorted_share` grew since the frame before (never
+    /// below 0): on `advect`, the share of the surface the flow pushed past
+    /// δ_max on this frame alone, the per-frame renewal floor that makes a
+    /// frame *violent* above 5 % (docs/evaluation.md).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub holder_distorted_new_share: Option<f64>,
     /// The same points by the region they land in: `bulk`, `sheet` (liquid
     /// thinner than r/2 under the point) and `droplet` (a piece of surface
     /// smaller than a disc of radius r), each with its number of points

@@ -82,6 +82,12 @@ impl ErosionTest {
         }
     }
 
+    /// Whether the test can erode anything ([`ErosionTest::never`] cannot):
+    /// a weight below 1 erodes texels only where it can.
+    pub fn can_erode(&self) -> bool {
+        self.epsilon.is_finite()
+    }
+
     /// Left-hand side of the test: normalised sqrt(F_m + D) − ε.
     #[inline]
     pub fn lhs(&self, feature: f32, u: f32, v: f32) -> f32 {
@@ -334,6 +340,7 @@ mod tests {
         // Non-finite corners are always tested; the disabled test keeps all.
         let nan = [Vec2::NAN, Vec2::ZERO, Vec2::ONE];
         assert_eq!(test.triangle_verdict(nan, [1.0; 3]), Verdict::Test);
+        assert!(!ErosionTest::never().can_erode() && test.can_erode());
         assert_eq!(
             ErosionTest::never().triangle_verdict(near_centre, [0.0; 3]),
             Verdict::Kept

@@ -78,6 +78,10 @@ pub struct FillContext<'a> {
     /// Frames of the transition ([`super::transition`]); 0: one source per
     /// texel, the paper's fill.
     pub transition: u32,
+    /// A patch triangle past δ_max shows nothing ([`super::Bound::Hard`]):
+    /// this frame's verdict of every [`Patch::distorted`] triangle is
+    /// [`Verdict::Eroded`].
+    pub hard_bound: bool,
 }
 
 /// The per-triangle erosion verdicts a fill reads ([`FillContext`]'s
@@ -384,7 +388,15 @@ impl FillContext<'_> {
     /// skip the feature lookup on triangles wholly kept and pass over
     /// patches wholly eroded ([`Candidates::without_eroded`]).
     pub fn erosion_verdicts(&self) -> Vec<Vec<Verdict>> {
-        self.verdicts_at(|p| Some(&p.weight))
+        let mut tables = self.verdicts_at(|p| Some(&p.weight));
+        if self.hard_bound {
+            for (table, p) in tables.iter_mut().zip(self.patches) {
+                for (verdict, _) in table.iter_mut().zip(&p.distorted).filter(|(_, d)| **d) {
+                    *verdict = Verdict::Eroded;
+                }
+            }
+        }
+        tables
     }
 
     /// [`FillContext::erosion_verdicts`] at the weights of the frame before

@@ -41,8 +41,8 @@ use serde::{Deserialize, Serialize};
 use self::erode::ErosionTest;
 use self::fill::{Candidates, FillBuffers, FillContext, LocateTolerance};
 pub use self::params::{
-    ErodedTriangles, ErosionParams, Falloff, FeatureFilter, Orientation, PatchRegion, SeedCorners,
-    SeedTexel, WeightMode,
+    Bound, ErodedTriangles, ErosionParams, Falloff, FeatureFilter, Orientation, PatchRegion,
+    SeedCorners, SeedTexel, WeightMode,
 };
 use self::patch::{FrameSurface, Patch, PatchShape};
 pub use self::radius::{default_radius, median_edge_length};
@@ -648,6 +648,7 @@ impl Erosion {
             verdicts_before: &[],
             verdicts_older: &[],
             transition: 0,
+            hard_bound: self.rules.erodes && self.params.bound == Bound::Hard,
         };
         let frames = fill::patch_frames(&self.state.patches);
         let unjudged = FillContext {

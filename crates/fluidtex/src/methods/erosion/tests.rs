@@ -21,7 +21,8 @@ use crate::methods::{
     FrameContext, FrameResult, Method, PreviousFrame, SOURCE_OUTSIDE, SOURCE_UNCOVERED,
 };
 use crate::provenance::{
-    RENEWAL_DISTORTED, RENEWAL_HELD, RENEWAL_SHOWN, RENEWAL_UNKNOWN, renewal_unforced,
+    RENEWAL_DISTORTED, RENEWAL_ERODING, RENEWAL_HELD, RENEWAL_KEPT, RENEWAL_SHOWN, RENEWAL_UNKNOWN,
+    renewal_unforced,
 };
 use crate::surface::{SurfaceIndex, SurfacePoint};
 
@@ -989,6 +990,7 @@ fn blend_fill_is_the_weight_normalised_mix_of_every_covering_patch() {
         verdicts_before: &[],
         verdicts_older: &[],
         transition: 0,
+        hard_bound: false,
     };
     let candidates = Candidates::build(&fluid, &index, &patches, &frames, tolerance);
     let mut out = FillBuffers::new(atlas.width, atlas.height, ex.total_channels());
@@ -2063,6 +2065,7 @@ fn renewal_bytes_say_who_held_each_texel() {
     let c = scene("vortex", 10, 16, 96);
     let mut m = Erosion::new(ErosionParams::default(), exemplar(), 4).expect("params");
     let results = step_all(&mut m, &c);
+    let mut eroding = 0usize;
     for (k, r) in results.iter().enumerate() {
         let mut seen = [0usize; 8];
         for (&s, &b) in sources(r).iter().zip(renewal(r)) {
@@ -2071,14 +2074,23 @@ fn renewal_bytes_say_who_held_each_texel() {
                 continue;
             }
             assert_ne!(b, RENEWAL_UNKNOWN, "frame {k}: a chart texel");
-            assert!(b < 8, "frame {k}: {b:#x}");
-            // Shown by its holder means held, and a texel nobody covers now
-            // is shown by nobody.
+            assert!(b < 64, "frame {k}: {b:#x}");
+            // Shown by its holder means held and kept, and a texel nobody
+            // covers now is shown by nobody; only a holder is eroding or
+            // kept.
             assert!(b & RENEWAL_SHOWN == 0 || b & RENEWAL_HELD != 0);
+            assert!(b & RENEWAL_SHOWN == 0 || b & RENEWAL_KEPT != 0, "{b:#x}");
+            assert!(b & (RENEWAL_ERODING | RENEWAL_KEPT) == 0 || b & RENEWAL_HELD != 0);
             if s == SOURCE_UNCOVERED {
                 assert_eq!(b & RENEWAL_SHOWN, 0);
             }
-            seen[b as usize] += 1;
+            // A holder that keeps the point but does not show it lies
+            // under the patch that does: the texel is covered.
+            if b & RENEWAL_KEPT != 0 {
+                assert!(crate::metrics::is_patch(s), "frame {k}: {b:#x} on {s}");
+            }
+            seen[(b & 7) as usize] += 1;
+            eroding += usize::from(b & RENEWAL_ERODING != 0);
         }
         if k == 0 {
             // No patch showed anything before the first frame.
@@ -2091,7 +2103,35 @@ fn renewal_bytes_say_who_held_each_texel() {
         }
     }
     let last = renewal(results.last().expect("frames"));
-    assert!(last.contains(&RENEWAL_HELD), "an undistorted holder eroded");
+    // A holder within δ_max erodes its texel: renewal by distortion before
+    // the bound.
+    assert!(
+        last.contains(&(RENEWAL_HELD | RENEWAL_ERODING)),
+        "an undistorted holder eroded"
+    );
+    assert!(eroding > 0);
+}
+
+#[test]
+fn under_the_hard_bound_no_texel_shows_a_triangle_past_delta_max() {
+    // The vortex stretches patches past δ_max faster than their weights
+    // fall: by the paper's weights alone some holders past δ_max still show
+    // their texels; under the hard bound none does.
+    let c = scene("vortex", 10, 16, 96);
+    let shown_past_bound = |bound: Bound| {
+        let params = ErosionParams {
+            bound,
+            ..ErosionParams::default()
+        };
+        let mut m = Erosion::new(params, exemplar(), 4).expect("params");
+        let results = step_all(&mut m, &c);
+        let both = RENEWAL_SHOWN | RENEWAL_DISTORTED;
+        (results.iter())
+            .map(|r| renewal(r).iter().filter(|&&b| b & both == both).count())
+            .sum::<usize>()
+    };
+    assert_eq!(shown_past_bound(Bound::Hard), 0);
+    assert!(shown_past_bound(Bound::Weights) > 0);
 }
 
 #[test]
@@ -2119,6 +2159,7 @@ fn advect_holders_always_show_and_only_distortion_forces() {
                     continue;
                 }
                 assert_ne!(b & RENEWAL_SHOWN, 0, "an advect holder always shows");
+                assert_eq!(b & RENEWAL_ERODING, 0, "advect erodes nothing");
                 held += 1;
                 past += usize::from(b & RENEWAL_DISTORTED != 0);
             }

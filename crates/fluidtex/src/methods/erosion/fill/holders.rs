@@ -83,9 +83,27 @@ impl FillContext<'_> {
             }
             for (level, holder) in holders.iter_mut().enumerate().take(levels) {
                 if holder.is_none() && self.held_at(c, bary, level, located, &mut lhs) {
+                    // Whether the holder still keeps the point at this
+                    // frame's weights: the hit when it is this patch, one
+                    // more test (its left-hand side already read) when an
+                    // earlier patch won.
+                    let kept = match hit {
+                        Some(h) => {
+                            h.patch == c.patch
+                                || (level == 0
+                                    && self
+                                        .decide_with(&mut lhs, c.patch, located, c.verdict)
+                                        .is_some())
+                        }
+                        None => false,
+                    };
                     let forced = Forced {
                         distorted: c.corners.distorted,
                         mismatched: c.corners.mismatched,
+                        // Only a test that erodes makes a low weight a
+                        // cause (advect carries weights it never uses).
+                        eroding: located.w < 1.0 && self.erosion_of(c.patch).1.can_erode(),
+                        kept,
                     };
                     *holder = Some((c.patch, located.uv, forced));
                     open -= 1;
@@ -176,13 +194,22 @@ impl FillContext<'_> {
 /// The renewal byte of a texel whose holder the frame before is `holder`
 /// and whose hit now is `hit`.
 fn renewal_byte(holder: Option<Holder>, hit: Option<Hit>) -> u8 {
-    use crate::provenance::{RENEWAL_DISTORTED, RENEWAL_HELD, RENEWAL_SHOWN, RENEWAL_STATE};
+    use crate::provenance::{
+        RENEWAL_DISTORTED, RENEWAL_ERODING, RENEWAL_HELD, RENEWAL_KEPT, RENEWAL_SHOWN,
+        RENEWAL_STATE,
+    };
     let Some((patch, _, forced)) = holder else {
         return 0;
     };
     let mut r = RENEWAL_HELD;
     if hit.is_some_and(|h| h.patch == patch) {
         r |= RENEWAL_SHOWN;
+    }
+    if forced.kept {
+        r |= RENEWAL_KEPT;
+    }
+    if forced.eroding {
+        r |= RENEWAL_ERODING;
     }
     if forced.distorted {
         r |= RENEWAL_DISTORTED;
@@ -194,10 +221,13 @@ fn renewal_byte(holder: Option<Holder>, hit: Option<Hit>) -> u8 {
 }
 
 /// Why the holder of a point may have to give it up there: past δ_max
-/// (the flow), or showing an exemplar the fluid's state no longer
-/// selects.
+/// (the flow), being eroded by its weight (below 1 at the point, this
+/// frame), or showing an exemplar the fluid's state no longer selects;
+/// and whether it still keeps the point at this frame's weights.
 #[derive(Clone, Copy, Debug, Default)]
 struct Forced {
     distorted: bool,
     mismatched: bool,
+    eroding: bool,
+    kept: bool,
 }
