@@ -87,10 +87,16 @@ pub struct Config {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub select_by: Option<String>,
     /// With `select_by`: how fast a patch part whose exemplar no longer
-    /// matches goes, per second \[1] (erosion: the most a vertex weight
-    /// falls; lapped-rigid: the fade a patch loses).
+    /// matches goes, per second, where the state has just left its range
+    /// \[1] (erosion: the most a vertex weight falls; lapped-rigid: the
+    /// fade a patch loses).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub mismatch_rate: Option<f32>,
+    /// With `select_by`: how much faster it goes the farther the state is
+    /// past the range: the rate is `mismatch_rate` · (1 + gain · d), d the
+    /// distance past it as a share of the ranges' span \[20] (0: constant).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mismatch_gain: Option<f32>,
     /// Animated exemplars (an image sequence such as `bubbles.####.png`):
     /// exemplar frames shown per fluid frame \[1]; each patch starts at
     /// its own seeded phase.
@@ -381,9 +387,14 @@ pub struct RunFlags {
     /// (temperature, age, ...), each exemplar showing its IMG@LO:HI range
     #[arg(long, value_name = "ATTR")]
     pub select_by: Option<String>,
-    /// With --select-by: how fast what no longer matches goes, per second [1]
+    /// With --select-by: how fast what no longer matches goes, per second,
+    /// just past its range [1]
     #[arg(long)]
     pub mismatch_rate: Option<f32>,
+    /// With --select-by: how much faster far past the range: rate × (1 +
+    /// gain × distance past it / the ranges' span) [20] (0: constant)
+    #[arg(long)]
+    pub mismatch_gain: Option<f32>,
     /// Animated exemplar (IMG a sequence such as bubbles.####.png, or
     /// builtin:bubbles): exemplar frames per fluid frame [1]
     #[arg(long)]
@@ -495,6 +506,7 @@ flag_keys! {
     exemplar_region => exemplar_region: some,
     select_by => select_by: some,
     mismatch_rate => mismatch_rate: some,
+    mismatch_gain => mismatch_gain: some,
     exemplar_rate => exemplar_rate: some,
     exemplar_memory => exemplar_memory: some,
     preview_video => preview_video: on,
@@ -887,6 +899,7 @@ mod tests {
             exemplar_region: file(),
             select_by: text(),
             mismatch_rate: Some(0.0),
+            mismatch_gain: Some(0.0),
             exemplar_rate: Some(0.0),
             exemplar_memory: Some(0),
             preset: text(),

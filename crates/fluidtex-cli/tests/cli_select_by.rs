@@ -167,6 +167,25 @@ fn bad_selections_are_one_line_errors() {
     let e = run(&[
         "--select-by",
         "temperature",
+        "--mismatch-gain=-1",
+        "--exemplar",
+        "builtin:glow@0.5:1",
+        "--exemplar",
+        "builtin:crust@0:0.5",
+    ]);
+    assert!(e.contains("mismatch_gain") && e.contains("from 0"), "{e}");
+    let e = run(&[
+        "--mismatch-gain",
+        "5",
+        "--exemplar",
+        "builtin:glow",
+        "--exemplar",
+        "builtin:crust",
+    ]);
+    assert!(e.contains("mismatch_gain needs --select-by"), "{e}");
+    let e = run(&[
+        "--select-by",
+        "temperature",
         "--exemplar-select",
         "histogram",
         "--exemplar",

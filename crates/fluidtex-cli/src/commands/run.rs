@@ -436,8 +436,9 @@ fn build_exemplar_entries(config: &Config) -> Result<ExemplarSet> {
 }
 
 /// The config's selection by attribute: `select_by` with every exemplar's
-/// `range` (and `mismatch_rate`); ranges or a rate without `select_by`,
-/// or an exemplar without its range, are refused with the entry named.
+/// `range` (and `mismatch_rate`, `mismatch_gain`); ranges, a rate or a
+/// gain without `select_by`, or an exemplar without its range, are
+/// refused with the entry named.
 fn select_by(config: &Config) -> Result<Option<SelectBy>> {
     let Some(attribute) = &config.select_by else {
         if let Some(e) = config.exemplars.iter().find(|e| e.range.is_some()) {
@@ -448,6 +449,9 @@ fn select_by(config: &Config) -> Result<Option<SelectBy>> {
         }
         if config.mismatch_rate.is_some() {
             bail!("mismatch_rate needs --select-by ATTR");
+        }
+        if config.mismatch_gain.is_some() {
+            bail!("mismatch_gain needs --select-by ATTR");
         }
         if config.exemplar_select.as_deref() == Some("attribute") {
             bail!(
@@ -484,11 +488,14 @@ fn select_by(config: &Config) -> Result<Option<SelectBy>> {
                 .map_err(|m| anyhow!("exemplar {}: {m}", e.path.display()))?,
         );
     }
-    let by = SelectBy::new(attribute.clone(), ranges);
-    Ok(Some(match config.mismatch_rate {
-        Some(rate) => by.with_mismatch_rate(rate).map_err(Error::msg)?,
-        None => by,
-    }))
+    let mut by = SelectBy::new(attribute.clone(), ranges);
+    if let Some(rate) = config.mismatch_rate {
+        by = by.with_mismatch_rate(rate).map_err(Error::msg)?;
+    }
+    if let Some(gain) = config.mismatch_gain {
+        by = by.with_mismatch_gain(gain).map_err(Error::msg)?;
+    }
+    Ok(Some(by))
 }
 
 /// The method the config names, its parameters checked before the

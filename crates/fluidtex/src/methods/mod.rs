@@ -55,6 +55,8 @@ mod multi_tests;
 #[cfg(test)]
 mod selection_tests;
 #[cfg(test)]
+mod state_blob_tests;
+#[cfg(test)]
 mod state_tests;
 #[cfg(test)]
 pub(crate) mod test_clip;
@@ -225,6 +227,10 @@ pub enum Stat {
     /// With selection by attribute: the share of covered texels whose
     /// exemplar matches the attribute there.
     StateAgreement,
+    /// The same over the covered texels whose attribute is decisive: at
+    /// least [`crate::exemplar::select_by::DECISIVE_MARGIN`] of the
+    /// ranges' span from every split between ranges.
+    StateAgreementDecisive,
 }
 
 crate::named!(Stat {
@@ -244,6 +250,7 @@ crate::named!(Stat {
     ExemplarSize => "exemplar_size",
     WeightA => "weight_a",
     StateAgreement => "state_agreement",
+    StateAgreementDecisive => "state_agreement_decisive",
 });
 
 /// Method statistics as written to `stats.F.json`: typed keys, JSON values.

@@ -67,7 +67,11 @@ fn crust_and_glow_drawn() -> ExemplarSet {
     .expect("same channels")
 }
 
-/// Cold black (0..0.5) and hot white (0.5..1), chosen by temperature.
+/// Cold black (0..0.5) and hot white (0.5..1), chosen by temperature, at
+/// the constant `rate`: the front is a step, 0.5 past the split wherever
+/// it has passed, where the default gain makes a mismatch go within a
+/// frame; these tests are about the rate and the lag it leaves
+/// (`state_blob_tests` covers the gain).
 fn crust_and_glow(rate: f32) -> ExemplarSet {
     let set = crust_and_glow_drawn();
     let ranges = vec![
@@ -76,11 +80,12 @@ fn crust_and_glow(rate: f32) -> ExemplarSet {
     ];
     let by = SelectBy::new("temperature", ranges)
         .with_mismatch_rate(rate)
+        .and_then(|b| b.with_mismatch_gain(0.0))
         .expect("rate");
     set.with_select_by(by).expect("two ranges")
 }
 
-fn build(kind: MethodKind, set: ExemplarSet) -> Box<dyn Method> {
+pub(super) fn build(kind: MethodKind, set: ExemplarSet) -> Box<dyn Method> {
     let mut p = MethodParams::default();
     p.erosion.radius_fraction = 0.06;
     p.erosion.radius_edges = 0.0;
@@ -247,30 +252,30 @@ fn patch_with(weight: Vec<f32>, before: Vec<f32>) -> super::erosion::patch::Patc
 #[test]
 fn mismatch_lowers_weights_only_where_the_range_is_violated() {
     let mut p = patch_with(vec![0.9, 1.0, 0.6, 0.1], vec![1.0, 1.0, 0.5, 0.2]);
-    p.lower_mismatched(&[false, true, true, true], 0.25);
+    p.lower_mismatched(&[None, Some(0.25), Some(0.25), Some(0.5)]);
     assert_eq!(p.weight, vec![0.9, 0.75, 0.25, 0.0]);
     // No weight the frame before (a patch placed this frame): unchanged.
     let mut p = patch_with(vec![0.9, 1.0], Vec::new());
-    p.lower_mismatched(&[true, true], 0.25);
+    p.lower_mismatched(&[Some(0.25), Some(0.25)]);
     assert_eq!(p.weight, vec![0.9, 1.0]);
     // Seeded random cases: never raised, untouched where matching, at most
-    // `drop` below the frame before where not.
+    // the vertex's drop below the frame before where not.
     use rand::{Rng, SeedableRng};
     let mut rng = rand_pcg::Pcg64::seed_from_u64(41);
     for _ in 0..200 {
         let n = rng.random_range(1..20);
         let w: Vec<f32> = (0..n).map(|_| rng.random()).collect();
         let b: Vec<f32> = (0..n).map(|_| rng.random()).collect();
-        let m: Vec<bool> = (0..n).map(|_| rng.random()).collect();
-        let drop: f32 = rng.random_range(0.0..0.5);
+        let m: Vec<Option<f32>> = (0..n)
+            .map(|_| rng.random::<bool>().then(|| rng.random_range(0.0..0.5)))
+            .collect();
         let mut p = patch_with(w.clone(), b.clone());
-        p.lower_mismatched(&m, drop);
+        p.lower_mismatched(&m);
         for v in 0..n {
             assert!(p.weight[v] <= w[v], "raised at {v}");
-            if m[v] {
-                assert_eq!(p.weight[v], w[v].min((b[v] - drop).max(0.0)));
-            } else {
-                assert_eq!(p.weight[v], w[v]);
+            match m[v] {
+                Some(drop) => assert_eq!(p.weight[v], w[v].min((b[v] - drop).max(0.0))),
+                None => assert_eq!(p.weight[v], w[v]),
             }
         }
     }

@@ -185,11 +185,13 @@ impl Multi {
         }
     }
 
-    /// Per vertex of `p`: whether its exemplar no longer matches the
-    /// selecting attribute at the surface point nearest the vertex (within
-    /// `reach`; farther vertices, and runs not selecting by attribute,
-    /// mismatch nowhere: empty). `everywhere`: per exemplar, whether it
-    /// matches the whole surface this frame
+    /// Per vertex of `p`: the weight it loses this frame (`dt` seconds)
+    /// because its exemplar no longer matches the selecting attribute at
+    /// the surface point nearest the vertex ([`SelectBy::mismatch_drop`]:
+    /// the farther past the range, the more), `None` where it matches.
+    /// Vertices farther than `reach` from the surface match; runs not
+    /// selecting by attribute mismatch nowhere: empty. `everywhere`: per
+    /// exemplar, whether it matches the whole surface this frame
     /// ([`SelectBy::matching_everywhere`]); its patches are not tested.
     pub fn mismatched(
         &self,
@@ -198,7 +200,8 @@ impl Multi {
         index: &SurfaceIndex,
         reach: f32,
         everywhere: &[bool],
-    ) -> Vec<bool> {
+        dt: f32,
+    ) -> Vec<Option<f32>> {
         let Some(by) = &self.set.by else {
             return Vec::new();
         };
@@ -211,9 +214,8 @@ impl Multi {
         p.positions
             .iter()
             .map(|&q| {
-                index.closest(q, reach).is_some_and(|h| {
-                    !by.matches(p.exemplar, SelectBy::value_at(values, mesh, h.location))
-                })
+                let h = index.closest(q, reach)?;
+                by.mismatch_drop(p.exemplar, SelectBy::value_at(values, mesh, h.location), dt)
             })
             .collect()
     }

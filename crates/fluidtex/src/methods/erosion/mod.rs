@@ -720,8 +720,9 @@ impl Erosion {
     /// Patches from `first_new_id` on were placed this frame: they showed
     /// nothing the frame before.
     /// With selection by attribute, a vertex whose exemplar no longer
-    /// matches falls at the mismatch rate too (not `advect`, which never
-    /// lowers a weight).
+    /// matches falls too, the faster the farther the state is past its
+    /// range ([`crate::exemplar::SelectBy::mismatch_drop`]); not on
+    /// `advect`, which never lowers a weight.
     fn update_weights(&mut self, ctx: &FrameContext<'_>, shape: &PatchShape, first_new_id: u32) {
         let dt = ctx.dt;
         let max_drop = match (self.rules.erodes, self.params.weights) {
@@ -732,7 +733,7 @@ impl Erosion {
             (Some(m), true) => m.set.by.as_ref().map(|by| {
                 let everywhere =
                     (by.values(ctx.mesh)).map_or_else(Vec::new, |v| by.matching_everywhere(v));
-                (m, by.mismatch_rate * dt, everywhere)
+                (m, everywhere)
             }),
             _ => None,
         };
@@ -740,9 +741,9 @@ impl Erosion {
         self.state.patches.par_iter_mut().for_each(|p| {
             p.remember_weights(older);
             p.update_weights(shape, max_drop);
-            if let Some((m, drop, everywhere)) = &mismatch {
-                let flags = m.mismatched(p, ctx.mesh, ctx.index, shape.radius, everywhere);
-                p.lower_mismatched(&flags, *drop);
+            if let Some((m, everywhere)) = &mismatch {
+                let drops = m.mismatched(p, ctx.mesh, ctx.index, shape.radius, everywhere, dt);
+                p.lower_mismatched(&drops);
             }
             if p.id >= first_new_id {
                 p.weight_before.clear();

@@ -380,17 +380,18 @@ impl LappedRigid {
         let Some(values) = by.values(ctx.mesh) else {
             return;
         };
-        let drop = by.mismatch_rate * ctx.dt;
-        let (mesh, index) = (ctx.mesh, ctx.index);
+        let (mesh, index, dt) = (ctx.mesh, ctx.index, ctx.dt);
         let everywhere = by.matching_everywhere(values);
         self.state.trackers.par_iter_mut().for_each(|t| {
             if everywhere.get(t.exemplar as usize) == Some(&true) {
                 return;
             }
-            let mismatched = index.closest(t.position, radius).is_some_and(|h| {
-                !by.matches(t.exemplar, SelectBy::value_at(values, mesh, h.location))
+            // As erosion's weights: the farther the state is past the
+            // exemplar's range, the faster the fade.
+            let drop = index.closest(t.position, radius).and_then(|h| {
+                by.mismatch_drop(t.exemplar, SelectBy::value_at(values, mesh, h.location), dt)
             });
-            if mismatched {
+            if let Some(drop) = drop {
                 t.fade = (t.fade - drop).max(0.0);
             }
         });

@@ -880,7 +880,7 @@ impl Patch {
             .zip(&self.weight_before)
             .zip(mismatched)
         {
-            if m {
+            if let Some(drop) = m {
                 *w = w.min((before - drop).max(0.0));
             }
         }
