@@ -392,6 +392,7 @@ fn disagreements(section: &str) -> Vec<String> {
     e.seed_texel = erosion::SeedTexel::Paper;
     e.feature_filter = erosion::FeatureFilter::Full;
     e.eroded_triangles = erosion::ErodedTriangles::Kept;
+    e.bound = erosion::Bound::Paper;
     all.extend(leaves(&switch_on));
     let mut keys: BTreeSet<String> = BTreeSet::new();
     for k in all.keys() {

@@ -116,18 +116,18 @@ pub const DEPARTURES: &[Departure] = &[
         what: "Texels of a patch triangle stretched past δ_max.",
         ours: "`bound = hard`: never shown. The erosion test treats the triangle as eroded \
                whole, so the distortion bound holds on every texel, however fast the flow.",
-        paper_setting: "Shown where the vertex weights keep them (`bound = weights`): Q_T = 0 \
+        paper_setting: "Shown where the vertex weights keep them (`bound = paper`): Q_T = 0 \
                         past δ_max, but Q_V averages Q_T over a vertex's triangles, and \
                         progressive weights fall at a bounded rate.",
         key: Some("erosion.bound"),
-        flag: Some("--bound weights"),
-        preset: "erosion.bound = \"weights\"",
+        flag: Some("--bound paper"),
+        preset: "erosion.bound = \"paper\"",
         effect: "Weights → hard, default erosion: distortion p95 median (worst) on `dam-break` \
                  frames 6–17, atlas 512, 2.95 (3.56) → 2.54 (2.64), popping 0.120 → 0.122, \
                  switch share 0.197 → 0.199. A unit test on `vortex` counts texels shown by a \
                  holder past δ_max: some under the weights, none under the hard bound.",
         measure: "`fluidtex compare --scenes dam-break --frames 6-17 --methods erosion,advect \
-                  --out cmp`, without and with `--config P`, P: `erosion.bound = \"weights\"`; \
+                  --out cmp`, without and with `--config P`, P: `erosion.bound = \"paper\"`; \
                   `cargo test -p fluidtex --lib \
                   under_the_hard_bound_no_texel_shows_a_triangle_past_delta_max`",
     },

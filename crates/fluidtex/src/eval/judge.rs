@@ -92,8 +92,8 @@ impl Floor {
 ///   advect) passes when its *unforced* share is at most
 ///   `source_switch.max_excess_over_floor` above advect's switch share on
 ///   every frame from the first lifetime on ([`FIRST_LIFETIME_FRAMES`]);
-///   renewal of a holder past δ_max or being eroded there (weight below
-///   1) is forced and not charged. A run that records no causes is judged
+///   renewal of a holder past δ_max or being eroded there (its weight
+///   below one) is forced and not charged. A run that records no causes is judged
 ///   on its whole share against advect's, plus, on a scene of
 ///   `popping.strong_shear_scenes`, the cumulative renewal floor.
 /// - **Methods that blend layers** (`lapped-rigid`, `blend-deformable`,
@@ -467,34 +467,22 @@ fn judge_follow_on_violent_frames(runs: &mut [MethodRun], floor: &Floor, thresho
 /// a method follows it worse than a texture that rides it by
 /// construction). Elsewhere the absolute rule stands.
 fn judge_aligned_against_floor(runs: &mut [MethodRun], thresholds: &Thresholds) {
+    let fl = &thresholds.flow;
     let floor_name = &thresholds.source_switch.floor_method;
-    let Some(floor) = runs
-        .iter()
-        .find(|r| &r.method == floor_name)
-        .and_then(|r| r.summary(Metric::FlowAligned))
-        .map(|s| s.median)
-        .filter(|m| m.is_finite() && *m < thresholds.flow.min_aligned_share)
-    else {
-        return;
-    };
-    let allowed = floor - thresholds.flow.max_aligned_shortfall_under_floor;
-    let lead = "flow aligned share: judged against";
-    for run in runs.iter_mut() {
-        run.notes.retain(|n| !n.starts_with(lead));
-        let Some(s) = run.summary_mut(Metric::FlowAligned) else {
-            continue;
-        };
-        if !s.median.is_finite() {
-            continue;
-        }
-        s.verdict = Verdict::of(s.median >= allowed);
-        run.notes.push(format!(
-            "{lead} {floor_name}'s {:.3} less {} ({floor_name} is below the absolute {:.2} here)",
-            floor,
-            thresholds.flow.max_aligned_shortfall_under_floor,
-            thresholds.flow.min_aligned_share
-        ));
-    }
+    judge_median_against_floor(
+        runs,
+        thresholds,
+        Metric::FlowAligned,
+        |floor| floor < fl.min_aligned_share,
+        |median, floor| median >= floor - fl.max_aligned_shortfall_under_floor,
+        |floor| {
+            format!(
+                "flow aligned share: judged against {floor_name}'s {floor:.3} less {} \
+                 ({floor_name} is below the absolute {:.2} here)",
+                fl.max_aligned_shortfall_under_floor, fl.min_aligned_share
+            )
+        },
+    );
 }
 
 /// Ruling 5: the median end-point error where the floor method itself
@@ -504,32 +492,58 @@ fn judge_aligned_against_floor(runs: &mut [MethodRun], thresholds: &Thresholds) 
 /// construction cannot follow within a quarter pixel either). Elsewhere
 /// the absolute rule stands.
 fn judge_epe_against_floor(runs: &mut [MethodRun], thresholds: &Thresholds) {
+    let fl = &thresholds.flow;
+    let floor_name = &thresholds.source_switch.floor_method;
+    judge_median_against_floor(
+        runs,
+        thresholds,
+        Metric::FlowEpe,
+        |floor| floor > fl.max_median_epe_px,
+        |median, floor| median <= floor + fl.max_epe_excess_over_floor_px + 1e-12,
+        |floor| {
+            format!(
+                "flow median EPE: judged against {floor_name}'s {floor:.3} px plus {} px \
+                 ({floor_name} misses the absolute {} px here)",
+                fl.max_epe_excess_over_floor_px, fl.max_median_epe_px
+            )
+        },
+    );
+}
+
+/// Where the floor run's median of `metric` fails the absolute rule
+/// (`floor_fails`), every run's median is judged against it instead
+/// (`passes(median, floor)`), with the note `note(floor)`; the notes of an
+/// earlier call are replaced.
+fn judge_median_against_floor(
+    runs: &mut [MethodRun],
+    thresholds: &Thresholds,
+    metric: Metric,
+    floor_fails: impl Fn(f64) -> bool,
+    passes: impl Fn(f64, f64) -> bool,
+    note: impl Fn(f64) -> String,
+) {
     let floor_name = &thresholds.source_switch.floor_method;
     let Some(floor) = runs
         .iter()
         .find(|r| &r.method == floor_name)
-        .and_then(|r| r.summary(Metric::FlowEpe))
+        .and_then(|r| r.summary(metric))
         .map(|s| s.median)
-        .filter(|m| m.is_finite() && *m > thresholds.flow.max_median_epe_px)
+        .filter(|m| m.is_finite() && floor_fails(*m))
     else {
         return;
     };
-    let allowed = floor + thresholds.flow.max_epe_excess_over_floor_px;
-    let lead = "flow median EPE: judged against";
+    let text = note(floor);
+    let lead = text.split(':').next().unwrap_or_default().to_string();
     for run in runs.iter_mut() {
-        run.notes.retain(|n| !n.starts_with(lead));
-        let Some(s) = run.summary_mut(Metric::FlowEpe) else {
+        run.notes.retain(|n| !n.starts_with(&lead));
+        let Some(s) = run.summary_mut(metric) else {
             continue;
         };
         if !s.median.is_finite() {
             continue;
         }
-        s.verdict = Verdict::of(s.median <= allowed + 1e-12);
-        run.notes.push(format!(
-            "{lead} {floor_name}'s {floor:.3} px plus {} px ({floor_name} misses the absolute \
-             {} px here)",
-            thresholds.flow.max_epe_excess_over_floor_px, thresholds.flow.max_median_epe_px
-        ));
+        s.verdict = Verdict::of(passes(s.median, floor));
+        run.notes.push(text.clone());
     }
 }
 

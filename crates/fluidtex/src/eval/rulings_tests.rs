@@ -82,6 +82,9 @@ fn made_up(name: &str, n: i32, frame: impl Fn(i32) -> F) -> MethodRun {
     }
 }
 
+/// Turns a good frame `k` into its known-bad twin.
+type Spoil = fn(i32, F) -> F;
+
 fn verdict(r: &MethodRun, m: Metric) -> Verdict {
     r.summary(m).unwrap().verdict
 }
@@ -222,7 +225,7 @@ fn violent_frames_judge_popping_against_advect_and_leave_switches_out() {
     // Known-bad twins: 3 points above advect on a violent frame; 6 % on
     // the calm frame 6 (the absolute worst 5 % holds there); a colour
     // follow of 0.9 on the violent frame 20 or on a calm frame.
-    let cases: [(&str, Metric, fn(i32, F) -> F); 4] = [
+    let cases: [(&str, Metric, Spoil); 4] = [
         ("violent popping", Metric::Popping, |k, f| F {
             popping: if k == 4 { 0.08 } else { f.popping },
             ..f

@@ -350,6 +350,7 @@ impl Thresholds {
     fn validate(&self) -> Result<(), MetricsError> {
         check_all(&self.image_checks())?;
         check_all(&self.motion_checks())?;
+        check_all(&self.popping_checks())?;
         if self.source_switch.floor_method.trim().is_empty() {
             return Err(MetricsError::Thresholds {
                 file: FILE,
@@ -438,12 +439,7 @@ impl Thresholds {
 
     /// Range checks of the metrics over frame pairs and renders.
     fn motion_checks(&self) -> Vec<Check> {
-        let (fl, s, p, sw) = (
-            &self.flow,
-            &self.silhouette,
-            &self.popping,
-            &self.source_switch,
-        );
+        let (fl, s) = (&self.flow, &self.silhouette);
         vec![
             (
                 "flow.min_speed_px",
@@ -505,6 +501,13 @@ impl Thresholds {
                 s.relative_depth_jump > 0.0,
                 "(0, inf)",
             ),
+        ]
+    }
+
+    /// Range checks of popping and the source switch share.
+    fn popping_checks(&self) -> Vec<Check> {
+        let (p, sw) = (&self.popping, &self.source_switch);
+        vec![
             (
                 "popping.sigma_factor",
                 p.sigma_factor as f64,

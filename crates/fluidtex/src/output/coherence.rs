@@ -117,36 +117,29 @@ impl WrittenFrameSink for CoherenceSink {
         }
         let current = WrittenTexels::of(frame.specs, &g.atlas, ids, frame.channels)
             .with_renewal(frame.renewal.unwrap_or_default());
-        let mut distorted = None;
         if let Some(before) = &self.previous
             && Some(before.number) == frame.previous_number
             && let Some((c, ends)) = self.measure(out.files, prev, before, g, &current)?
         {
-            record(out.stats, g, &c, &ends, before.holder_distorted);
-            distorted = out.stats.holder_distorted_share;
+            record(out.stats, g, &c, &ends);
         }
-        self.previous = Some(CoherencePrevious {
-            holder_distorted: distorted,
-            ..CoherencePrevious::of(
-                &current,
-                g,
-                &self.settings.measure,
-                self.settings.switch_map,
-            )
-        });
+        self.previous = Some(CoherencePrevious::of(
+            &current,
+            g,
+            &self.settings.measure,
+            self.settings.switch_map,
+        ));
         out.clock.lap("coherence");
         Ok(())
     }
 }
 
-/// Puts a measured frame's numbers into its stats; `distorted_before`:
-/// the frame before's `holder_distorted_share`, where it was measured.
+/// Puts a measured frame's numbers into its stats.
 fn record(
     stats: &mut FrameStats,
     g: &FrameGeometry,
     c: &crate::coherence::Coherence,
     ends: &[CarriedEnds],
-    distorted_before: Option<f64>,
 ) {
     // By region needs the patch radius, which the lapped methods report.
     let radius = stats
@@ -168,11 +161,7 @@ fn record(
         stats.switch_forced_eroding_share = Some(c.causes.forced_eroding_share());
         stats.switch_unforced_on_top_share = Some(c.causes.unforced_on_top_share());
         stats.switch_unforced_other_share = Some(c.causes.unforced_other_share());
-        let distorted = c.causes.distorted_share();
-        stats.holder_distorted_share = Some(distorted);
-        stats.holder_distorted_new_share = distorted_before
-            .map(|before| crate::eval::renewal_floor_growth(before, distorted))
-            .filter(|v| v.is_finite());
+        stats.holder_distorted_share = Some(c.causes.distorted_share());
     }
     stats.colour_follow_ratio = Some(c.follow_ratio());
 }
@@ -194,9 +183,6 @@ struct CoherencePrevious {
     points: Option<(Departure, Vec<crate::coherence::PointValue>)>,
     /// Written source and grey per texel, for `switch.F.png` only.
     full: Option<(Vec<u32>, Vec<f32>)>,
-    /// Its `holder_distorted_share`, where measured: the growth of that
-    /// share is the next frame's per-frame renewal floor.
-    holder_distorted: Option<f64>,
 }
 
 /// The sample points of the pair (frame `number`, the next): one set per
@@ -251,7 +237,6 @@ impl CoherencePrevious {
             number: g.number,
             points,
             full,
-            holder_distorted: None,
         }
     }
 }
@@ -463,7 +448,6 @@ impl CoherenceSink {
                 number: last,
                 points,
                 full,
-                holder_distorted: self.reload_holder_distorted(last),
             })
         };
         match load() {
@@ -476,17 +460,6 @@ impl CoherenceSink {
                 None
             }
         }
-    }
-
-    /// After `--resume`: the last finished frame's `holder_distorted_share`
-    /// from its `stats.F.json`, so that the first resumed frame's per-frame
-    /// renewal floor is the one an uninterrupted run writes. `None` where
-    /// the file or the value is missing (that frame then has none).
-    fn reload_holder_distorted(&self, last: i32) -> Option<f64> {
-        let path = self.out_dir.join(format!("stats.{}.json", frame_tag(last)));
-        let text = std::fs::read_to_string(path).ok()?;
-        let stats: serde_json::Value = serde_json::from_str(&text).ok()?;
-        stats.get("holder_distorted_share")?.as_f64()
     }
 
     /// Source switch share and colour follow ratio from the frame before

@@ -72,15 +72,13 @@ pub struct FrameStats {
     pub switch_unforced_other_share: Option<f64>,
     /// The share whose patch of the frame before is past δ_max there,
     /// switched or not; on `advect`, which never renews, the share of the
-    /// surface the distortion bound would renew (the renewal floor).
+    /// surface the distortion bound would renew (the renewal floor). Its
+    /// growth from one frame's file to the next is advect's *per-frame*
+    /// renewal floor, which `compare` reports (docs/evaluation.md); it is
+    /// not written here, since a farm resamples a shot in chunks that run
+    /// side by side, where the frame before's file may not exist yet.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub holder_distorted_share: Option<f64>,
-    /// How much `holder_distorted_share` grew since the frame before (never
-    /// below 0): on `advect`, the share of the surface the flow pushed past
-    /// δ_max on this frame alone, the per-frame renewal floor that makes a
-    /// frame *violent* above 5 % (docs/evaluation.md).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub holder_distorted_new_share: Option<f64>,
     /// The same points by the region they land in: `bulk`, `sheet` (liquid
     /// thinner than r/2 under the point) and `droplet` (a piece of surface
     /// smaller than a disc of radius r), each with its number of points

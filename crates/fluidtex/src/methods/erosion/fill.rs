@@ -309,10 +309,19 @@ impl FillContext<'_> {
     }
 
     /// The verdict of triangle `j` of patch `i` ([`Verdict::Test`] when
-    /// none was computed).
+    /// none was computed); under the hard bound [`Verdict::Eroded`] where
+    /// the triangle is past δ_max, whether the tables were computed or not
+    /// (the update tests its new patches without them, and a texel it
+    /// covered must be one the next frame's fill covers too).
     #[inline]
     fn verdict(&self, i: u32, j: u32) -> Verdict {
-        verdict_in(self.verdicts, i, j)
+        let past_bound =
+            self.hard_bound && (self.patches.get(i as usize)).is_some_and(|p| p.past_bound(j));
+        if past_bound {
+            Verdict::Eroded
+        } else {
+            verdict_in(self.verdicts, i, j)
+        }
     }
 
     /// The verdict of triangle `j` of patch `i` at the weights of the frame
@@ -391,8 +400,10 @@ impl FillContext<'_> {
         let mut tables = self.verdicts_at(|p| Some(&p.weight));
         if self.hard_bound {
             for (table, p) in tables.iter_mut().zip(self.patches) {
-                for (verdict, _) in table.iter_mut().zip(&p.distorted).filter(|(_, d)| **d) {
-                    *verdict = Verdict::Eroded;
+                for (j, verdict) in table.iter_mut().enumerate() {
+                    if p.past_bound(j as u32) {
+                        *verdict = Verdict::Eroded;
+                    }
                 }
             }
         }

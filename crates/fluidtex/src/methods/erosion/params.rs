@@ -143,7 +143,7 @@ crate::methods::params::params! {
         /// settings at its default.
         #[serde(skip_serializing_if = "crate::methods::is_default")]
         pub bound: Bound = Bound::Hard
-            => "bound" : "Erosion: a patch triangle past δ_max shows nothing (hard) or what its vertex weights keep (weights, the paper: Q_V averages Q_T over a vertex's triangles) [hard]",
+            => "bound" : "Erosion: a patch triangle past δ_max shows nothing (hard) or what its vertex weights keep (paper: Q_V averages Q_T over a vertex's triangles) [hard]",
     }
 }
 
@@ -162,8 +162,9 @@ pub enum Bound {
     /// reach 3.56 with δ_max = 3.
     #[default]
     Hard,
-    /// The paper's: only the weights decide, through the erosion test.
-    Weights,
+    /// The paper's: only the vertex weights decide, through the erosion
+    /// test.
+    Paper,
 }
 
 /// Which fluid triangles a new patch copies. Both keep only the triangles
@@ -392,7 +393,7 @@ crate::named!(FeatureFilter {
 });
 crate::named!(Bound {
     Hard => "hard",
-    Weights => "weights",
+    Paper => "paper",
 });
 crate::named!(Orientation {
     Random => "random",

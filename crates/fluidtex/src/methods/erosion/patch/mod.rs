@@ -854,22 +854,42 @@ impl Patch {
 }
 
 impl Patch {
+    /// Whether triangle `j` shows nothing under the hard bound
+    /// ([`super::Bound::Hard`]): it is past δ_max ([`Patch::distorted`])
+    /// and some corner's weight is below 1. A triangle stretched past δ_max
+    /// by the flow has Q_T = 0, so its corners' weights fall below 1 on the
+    /// frame it gets there; the corners still at 1 are a new patch's
+    /// centre, which progressive weights hold whole at creation
+    /// (`whole_centre`) and keep while the patch does not move. A
+    /// flattening can leave the seed's own triangle past δ_max from the
+    /// start, and a patch that never showed its seed texel would be
+    /// deleted and made again every frame, even on a liquid at rest.
+    pub fn past_bound(&self, j: u32) -> bool {
+        let j = j as usize;
+        let whole = |t: &[u32; 3]| {
+            t.iter()
+                .all(|&v| self.weight.get(v as usize).is_some_and(|&w| w >= 1.0))
+        };
+        self.distorted.get(j).is_some_and(|&d| d)
+            && self.triangles.get(j).is_some_and(|t| !whole(t))
+    }
+
     /// Lowers the weight of every vertex `mismatched` marks (its exemplar
     /// no longer matches the selecting attribute where it lies,
-    /// [`crate::exemplar::SelectBy`]) by `drop` below the frame before's,
-    /// to no less than 0, as a distorted vertex falls: the other exemplar
-    /// then takes the texels over along the feature map, not by a
-    /// cross-fade. Never raises a weight; vertices without a weight the
-    /// frame before (none yet) keep theirs. Call after
+    /// [`crate::exemplar::SelectBy`]) by the drop it gives below the
+    /// frame before's, to no less than 0, as a distorted vertex falls: the
+    /// other exemplar then takes the texels over along the feature map,
+    /// not by a cross-fade. Never raises a weight; vertices without a
+    /// weight the frame before (none yet) keep theirs. Call after
     /// [`Patch::update_weights`].
-    pub fn lower_mismatched(&mut self, mismatched: &[bool], drop: f32) {
+    pub fn lower_mismatched(&mut self, mismatched: &[Option<f32>]) {
         let n = self.weight.len();
         self.mismatched.clear();
         if mismatched.len() != n {
             return;
         }
         self.mismatched = (self.triangles.iter())
-            .map(|t| t.iter().any(|&v| mismatched[v as usize]))
+            .map(|t| t.iter().any(|&v| mismatched[v as usize].is_some()))
             .collect();
         if self.weight_before.len() != n {
             return;
