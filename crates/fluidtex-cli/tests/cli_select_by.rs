@@ -266,17 +266,24 @@ fn compare_reports_the_state_agreement_of_each_method() {
         .collect();
     // The default methods with --select-by: those that choose per patch.
     assert_eq!(names, ["erosion", "advect", "lapped-rigid"]);
-    let last = |m: &serde_json::Value| {
-        m["per_frame"].as_array().unwrap().last().unwrap()["state_agreement"]
+    let last_of = |m: &serde_json::Value, key: &str| {
+        m["per_frame"].as_array().unwrap().last().unwrap()[key]
             .as_f64()
             .unwrap()
     };
+    let last = |m: &serde_json::Value| last_of(m, "state_agreement");
     // Erosion renews what cooled; advect never renews, so its glow stays
     // (the known-bad control).
     assert!(last(&methods[0]) >= 0.95, "erosion: {}", last(&methods[0]));
     assert!(last(&methods[1]) < 0.5, "advect: {}", last(&methods[1]));
+    // Every point is 0 or 1, half the span from the split: all decisive,
+    // and the same verdicts.
+    let decisive = |m: &serde_json::Value| last_of(m, "state_agreement_decisive");
+    assert!(decisive(&methods[0]) >= 0.95, "{}", decisive(&methods[0]));
+    assert!(decisive(&methods[1]) < 0.5, "{}", decisive(&methods[1]));
     let md = std::fs::read_to_string(out.join("report.md")).unwrap();
     assert!(md.contains("state agreement"), "{md}");
+    assert!(md.contains("on decisive points"), "{md}");
     // A plain comparison has no such column.
     let plain = dir.path().join("plain");
     ok(&[

@@ -302,6 +302,9 @@ pub struct FrameRecord {
     /// For information: the method's state agreement (exemplars chosen by
     /// an attribute, [`Stat::StateAgreement`]); NaN where it has none.
     pub state_agreement: f64,
+    /// The same on the decisive points only
+    /// ([`Stat::StateAgreementDecisive`]); NaN where it has none.
+    pub state_agreement_decisive: f64,
 }
 
 impl FrameRecord {
@@ -552,6 +555,10 @@ impl FrameSink for MetricsSink<'_> {
             state_agreement: result
                 .stats
                 .number(Stat::StateAgreement)
+                .unwrap_or(f64::NAN),
+            state_agreement_decisive: result
+                .stats
+                .number(Stat::StateAgreementDecisive)
                 .unwrap_or(f64::NAN),
         });
         self.previous_view = Some(rendered);

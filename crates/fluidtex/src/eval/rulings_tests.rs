@@ -61,6 +61,7 @@ fn made_up(name: &str, n: i32, frame: impl Fn(i32) -> F) -> MethodRun {
                     ..CauseShares::NONE
                 },
                 state_agreement: f64::NAN,
+                state_agreement_decisive: f64::NAN,
             }
         })
         .collect();
