@@ -309,14 +309,15 @@ impl FillContext<'_> {
     }
 
     /// The verdict of triangle `j` of patch `i` ([`Verdict::Test`] when
-    /// none was computed); under the hard bound [`Verdict::Eroded`] where
-    /// the triangle is past δ_max, whether the tables were computed or not
-    /// (the update tests its new patches without them, and a texel it
-    /// covered must be one the next frame's fill covers too).
+    /// none was computed). The fill's tables already hold the hard bound
+    /// ([`FillContext::erosion_verdicts`]); without tables (the update
+    /// tests its new patches so) it is applied here, so that a texel the
+    /// update covers is one the next frame's fill covers too.
     #[inline]
     fn verdict(&self, i: u32, j: u32) -> Verdict {
-        let past_bound =
-            self.hard_bound && (self.patches.get(i as usize)).is_some_and(|p| p.past_bound(j));
+        let past_bound = self.hard_bound
+            && self.verdicts.is_empty()
+            && (self.patches.get(i as usize)).is_some_and(|p| p.past_bound(j));
         if past_bound {
             Verdict::Eroded
         } else {
