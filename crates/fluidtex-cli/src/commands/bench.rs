@@ -73,6 +73,17 @@ pub struct BenchArgs {
     /// Also write the debug outputs (patches.F.png, source.F.exr, the coherence numbers), as `run` does by default
     #[arg(long)]
     pub debug: bool,
+    /// Time the 2007 method's exemplar searches instead of a frame job: for each
+    /// window of the paper's passes, build seconds, time per query and agreement
+    /// with the exact scan (on --exemplar, default the built-in pebbles at 256²)
+    #[arg(long)]
+    pub exemplar_search: bool,
+    /// With --exemplar-search: candidates the clustered search compares per query
+    #[arg(long, default_value_t = 64)]
+    pub checks: u32,
+    /// With --exemplar-search: queries per window
+    #[arg(long, default_value_t = 400)]
+    pub queries: usize,
 }
 
 struct Memory {
@@ -116,6 +127,9 @@ pub fn bench(a: &BenchArgs) -> Result<()> {
             .build_global()
             .context("cannot size the thread pool")?;
     }
+    if a.exemplar_search {
+        return bench_exemplar_search(a);
+    }
     if let Some(pattern) = &a.mesh {
         return bench_sequence(a, pattern);
     }
@@ -158,6 +172,48 @@ pub fn bench(a: &BenchArgs) -> Result<()> {
     let mut source = Memory { frames };
     let title = format!("{} ({tris} triangles)", a.scene);
     time_run(a, &config, &mut source, &title, false)
+}
+
+/// `--exemplar-search`: the searches of the 2007 method side by side on
+/// the finest level's working exemplar, at the default `exemplar_texels`.
+fn bench_exemplar_search(a: &BenchArgs) -> Result<()> {
+    use fluidtex::methods::optimization::{OptimizationParams, search_bench};
+    let exemplar = match &a.exemplar {
+        Some(path) => fluidtex::exemplar::Exemplar::load(
+            path,
+            &[],
+            None,
+            fluidtex::exemplar::FeatureMethod::default(),
+        )?,
+        None => fluidtex::exemplar::pebbles::builtin_pebbles(256, 1),
+    };
+    if a.queries == 0 || a.checks == 0 {
+        bail!("--queries and --checks must be at least 1");
+    }
+    let p = OptimizationParams::default();
+    let (w, h) = exemplar.size();
+    println!(
+        "exemplar {w}x{h}, working exemplar {} texels wide, {} threads, {} queries per window",
+        p.exemplar_texels,
+        rayon::current_num_threads(),
+        a.queries
+    );
+    println!("window  search     build s  query us  exact  within 10%  mean SSD ratio");
+    let rows = search_bench::measure(
+        &exemplar,
+        p.exemplar_texels,
+        &p.sizes,
+        a.checks as usize,
+        (p.rerank as usize, p.search_grid),
+        a.queries,
+    );
+    for r in rows {
+        println!(
+            "{:>4}²   {:<9} {:>8.2} {:>9.1} {:>6.3} {:>11.3} {:>15.3}",
+            r.window, r.search, r.build_s, r.query_us, r.exact_share, r.within_10, r.mean_ratio
+        );
+    }
+    Ok(())
 }
 
 /// The settings every bench run shares: method, atlas, outputs.

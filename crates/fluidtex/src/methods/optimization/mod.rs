@@ -32,6 +32,9 @@
 //! switches, uv distortion — report nothing for this method; colour metrics
 //! work as for every method).
 
+pub mod cluster;
+#[cfg(test)]
+mod cluster_tests;
 pub mod histogram;
 pub mod lattice;
 pub mod level;
@@ -42,6 +45,7 @@ mod params;
 pub mod polar;
 pub mod scatter;
 pub mod search;
+pub mod search_bench;
 mod selection;
 pub mod solve;
 pub mod tangent;
@@ -252,7 +256,7 @@ impl Optimization {
                     let width = w.min(limit).max(3);
                     let grid = match params.search {
                         Search::Pca => params.search_grid.min(width),
-                        Search::Exact => width,
+                        Search::Exact | Search::Clustered => width,
                     };
                     let window = Window {
                         width,
@@ -263,6 +267,11 @@ impl Optimization {
                     match params.search {
                         Search::Pca => SearchIndex::new(&ex, window, params.rerank as usize),
                         Search::Exact => SearchIndex::exact(&ex, window),
+                        Search::Clustered => {
+                            let widest = params.sizes.iter().max().copied().unwrap_or(width);
+                            let checks = cluster::checks_for(params.checks, widest, width);
+                            SearchIndex::clustered(&ex, window, checks)
+                        }
                     }
                 })
                 .collect();
@@ -528,7 +537,11 @@ impl Optimization {
             Some(r) => r[top].clone(),
             None => {
                 let (seed, frame) = (self.seed, ctx.number as i64 as u64);
+                // Building a level's search structures (once a run) counts
+                // as search time.
+                let t = std::time::Instant::now();
                 let search = self.level_search(top, h * (1u32 << top) as f32);
+                times.search += t.elapsed().as_secs_f64();
                 let ex = &search.exemplar;
                 let n = ex.candidates() as u64;
                 let lv = &levels[top];
@@ -552,7 +565,9 @@ impl Optimization {
         };
         for l in (0..synth_levels).rev() {
             let texel = h * (1u32 << l) as f32;
+            let t = std::time::Instant::now();
             self.level_search(l, texel);
+            times.search += t.elapsed().as_secs_f64();
             let search = self.search[l]
                 .as_ref()
                 .ok_or(MethodError::State("search structures missing".into()))?;
@@ -571,6 +586,7 @@ impl Optimization {
                 coherence: self.params.coherence,
                 spacing: self.params.centre_spacing,
                 iterations: self.params.iterations,
+                convergence: self.params.convergence,
                 robust: self.params.robust,
                 refine: solve::REFINE_STEPS,
                 histogram: (self.params.histogram == Histogram::Matched)

@@ -48,12 +48,26 @@ crate::methods::params::params! {
         pub passes_after_first: u32 = 2
             => "passes-after-first" : "optimization: passes on carried frames, the last N of --sizes [2]",
         /// How the exemplar is searched \[pca]: `pca` compares a g × g
-        /// subsample (`search_grid`) reduced by PCA in a k-d tree, `exact` the
-        /// whole w × w neighbourhood against every candidate (Sec. V-B; slow).
-        /// See [`search`](super::search). Left out of the settings at `pca`.
+        /// subsample (`search_grid`) reduced by PCA in a k-d tree;
+        /// `clustered` the whole w × w neighbourhood in a hierarchical
+        /// clustering of the exemplar's neighbourhoods (Sec. VII, the
+        /// paper's; [`cluster`](super::cluster)); `exact` the whole
+        /// neighbourhood against every candidate (what the clustering
+        /// approximates; slow). See [`search`](super::search). Left out of
+        /// the settings at `pca`.
         #[serde(skip_serializing_if = "crate::methods::is_default")]
         pub search: Search = Search::Pca
-            => "search" : "optimization: exemplar search, a PCA k-d tree over a subsample (pca) or every candidate over the whole window (exact, the paper's; slow) [pca]",
+            => "search" : "optimization: exemplar search, a PCA k-d tree over a subsample (pca), a hierarchical clustering of whole neighbourhoods (clustered, the paper's) or every candidate over the whole window (exact; slow) [pca]",
+        /// Candidates a `clustered` search compares by full SSD per query in
+        /// the widest pass \[64], nearest branches of the clustering first;
+        /// a pass of width w compares (widest / w)² times as many, so every
+        /// pass compares about as many numbers per query (33², 17², 9²: 64,
+        /// 241, 860). The candidate count makes it exact. No paper
+        /// counterpart: the paper names the clustering, not how deep a
+        /// query looks.
+        #[serde(skip_serializing_if = "is_default_checks")]
+        pub checks: u32 = 64
+            => "checks" : "optimization: candidates a clustered search compares per query in the widest pass, (widest / w)^2 times as many in a pass of width w [64]",
         /// Search grid g: the pixel neighbourhood compared is a g × g
         /// subsample of the w × w one \[9] (odd, 3..=15). Unused by
         /// `search = "exact"`.
@@ -72,6 +86,16 @@ crate::methods::params::params! {
         /// contrast, 5 keep 0.93).
         pub iterations: u32 = 3
             => "iterations" : "optimization: most search + averaging iterations per pass [3]",
+        /// A pass has converged, and stops, when an iteration lowered the
+        /// energy E (Eq. 1–2) by less than this share of it \[0: only when no
+        /// match changed]. The paper iterates until convergence; an
+        /// approximate search (`clustered`, `pca`) keeps a handful of
+        /// near-tied matches trading places for ever, so the energy, not
+        /// the matches, says when it has converged. Left out of the
+        /// settings at 0.
+        #[serde(skip_serializing_if = "crate::methods::is_default")]
+        pub convergence: f32 = 0.0
+            => "convergence" : "optimization: a pass also stops when an iteration lowers the energy by less than this share of it (0: only when no match changes) [0]",
         /// Spacing of the centres S† as a fraction of the window width \[0.25]
         /// (Kwatra et al. 2005's quarter-width overlap).
         pub centre_spacing: f32 = 0.25
@@ -186,7 +210,9 @@ impl OptimizationParams {
             "odd, 3..=15",
         )?;
         check_range("rerank", self.rerank as f32, 1.0, 1024.0, "1..=1024")?;
+        check_range("checks", self.checks as f32, 1.0, 1e7, "1..=10000000")?;
         check_range("iterations", self.iterations as f32, 1.0, 100.0, "1..=100")?;
+        check_range("convergence", self.convergence, 0.0, 1.0, "0..=1")?;
         check_range(
             "centre_spacing",
             self.centre_spacing,
@@ -227,12 +253,23 @@ pub enum Search {
     /// The whole w × w window against every candidate by SSD: the search
     /// the paper's hierarchical clustering approximates.
     Exact,
+    /// The whole w × w window in a k-means tree of the exemplar's
+    /// neighbourhoods (the paper's, Sec. VII).
+    Clustered,
 }
 
 crate::named!(Search {
     Pca => "pca",
     Exact => "exact",
+    Clustered => "clustered",
 });
+
+/// `checks` is written to the settings only where it was changed (it does
+/// nothing unless `search = "clustered"`, so default runs keep their
+/// settings and fingerprints).
+fn is_default_checks(v: &u32) -> bool {
+    *v == 64
+}
 
 /// Where the points go ([`OptimizationParams::placement`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]

@@ -32,6 +32,7 @@
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use std::num::NonZeroUsize;
 
+use super::cluster::ClusterTree;
 use super::neighbourhood::Window;
 use crate::exemplar::Exemplar;
 
@@ -165,6 +166,8 @@ pub struct SearchIndex {
     /// contiguous memory instead of gathering g² texels per candidate.
     full: Vec<f32>,
     rerank: usize,
+    /// The paper's hierarchical clustering (`search = "clustered"`).
+    cluster: Option<ClusterTree>,
 }
 
 /// Most floats kept for the candidates' full search vectors (256 MiB).
@@ -222,6 +225,7 @@ impl SearchIndex {
             reduced: Vec::new(),
             full: Vec::new(),
             rerank: rerank.max(1),
+            cluster: None,
         };
         let reduced: Vec<[f32; PCA_DIMS]> = if n * dims <= FULL_VECTORS_LIMIT {
             let mut full = vec![0.0f32; n * dims];
@@ -275,7 +279,32 @@ impl SearchIndex {
             reduced: Vec::new(),
             full,
             rerank: 1,
+            cluster: None,
         }
+    }
+
+    /// The index of the paper's accelerated search (`search =
+    /// "clustered"`): the exact index's whole-window vectors in a k-means
+    /// tree ([`cluster`](super::cluster)), a query comparing at least
+    /// `checks` candidates.
+    pub fn clustered(ex: &WorkingExemplar, window: Window, checks: usize) -> SearchIndex {
+        let mut index = SearchIndex::exact(ex, window);
+        let full = &index.full;
+        let dims = index.dims;
+        let tree = ClusterTree::build(ex.candidates(), dims, checks, |i, out| {
+            if full.is_empty() {
+                candidate_vector(ex, window, i, out);
+            } else {
+                out.copy_from_slice(&full[i as usize * dims..(i as usize + 1) * dims]);
+            }
+        });
+        index.cluster = Some(tree);
+        index
+    }
+
+    /// The clustering of a clustered index.
+    pub fn cluster(&self) -> Option<&ClusterTree> {
+        self.cluster.as_ref()
     }
 
     /// The reduced coordinates of a full search vector (zeros for an
@@ -300,6 +329,12 @@ impl SearchIndex {
     /// re-ranking by full SSD; every candidate by full SSD for an exact
     /// index. Returns (candidate, full SSD); ties go to the lower index.
     pub fn nearest(&self, ex: &WorkingExemplar, query: &[f32], buf: &mut [f32]) -> (u32, f32) {
+        if let Some(cluster) = &self.cluster {
+            let window = self.window;
+            return cluster.nearest(query, &self.full, buf, |i, out| {
+                candidate_vector(ex, window, i, out)
+            });
+        }
         let Some(tree) = &self.tree else {
             return self.scan(ex, query, buf);
         };

@@ -54,6 +54,9 @@ pub struct LevelInput<'a> {
     /// Centre spacing as a fraction of the window width.
     pub spacing: f32,
     pub iterations: u32,
+    /// A pass also stops once an iteration lowered the energy by less than
+    /// this share of it (0: only once no match changed).
+    pub convergence: f32,
     /// Robust exponent r of Kwatra et al. 2005: each neighbourhood's terms
     /// are weighted by (mean ‖s_p − z_p‖²)^((r − 2)/2), fixed during an
     /// averaging step; r = 2 is Eq. 1 unweighted.
@@ -477,6 +480,19 @@ pub fn optimise(input: &LevelInput<'_>, s: &mut [f32], times: &mut SolveTimes) -
             });
             let after = texture_energy(&geo, &z, s, &weights, k, kc) + e_c(s);
             report.energies.push((before, after));
+            // Converged: the last iteration lowered the energy by less than
+            // `convergence` of it (also when it rose: an approximate search
+            // can trade a match for a slightly worse one).
+            if let [.., (_, last), (_, now)] = report.energies[..]
+                && input.convergence > 0.0
+                && last - now < input.convergence as f64 * last
+            {
+                if let Some(q) = input.histogram {
+                    q.apply(s);
+                }
+                times.solve += t1.elapsed().as_secs_f64();
+                break;
+            }
             if let Some(q) = input.histogram {
                 q.apply(s);
             }

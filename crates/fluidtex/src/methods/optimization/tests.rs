@@ -347,6 +347,28 @@ fn flat_synthesis(
     refine: u32,
     histogram: Histogram,
 ) -> (Vec<f32>, Vec<super::solve::PassReport>, WorkingExemplar) {
+    let stop = (4, 0.0);
+    flat_synthesis_until(
+        exemplar_texels,
+        sizes,
+        seed,
+        texel_factor,
+        refine,
+        histogram,
+        stop,
+    )
+}
+
+/// [`flat_synthesis`] with `(iterations, convergence)` of the passes.
+fn flat_synthesis_until(
+    exemplar_texels: u32,
+    sizes: &[u32],
+    seed: u64,
+    texel_factor: f32,
+    refine: u32,
+    histogram: Histogram,
+    (iterations, convergence): (u32, f32),
+) -> (Vec<f32>, Vec<super::solve::PassReport>, WorkingExemplar) {
     let exemplar = pebbles(128);
     let mesh = plane(24, 1.0, |_| Vec3::ZERO);
     let lattice = Lattice::new(&mesh, 4);
@@ -385,7 +407,8 @@ fn flat_synthesis(
         transported: None,
         coherence: 1.0,
         spacing: 0.25,
-        iterations: 4,
+        iterations,
+        convergence,
         robust: 0.8,
         refine,
         histogram: (histogram == Histogram::Matched).then_some(&quantiles),
@@ -393,6 +416,32 @@ fn flat_synthesis(
     let mut times = SolveTimes::default();
     let reports = optimise(&input, &mut s, &mut times);
     (s, reports, ex)
+}
+
+#[test]
+fn a_pass_stops_at_the_first_iteration_that_barely_lowers_the_energy() {
+    // The same synthesis with and without a tolerance runs the same
+    // iterations until the tolerance stops the first pass: at the first
+    // iteration whose energy is less than 2 % below the one before (or
+    // where the untolerant run stopped). Every pass that goes on lowered
+    // the energy by at least 2 % at each earlier step.
+    let run = |convergence| {
+        flat_synthesis_until(48, &[17, 9], 5, 1.0, 0, Histogram::Paper, (30, convergence)).1
+    };
+    let (free, tolerant) = (run(0.0), run(0.02));
+    let after: Vec<f64> = free[0].energies.iter().map(|e| e.1).collect();
+    let stop = (1..after.len())
+        .find(|&i| after[i - 1] - after[i] < 0.02 * after[i - 1])
+        .map_or(after.len(), |i| i + 1);
+    assert_eq!(tolerant[0].energies[..], free[0].energies[..stop]);
+    // The control: the tolerance stopped the first pass early.
+    assert!(stop < after.len(), "no early stop: {:?}", free[0].energies);
+    for t in &tolerant {
+        let e: Vec<f64> = t.energies.iter().map(|e| e.1).collect();
+        for w in e.windows(2).take(e.len().saturating_sub(2)) {
+            assert!(w[0] - w[1] >= 0.02 * w[0], "pass {}: {e:?}", t.width);
+        }
+    }
 }
 
 #[test]
@@ -605,6 +654,7 @@ fn flat_synthesis_keeps_the_exemplar_contrast() {
         // histogram_matching_keeps_the_search_on_textured_neighbourhoods).
         histogram: Histogram::Paper,
         iterations: 5,
+        convergence: 0.0,
         ..Default::default()
     };
     let mut m = Optimization::new(params, pebbles(128), 4).expect("params");
@@ -658,6 +708,7 @@ fn small_params() -> OptimizationParams {
         sizes: vec![17, 9],
         levels: 2,
         iterations: 2,
+        convergence: 0.0,
         ..Default::default()
     }
 }
@@ -755,7 +806,7 @@ fn deterministic_across_thread_counts_and_resume_is_identical() {
 }
 
 #[test]
-fn exact_search_synthesises_its_own_texture_the_same_on_any_thread_count() {
+fn whole_window_searches_synthesise_the_same_on_any_thread_count() {
     let data = frames(2);
     let params = |search| OptimizationParams {
         exemplar_texels: 24,
@@ -779,6 +830,9 @@ fn exact_search_synthesises_its_own_texture_the_same_on_any_thread_count() {
     // Control: the PCA search, re-ranking 8 candidates, matches other
     // neighbourhoods at some points.
     assert_ne!(exact, go(Search::Pca, 1));
+    // The paper's clustering, the same whatever the threads.
+    let clustered = go(Search::Clustered, 1);
+    assert_eq!(clustered, go(Search::Clustered, 3));
 }
 
 #[test]
