@@ -172,7 +172,7 @@ pub const DEPARTURES: &[Departure] = &[
         ours: "`split_edges = 2`: after advection, patch edges longer than 2 median edge lengths \
                of the frame are split at their midpoint, projected onto the surface; erosion \
                leaves edges stretched past δ_max whole, and where every triangle is kept (the \
-               baselines, `eroded_triangles = \"kept\"`) a triangle distorted past 2·δ_max is \
+               baselines, `eroded_triangles = \"kept\"`) a triangle distorted past 4·δ_max is \
                split no more, so a patch's triangles follow the surface it covers, not the \
                run's history.",
         paper_setting: "A patch keeps the triangles it was made with (`split_edges = 0`).",

@@ -72,9 +72,10 @@ fn levels_off(run: &[u64], surface: u64) -> bool {
 
 /// Patch geometry per surface triangle that no bounded method reaches
 /// here: the radius is about the sphere's, so every patch covers half of
-/// it, and the sheared patches overlap many times (`dual-rest` holds two
-/// layers of them).
-const PER_TRIANGLE: u64 = 200;
+/// it, the sheared patches overlap many times, and each needle is split
+/// until its distortion passes 4·δ_max (`dual-rest` holds two layers of
+/// them: about 300 per surface triangle, `advect` about 200).
+const PER_TRIANGLE: u64 = 400;
 
 /// The patch radius: about the sphere's own.
 const RADIUS: f32 = 0.35;

@@ -86,7 +86,7 @@ pub const MAX_SPLIT_ROUNDS: usize = 6;
 /// `blend-deformable`, `dual-rest`, and erosion with `eroded_triangles =
 /// "kept"`), a triangle whose distortion is past this many times δ_max is
 /// no longer split ([`PatchShape::split_distortion`]).
-pub const KEPT_SPLIT_DISTORTION: f32 = 2.0;
+pub const KEPT_SPLIT_DISTORTION: f32 = 4.0;
 
 /// An edge midpoint farther than this fraction of r from the next surface
 /// lies over a gap of the surface and is not split (the default far
