@@ -304,6 +304,88 @@ fn a_run_past_its_memory_limit_stops_with_the_cause_and_resumes_identically() {
     assert_same_outputs(&reference, &limited);
 }
 
+/// Writes frames of the unit square at rest, frame `f` a grid of
+/// `cells(f)` × `cells(f)` squares (two triangles each, zero velocity);
+/// returns the pattern.
+fn square_frames(dir: &Path, cells: &[usize]) -> PathBuf {
+    std::fs::create_dir_all(dir).unwrap();
+    for (f, &n) in cells.iter().enumerate() {
+        let mut ply = format!(
+            "ply\nformat ascii 1.0\nelement vertex {}\nproperty float x\nproperty float y\n\
+             property float z\nproperty float vx\nproperty float vy\nproperty float vz\n\
+             element face {}\nproperty list uchar int vertex_indices\nend_header\n",
+            (n + 1) * (n + 1),
+            2 * n * n
+        );
+        for j in 0..=n {
+            for i in 0..=n {
+                let (x, y) = (i as f32 / n as f32 - 0.5, j as f32 / n as f32 - 0.5);
+                ply.push_str(&format!("{x} {y} 0 0 0 0\n"));
+            }
+        }
+        let w = n + 1;
+        for j in 0..n {
+            for i in 0..n {
+                let a = j * w + i;
+                ply.push_str(&format!("3 {a} {} {}\n", a + 1, a + w + 1));
+                ply.push_str(&format!("3 {a} {} {}\n", a + w + 1, a + w));
+            }
+        }
+        std::fs::write(dir.join(format!("fluid.{f:04}.ply")), ply).unwrap();
+    }
+    dir.join("fluid.####.ply")
+}
+
+/// A frame built to balloon: the liquid at rest, re-meshed 12 times finer
+/// on frame 2, so every patch edge is split down to the new mesh's scale
+/// (about 100 times the patch triangles, within the frame's splitting).
+/// The resident set the checks read is held at 1000 MiB (the hook), under
+/// the limit of 1002 MiB after every frame: the after-frame check alone
+/// would let the frame through, whatever it grew to. The stages' own
+/// count passes the limit inside frame 2's splitting: the run stops there
+/// with its one-line memory error naming the stage, frame 2 unwritten, and
+/// `--resume` without a limit writes the files of an uninterrupted run.
+#[test]
+fn a_frame_that_balloons_stops_inside_the_stage_that_grows_and_resumes() {
+    let dir = tempfile::tempdir().unwrap();
+    let pattern = square_frames(&dir.path().join("square"), &[8, 8, 96]);
+    let reference = dir.path().join("reference");
+    ok(&args(&pattern, &reference, &["--max-memory", "0"]));
+    let limited = dir.path().join("limited");
+    let run = |limit: &str| {
+        fluidtex()
+            .args(args(&pattern, &limited, &["--max-memory", limit]))
+            .env("FLUIDTEX_TEST_RESIDENT_MEMORY", (1000u64 << 20).to_string())
+            .output()
+            .unwrap()
+    };
+    let out = run("1002M");
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let lines: Vec<&str> = stderr.lines().filter(|l| !l.is_empty()).collect();
+    assert_eq!(lines.len(), 1, "{stderr}");
+    assert!(
+        lines[0].starts_with("error: memory: about ")
+            && lines[0].contains(" during frame 2's splitting (limit 1002 MiB): ")
+            && lines[0].contains(" patches, "),
+        "{stderr}"
+    );
+    // Frames 0 and 1 are written and counted; nothing of frame 2.
+    assert!(limited.join("color.0001.png").exists());
+    assert!(!limited.join("color.0002.png").exists());
+    // Known good: the frames before the balloon passed the same checks,
+    // and a limit with room for the frame's growth lets it through.
+    let mut resume = args(&pattern, &limited, &["--max-memory", "1200M"]);
+    resume.push("--resume".into());
+    let o = fluidtex()
+        .args(&resume)
+        .env("FLUIDTEX_TEST_RESIDENT_MEMORY", (1000u64 << 20).to_string())
+        .output()
+        .unwrap();
+    check_ok(&o, &resume);
+    assert_same_outputs(&reference, &limited);
+}
+
 /// The estimate a run prints before its first frame bounds the peak
 /// resident set it then reaches (`VmHWM`, printed after the run), by no
 /// more than twice, for every method, on an SPH dam break (11k triangles)

@@ -171,7 +171,10 @@ pub const DEPARTURES: &[Departure] = &[
         what: "Refining patch triangles stretched by the flow.",
         ours: "`split_edges = 2`: after advection, patch edges longer than 2 median edge lengths \
                of the frame are split at their midpoint, projected onto the surface; erosion \
-               leaves edges stretched past δ_max whole.",
+               leaves edges stretched past δ_max whole, and where every triangle is kept (the \
+               baselines, `eroded_triangles = \"kept\"`) a triangle distorted past 4·δ_max is \
+               split no more, so a patch's triangles follow the surface it covers, not the \
+               run's history.",
         paper_setting: "A patch keeps the triangles it was made with (`split_edges = 0`).",
         key: Some("erosion.split_edges"),
         flag: Some("--split-edges 0"),

@@ -124,6 +124,13 @@ impl<'m> Driver<'m> {
         self.previous = previous;
     }
 
+    /// Sets the memory the stages of the next frames may grow to
+    /// ([`crate::methods::budget`]): the run's limit, checked inside the
+    /// stages as well as after each frame.
+    pub fn set_memory_budget(&mut self, budget: crate::methods::budget::MemoryBudget) {
+        self.arena.set_memory(budget);
+    }
+
     /// The frame before the next one.
     pub fn previous(&self) -> Option<&FrameGeometry> {
         self.previous.as_deref()
@@ -144,6 +151,7 @@ impl<'m> Driver<'m> {
     /// The frame becomes the previous one.
     pub fn select(&mut self, frame: &Arc<FrameGeometry>) -> Result<Selection, DriverError> {
         self.check_velocity(frame)?;
+        self.arena.memory().start_frame(frame.number);
         let ctx =
             FrameContext::new(self.dt, frame, self.previous.as_deref()).with_arena(&self.arena);
         let selection = self.method.select(&ctx)?;
@@ -192,6 +200,7 @@ impl<'m> Driver<'m> {
             levels: sink.reads_evaluation_buffers(),
             renewal: sink.reads_renewal(),
         });
+        self.arena.memory().start_frame(g.number);
         let ctx = FrameContext::new(self.dt, g, self.previous.as_deref()).with_arena(&self.arena);
         let mut result = fill(&mut *self.method, &ctx).map_err(DriverError::from)?;
         clock.extend(&result.timings);

@@ -149,7 +149,34 @@ fn add_coherence(job: &Job, writer: &mut FrameWriter<'_>, resumed_after: Option<
 /// The driver of `job`'s frames: its frame time, and dilation over the
 /// gutter (twice its width, at least 2 texels).
 fn job_driver<'m>(job: &Job, method: &'m mut dyn Method) -> Driver<'m> {
-    Driver::new(method, 1.0 / job.fps, job.atlas.gutter.max(1) * 2)
+    use crate::methods::budget::{MemoryBudget, Resident};
+    let mut driver = Driver::new(method, 1.0 / job.fps, job.atlas.gutter.max(1) * 2);
+    // The limit is checked inside the stages that grow, against the same
+    // resident set as after each frame (or the test hook's).
+    let resident = match job.hooks.resident_memory {
+        Some(bytes) => Resident::Fixed(bytes),
+        None => Resident::Read(resident_memory),
+    };
+    driver.set_memory_budget(MemoryBudget::new(job.max_memory, resident));
+    driver
+}
+
+/// A frame that a stage ended on the memory budget
+/// ([`crate::methods::MethodError::Memory`]) as the run's memory error,
+/// with the method's account; any other error as it is.
+fn within_frame(e: PipelineError, driver: &Driver<'_>) -> PipelineError {
+    match e {
+        PipelineError::Method(crate::methods::MethodError::Memory(trip)) => {
+            PipelineError::MemoryInFrame {
+                frame: trip.frame,
+                stage: trip.stage,
+                resident: trip.resident,
+                limit: trip.limit,
+                detail: driver.method().memory_report(),
+            }
+        }
+        e => e,
+    }
 }
 
 /// The memory estimate of the run, refused where the machine has less
@@ -295,7 +322,7 @@ impl FrameLoop for OnePass<'_, '_, '_, '_, '_, '_, '_> {
 
     fn frame(&mut self, frame: PendingFrame) -> Result<(), PipelineError> {
         let number = frame.geometry.number;
-        self.driver.step(frame, self.sink)?;
+        (self.driver.step(frame, self.sink)).map_err(|e| within_frame(e, self.driver))?;
         check_memory_limit(self.job, number, self.driver)
     }
 }

@@ -39,8 +39,9 @@ pub struct RunArgs {
     #[arg(long)]
     pub quiet: bool,
     /// Stop after the frame that leaves the run holding more than SIZE of
-    /// memory (e.g. 5.5G, 800M; 0: never) [what the machine has available at
-    /// the start, less a tenth]
+    /// memory, or inside a stage that grows past it within a frame (e.g.
+    /// 5.5G, 800M; 0: never) [what the machine has available at the start,
+    /// less a tenth]
     #[arg(long, value_name = "SIZE")]
     pub max_memory: Option<String>,
     /// Run in two phases, for a render farm: `select` is the sequential

@@ -14,6 +14,9 @@
 //! A buffer taken from the arena is refilled whole, with the value a fresh
 //! one would hold, so frames are bit-identical whether or not buffers come
 //! back (tested in `erosion/tests.rs`).
+//!
+//! The arena also lends the frame's memory budget ([`super::budget`]):
+//! the driver knows the run's limit, the stages that grow count against it.
 
 use std::sync::Mutex;
 
@@ -59,6 +62,8 @@ pub struct FrameArena {
     /// [`FrameArena::fresh`] one (the shared [`FRESH`]) keeps none.
     keeps: bool,
     wants: Wants,
+    /// The memory the frame's stages may grow to ([`super::budget`]).
+    memory: super::budget::MemoryBudget,
 }
 
 /// The arena of every context built without one (tests, tools, one-off
@@ -83,6 +88,7 @@ impl FrameArena {
             }),
             keeps: false,
             wants: Wants::ALL,
+            memory: super::budget::MemoryBudget::unlimited(),
         }
     }
 
@@ -92,7 +98,19 @@ impl FrameArena {
             spare: Mutex::new(SpentBuffers::default()),
             keeps: true,
             wants: Wants::ALL,
+            memory: super::budget::MemoryBudget::unlimited(),
         }
+    }
+
+    /// Sets the memory budget of the next frames' stages.
+    pub fn set_memory(&mut self, memory: super::budget::MemoryBudget) {
+        self.memory = memory;
+    }
+
+    /// The memory budget of this frame's stages: what the stages that grow
+    /// with the patches count against ([`super::budget`]).
+    pub fn memory(&self) -> &super::budget::MemoryBudget {
+        &self.memory
     }
 
     /// Sets what the next frames' results must carry.

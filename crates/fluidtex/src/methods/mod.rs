@@ -35,6 +35,7 @@ pub mod advect;
 pub mod arena;
 pub mod atlas_check;
 pub mod blend_deformable;
+pub mod budget;
 pub mod dual_rest;
 pub mod erosion;
 pub mod flags;
@@ -50,6 +51,8 @@ pub mod toy;
 
 #[cfg(test)]
 mod animated_tests;
+#[cfg(test)]
+mod bounded_tests;
 #[cfg(test)]
 mod multi_tests;
 #[cfg(test)]
@@ -297,6 +300,13 @@ pub enum MethodError {
     /// element (e.g. a per-vertex `exemplar_id` naming no exemplar).
     #[error("{0}")]
     Input(String),
+    /// A stage of the frame grew past the run's memory limit
+    /// ([`budget::MemoryBudget`]); the run reports it as its memory error.
+    #[error(
+        "memory: about {} bytes during frame {}'s {} (limit {} bytes)",
+        .0.resident, .0.frame, .0.stage, .0.limit
+    )]
+    Memory(budget::Trip),
 }
 
 impl MethodError {

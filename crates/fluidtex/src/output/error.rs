@@ -61,6 +61,22 @@ pub enum PipelineError {
         limit: u64,
         detail: Option<String>,
     },
+    /// A stage of `frame` grew the run past its memory limit
+    /// ([`crate::methods::budget`]), before the after-frame check could
+    /// see it; the frame is not written. `detail` is the method's account.
+    #[error(
+        "memory: about {} during frame {frame}'s {stage} (limit {}){}; frame {frame} is not \
+         written: a smaller --radius or --atlas reduces it, and --resume with a larger \
+         --max-memory (0: none) continues",
+        gib(*.resident), gib(*.limit), .detail.as_ref().map_or(String::new(), |d| format!(": {d}"))
+    )]
+    MemoryInFrame {
+        frame: i32,
+        stage: &'static str,
+        resident: u64,
+        limit: u64,
+        detail: Option<String>,
+    },
 }
 
 impl From<GeometryError> for PipelineError {

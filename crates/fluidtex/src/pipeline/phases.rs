@@ -25,7 +25,7 @@ use std::time::Instant;
 
 use super::{
     FrameLoop, FrameSource, Summary, add_coherence, check_memory, check_memory_limit, drive,
-    fitting_estimate, job_driver, open_output, open_output_locking, resume,
+    fitting_estimate, job_driver, open_output, open_output_locking, resume, within_frame,
 };
 use crate::driver::{Driver, PendingFrame};
 use crate::frame::{FrameGeometry, StageClock};
@@ -107,7 +107,8 @@ impl FrameLoop for Selecting<'_, '_, '_, '_> {
         } = frame;
         let (job, number) = (self.job, geometry.number);
         let previous = self.driver.previous().map(|p| p.number);
-        let selection = self.driver.select(&geometry)?;
+        let selection =
+            (self.driver.select(&geometry)).map_err(|e| within_frame(e.into(), self.driver))?;
         clock.lap("select");
         let saved = SavedSelection::new(
             job,

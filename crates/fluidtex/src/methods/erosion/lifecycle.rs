@@ -156,12 +156,21 @@ impl Erosion {
                     method: self.name(),
                 },
             )?;
+            // The carry table holds a key, a point and a carry per vertex
+            // (40 bytes); the splitting counts its own rounds.
+            let budget = ctx.arena.memory();
+            let vertices: usize = self.state.patches.iter().map(|p| p.positions.len()).sum();
+            if !budget.grow("advection", vertices * 40) {
+                budget.check()?;
+            }
             let table = CarryTable::new(&self.state.patches, flow, ctx.index, *shape);
+            let grow = |bytes| budget.grow("splitting", bytes);
             self.state.patches.par_iter_mut().for_each(|p| {
-                if !p.advect(|x| table.carry(x), ctx.index, shape) {
+                if !p.advect_within(|x| table.carry(x), ctx.index, shape, &grow) {
                     p.triangles.clear();
                 }
             });
+            budget.check()?;
             self.state.patches.retain(|p| !p.triangles.is_empty());
             // `advect` carries what it has; it only places patches on a fresh start.
             carried = !self.rules.renews && !self.state.patches.is_empty();

@@ -134,6 +134,9 @@ pub struct Erosion {
     /// ([`Erosion::prune`], [`Erosion::prune_hidden`]):
     /// `eroded_triangles = "dropped"`.
     prune_eroded: bool,
+    /// [`patch::KEPT_SPLIT_DISTORTION`]; a test's unbounded control sets
+    /// it to infinity.
+    kept_split_distortion: f32,
 }
 
 pub(crate) use crate::seed::mix;
@@ -187,7 +190,16 @@ impl Erosion {
             multi: None,
             tones: None,
             prune_eroded,
+            kept_split_distortion: patch::KEPT_SPLIT_DISTORTION,
         })
+    }
+
+    /// The method with every distorted triangle split as before the bound
+    /// ([`patch::KEPT_SPLIT_DISTORTION`]): the tests' unbounded control.
+    #[cfg(test)]
+    pub(crate) fn splitting_without_bound(mut self) -> Erosion {
+        self.kept_split_distortion = f32::INFINITY;
+        self
     }
 
     /// The method or baseline of `rules` over the exemplars of `set`, each
@@ -241,6 +253,12 @@ impl Erosion {
         ErosionTest::with_reach(feature, self.params.epsilon, reach)
     }
 
+    /// Whether the triangles past δ_max go ([`Erosion::prune`]): the
+    /// eroding method with `eroded_triangles = "dropped"`.
+    fn pruned(&self) -> bool {
+        self.rules.erodes && self.prune_eroded
+    }
+
     fn shape(
         &self,
         radius: f32,
@@ -256,10 +274,18 @@ impl Erosion {
             },
             // Only where the triangles past δ_max are pruned (see
             // [`Erosion::prune`]).
-            split_stretch: if self.rules.erodes && self.prune_eroded {
+            split_stretch: if self.pruned() {
                 self.params.delta_max * exemplar_size
             } else {
                 f32::INFINITY
+            },
+            // Where every triangle is kept, a triangle distorted past a
+            // multiple of δ_max is split no more
+            // ([`patch::Patch::refine_within`]).
+            split_distortion: if self.pruned() {
+                f32::INFINITY
+            } else {
+                self.kept_split_distortion * self.params.delta_max
             },
             // The paper's F_m is read at full resolution: no footprint.
             texel_size: if atlas.scale > 0.0 && self.params.feature_filter == FeatureFilter::Mip {
@@ -314,6 +340,7 @@ impl Method for Erosion {
         let setup = self.carry(ctx, &mut counts, &mut clock)?;
         let wants = ctx.arena.wants();
         let texels = self.select_texels(ctx, setup, wants.renewal, &mut counts, &mut clock);
+        ctx.arena.memory().check()?;
         let mut result = self.resample_texels(texels, counts, clock, wants);
         self.record_state_agreement(ctx, &mut result);
         Ok(result)
@@ -332,6 +359,7 @@ impl Method for Erosion {
         self.dropped_by_reset = 0;
         // Only a resampled frame's switches are measured.
         let texels = self.select_texels(ctx, setup, false, &mut counts, &mut clock);
+        ctx.arena.memory().check()?;
         self.keep_spare(ctx.arena, texels);
         Ok(super::Selection::Own(bytes))
     }
@@ -355,6 +383,7 @@ impl Method for Erosion {
         clock.lap("selection");
         let wants = ctx.arena.wants();
         let texels = self.select_texels(ctx, setup, wants.renewal, &mut counts, &mut clock);
+        ctx.arena.memory().check()?;
         let mut result = self.resample_texels(texels, counts, clock, wants);
         self.record_state_agreement(ctx, &mut result);
         Ok(result)
@@ -804,14 +833,21 @@ impl Erosion {
         counts: &mut StepCounts,
         blended: &mut Blended,
     ) -> Vec<fill::Uncovered> {
-        let candidates = Candidates::build(
+        let budget = ctx.arena.memory();
+        let candidates = Candidates::build_within(
             fill_ctx.fluid,
             ctx.index,
             fill_ctx.patches,
             fill_ctx.frames,
             fill_ctx.tolerance,
+            &|bytes| budget.grow("candidates", bytes),
         );
         counts.candidate_pairs = candidates.len();
+        if budget.tripped().is_some() {
+            // The list is incomplete and the frame ends on the budget's
+            // error ([`Erosion::step`]): no fill to waste time on.
+            return Vec::new();
+        }
         if self.rules.blends {
             let outcome = blend::fill(fill_ctx, ctx.atlas, &candidates, out);
             blended.layers = Some(outcome.layers);

@@ -505,6 +505,13 @@ impl LappedRigid {
         };
         let layers = self.layers(ctx.number, exemplar_size);
         let receivers: Vec<Receivers> = layers.par_iter().map(|l| rc.receivers(&l.frame)).collect();
+        // The receivers grow with the trackers and the radius: counted
+        // against the frame's memory budget (a pair held twice at the
+        // peak, 8 bytes each, with spare capacity).
+        let held: usize = receivers.iter().map(|r| r.triangles.len()).sum();
+        if !ctx.arena.memory().grow("receivers", held * 32) {
+            ctx.arena.memory().check()?;
+        }
         let lists = composite::layer_lists(&receivers, mesh.triangle_count());
         counts.pairs = lists.len();
         drop(receivers);

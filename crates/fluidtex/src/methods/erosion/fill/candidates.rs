@@ -152,6 +152,15 @@ pub fn patch_frames(patches: &[Patch]) -> Vec<Vec<Option<TriFrame>>> {
         .collect()
 }
 
+/// Pairs counted at once against a frame's memory budget
+/// ([`Candidates::build_within`]): 2 MiB of pairs per count.
+pub const GROW_PAIRS: usize = 1 << 16;
+
+/// Bytes counted per candidate pair: held twice at the peak (a patch's
+/// own list and the grouped lists), 8 bytes each, doubled for the
+/// vectors' spare capacity.
+const PAIR_BYTES: usize = 32;
+
 /// Per fluid triangle, the (patch index, patch triangle) pairs that may
 /// cover its texels, sorted by patch index (= age) then triangle
 /// ([`TriangleLists`]: `of`, `len`, `is_empty`).
@@ -180,14 +189,43 @@ impl Candidates {
         frames: &[Vec<Option<TriFrame>>],
         tolerance: LocateTolerance,
     ) -> Candidates {
+        Candidates::build_within(fluid, index, patches, frames, tolerance, &|_| true)
+    }
+
+    /// [`Candidates::build`], counting the bytes of every [`GROW_PAIRS`]
+    /// pairs of a patch with `grow` as they are held (a frame's memory
+    /// budget, [`crate::methods::budget`]); where `grow` refuses, no more
+    /// pairs are kept and the list is incomplete (the frame then ends on
+    /// the budget's error).
+    pub fn build_within(
+        fluid: &FluidTriangles,
+        index: &SurfaceIndex,
+        patches: &[Patch],
+        frames: &[Vec<Option<TriFrame>>],
+        tolerance: LocateTolerance,
+        grow: &(dyn Fn(usize) -> bool + Sync),
+    ) -> Candidates {
         let per_patch: Vec<Vec<(u32, u32)>> = patches
             .par_iter()
             .zip(frames.par_iter())
             .map(|(p, frames)| {
+                // A pair is held twice at the peak (here and in the
+                // grouped lists), 8 bytes each, with spare capacity: 32
+                // bytes counted per pair, every GROW_PAIRS pairs and for
+                // the rest at the end.
                 let mut out = Vec::new();
+                let mut refused = false;
                 patch_pairs(fluid, index, p, frames, tolerance, |f, j| {
-                    out.push((f, j));
+                    if !refused {
+                        out.push((f, j));
+                        if out.len() % GROW_PAIRS == 0 {
+                            refused = !grow(GROW_PAIRS * PAIR_BYTES);
+                        }
+                    }
                 });
+                if !refused {
+                    grow(out.len() % GROW_PAIRS * PAIR_BYTES);
+                }
                 out
             })
             .collect();

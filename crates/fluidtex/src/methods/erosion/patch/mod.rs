@@ -20,8 +20,10 @@ use crate::surface::velocity::FlowInterval;
 use crate::surface::{SurfaceIndex, SurfacePoint, closest_point_on_triangle, map_in_query_order};
 
 mod creation;
+mod refine;
 
 use self::creation::{Piece, flatten, join_pieces, rest_coordinates, triangles_near};
+pub use self::refine::{Freeze, SPLIT_BYTES};
 
 /// Geometric constants every patch shares (docs/design.md, *Patch radius
 /// and exemplar size*), world units.
@@ -54,6 +56,10 @@ pub struct PatchShape {
     /// bound (δ_max for the erosion method; `f32::INFINITY` for the
     /// baselines, which never erode). See [`Patch::refine`].
     pub split_stretch: f32,
+    /// A triangle whose distortion δ_t is past this is never split, nor
+    /// are its edges (`f32::INFINITY`: no bound): where every triangle is
+    /// kept, [`KEPT_SPLIT_DISTORTION`] × δ_max. See [`Patch::refine_within`].
+    pub split_distortion: f32,
     /// A new patch starts with w = 1 on its pinned vertices, whatever Q_V
     /// (progressive weights; the paper's w_V = Q_V·B_V from the first frame
     /// when false). Flattening a curved region can leave the centre's Q_V so
@@ -75,6 +81,12 @@ pub struct PatchShape {
 /// edges, so 6 rounds shorten an edge by up to 64×, far more than one
 /// frame of any flow stretches it.
 pub const MAX_SPLIT_ROUNDS: usize = 6;
+
+/// Where every triangle is kept (the baselines `advect`,
+/// `blend-deformable`, `dual-rest`, and erosion with `eroded_triangles =
+/// "kept"`), a triangle whose distortion is past this many times δ_max is
+/// no longer split ([`PatchShape::split_distortion`]).
+pub const KEPT_SPLIT_DISTORTION: f32 = 4.0;
 
 /// An edge midpoint farther than this fraction of r from the next surface
 /// lies over a gap of the surface and is not split (the default far
@@ -372,7 +384,14 @@ impl Patch {
             exemplar: 0,
         };
         // The copied fluid triangles lie on the surface, so do their edge midpoints.
-        patch.refine(shape.split_length, shape.split_stretch, Some);
+        let freeze = Freeze::of(shape);
+        patch.refine_within(
+            shape.split_length,
+            shape.split_stretch,
+            freeze,
+            Some,
+            &|_| true,
+        );
         patch.update_weights(shape, None);
         if shape.whole_centre {
             for (w, &pinned) in patch.weight.iter_mut().zip(&patch.pinned) {
@@ -396,6 +415,18 @@ impl Patch {
         carry: impl Fn(Vec3) -> Carry,
         next: &SurfaceIndex,
         shape: &PatchShape,
+    ) -> bool {
+        self.advect_within(carry, next, shape, &|_| true)
+    }
+
+    /// [`Patch::advect`], its splitting counting the bytes of each round
+    /// with `grow` first ([`Patch::refine_within`]).
+    pub fn advect_within(
+        &mut self,
+        carry: impl Fn(Vec3) -> Carry,
+        next: &SurfaceIndex,
+        shape: &PatchShape,
+        grow: &dyn Fn(usize) -> bool,
     ) -> bool {
         let mut keep = vec![true; self.positions.len()];
         let mut still = true;
@@ -424,126 +455,14 @@ impl Patch {
         // finds *some* surface within 10 r, is split at every frame, and the
         // patch grows without bound (tens of GB within 16 frames).
         let gap = shape.far_distance.min(GAP_FRACTION * shape.radius);
-        if self.refine(shape.split_length, shape.split_stretch, |q| {
-            next.closest(q, gap).map(|h| h.point)
-        }) {
+        let project = |q| next.closest(q, gap).map(|h| h.point);
+        let (length, stretch, freeze) =
+            (shape.split_length, shape.split_stretch, Freeze::of(shape));
+        if self.refine_within(length, stretch, freeze, project, grow) {
             still = false;
         }
         self.still = still;
         !self.triangles.is_empty()
-    }
-
-    /// Splits every edge longer than `max_length` at its midpoint, until
-    /// none is left or [`MAX_SPLIT_ROUNDS`] rounds have run; returns whether
-    /// anything was split. Not in the paper: a stretched patch triangle is a
-    /// long chord of the curved fluid surface, its middle far from the
-    /// surface, so texels there fail to locate in it and its coverage
-    /// flickers from frame to frame as the surface is re-meshed. The new
-    /// vertex goes to `project(midpoint)` (`None`: the edge is left whole,
-    /// as when it spans a gap of the surface); its rest coordinates are the
-    /// midpoint of the edge's, so the texture carried by the patch is
-    /// unchanged up to that projection. Edges are split longest first, and
-    /// each round splits only edges whose triangles no other split of the
-    /// round touched, so the result does not depend on any hash order.
-    ///
-    /// An edge longer than `max_stretch` times its rest length in world
-    /// units (rest × S) is left whole (`f32::INFINITY`: no bound): its
-    /// triangles are past δ_max (Q_T = 0), eroding for good, and splitting
-    /// them would multiply exactly the triangles a violent flow tears apart
-    /// (each round quadruples them, up to 4⁶ per triangle in one frame).
-    /// With the bound, halving keeps an edge's stretch, so an edge is split
-    /// about log2(max_stretch · rest / max_length) times over its whole
-    /// life at most, and a patch holds a bounded multiple of the triangles
-    /// it was made with.
-    pub fn refine(
-        &mut self,
-        max_length: f32,
-        max_stretch: f32,
-        project: impl Fn(Vec3) -> Option<Vec3>,
-    ) -> bool {
-        if max_length <= 0.0 || !max_length.is_finite() {
-            return false;
-        }
-        let limit = max_length * max_length;
-        let stretch2 = max_stretch * max_stretch;
-        let mut changed = false;
-        for _ in 0..MAX_SPLIT_ROUNDS {
-            // (squared length, edge, triangle) for every long edge side.
-            let mut long: Vec<(f32, [u32; 2], u32)> = Vec::new();
-            for (k, t) in self.triangles.iter().enumerate() {
-                for e in 0..3 {
-                    let (a, b) = (t[e], t[(e + 1) % 3]);
-                    let l = self.positions[a as usize].distance_squared(self.positions[b as usize]);
-                    let rest = self.rest[a as usize].distance_squared(self.rest[b as usize]);
-                    // NaN (no bound, zero rest length) splits as before.
-                    let bound = stretch2 * rest;
-                    if l > limit && (l <= bound || bound.is_nan()) {
-                        long.push((l, [a.min(b), a.max(b)], k as u32));
-                    }
-                }
-            }
-            if long.is_empty() {
-                break;
-            }
-            long.sort_unstable_by(|x, y| {
-                y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)).then(x.2.cmp(&y.2))
-            });
-            let mut touched = vec![false; self.triangles.len()];
-            let mut split_any = false;
-            let mut i = 0;
-            while i < long.len() {
-                let edge = long[i].1;
-                let mut j = i;
-                while j < long.len() && long[j].1 == edge {
-                    j += 1;
-                }
-                // Every triangle holding this edge, not only the long sides found.
-                let holders: Vec<u32> = long[i..j].iter().map(|x| x.2).collect();
-                i = j;
-                if holders.iter().any(|&k| touched[k as usize]) {
-                    continue;
-                }
-                let [a, b] = edge;
-                let (pa, pb) = (self.positions[a as usize], self.positions[b as usize]);
-                let Some(m) = project((pa + pb) * 0.5) else {
-                    continue;
-                };
-                let mid = self.positions.len() as u32;
-                self.positions.push(m);
-                self.rest
-                    .push((self.rest[a as usize] + self.rest[b as usize]) * 0.5);
-                self.pinned
-                    .push(self.pinned[a as usize] && self.pinned[b as usize]);
-                let n = self.positions.len();
-                for weights in self.weights_mut() {
-                    if weights.len() + 1 == n {
-                        let w = 0.5 * (weights[a as usize] + weights[b as usize]);
-                        weights.push(w);
-                    }
-                }
-                for k in holders {
-                    touched[k as usize] = true;
-                    let t = self.triangles[k as usize];
-                    // Rotate so the split edge is (t0, t1) in the triangle's own order.
-                    let r = (0..3)
-                        .find(|&e| {
-                            let (u, v) = (t[e], t[(e + 1) % 3]);
-                            [u.min(v), u.max(v)] == edge
-                        })
-                        .unwrap_or(0);
-                    let (u, v, w) = (t[r], t[(r + 1) % 3], t[(r + 2) % 3]);
-                    self.triangles[k as usize] = [u, mid, w];
-                    self.triangles.push([mid, v, w]);
-                    touched.push(true);
-                }
-                split_any = true;
-            }
-            if !split_any {
-                break;
-            }
-            changed = true;
-        }
-        changed
     }
 
     /// Drops the triangles that can never show a texel again (see
