@@ -323,14 +323,7 @@ fn square_frames(dir: &Path, cells: &[usize]) -> PathBuf {
                 ply.push_str(&format!("{x} {y} 0 0 0 0\n"));
             }
         }
-        let w = n + 1;
-        for j in 0..n {
-            for i in 0..n {
-                let a = j * w + i;
-                ply.push_str(&format!("3 {a} {} {}\n", a + 1, a + w + 1));
-                ply.push_str(&format!("3 {a} {} {}\n", a + w + 1, a + w));
-            }
-        }
+        common::push_grid_faces(&mut ply, n);
         std::fs::write(dir.join(format!("fluid.{f:04}.ply")), ply).unwrap();
     }
     dir.join("fluid.####.ply")

@@ -431,6 +431,19 @@ pub fn peak_and_estimate(stderr: &str, what: &str) -> (f64, f64) {
     (measured, estimated)
 }
 
+/// Appends the faces of an n × n grid of squares, two triangles each, over
+/// vertices numbered row by row ((n + 1)² of them).
+pub fn push_grid_faces(ply: &mut String, n: usize) {
+    let w = n + 1;
+    for j in 0..n {
+        for i in 0..n {
+            let a = j * w + i;
+            ply.push_str(&format!("3 {a} {} {}\n", a + 1, a + w + 1));
+            ply.push_str(&format!("3 {a} {} {}\n", a + w + 1, a + w));
+        }
+    }
+}
+
 /// Writes `frames` ASCII PLY frames of a flat 12×12 grid at rest with a
 /// per-vertex `temperature` of `t(x, frame)`; returns the pattern.
 pub fn cooling_grid(dir: &Path, frames: usize, t: impl Fn(f32, usize) -> f32) -> PathBuf {
@@ -453,14 +466,7 @@ pub fn cooling_grid(dir: &Path, frames: usize, t: impl Fn(f32, usize) -> f32) ->
                 ply.push_str(&format!("{x} {y} 0 0 0 0 {}\n", t(x, f)));
             }
         }
-        let w = n + 1;
-        for j in 0..n {
-            for i in 0..n {
-                let a = j * w + i;
-                ply.push_str(&format!("3 {a} {} {}\n", a + 1, a + w + 1));
-                ply.push_str(&format!("3 {a} {} {}\n", a + w + 1, a + w));
-            }
-        }
+        push_grid_faces(&mut ply, n);
         std::fs::write(dir.join(format!("fluid.{f:04}.ply")), ply).unwrap();
     }
     dir.join("fluid.####.ply")

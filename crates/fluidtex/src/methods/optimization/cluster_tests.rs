@@ -3,11 +3,9 @@
 //! exact scan, the default checks find most optima where the greedy
 //! descent (the control) finds fewer, and nothing depends on the threads.
 
-use rand::{Rng, SeedableRng};
-
 use super::cluster::{LEAF, checks_for, ssd_lanes, ssd_lanes_bounded};
 use super::neighbourhood::Window;
-use super::search::{SearchIndex, WorkingExemplar, candidate_vector};
+use super::search::{SearchIndex, WorkingExemplar};
 use crate::exemplar::pebbles::builtin_pebbles;
 
 /// A working exemplar of pebbles and the whole-window search of width w.
@@ -23,32 +21,9 @@ fn setup(size: u32, w: u32) -> (WorkingExemplar, Window) {
     (ex, window)
 }
 
-/// Queries as synthesis makes them: a candidate's neighbourhood half
-/// averaged with another one, plus noise (seeded).
-fn queries(ex: &WorkingExemplar, window: Window, dims: usize, n: usize) -> Vec<Vec<f32>> {
-    let mut rng = rand_pcg::Pcg64::seed_from_u64(41);
-    let (mut a, mut b) = (vec![0.0f32; dims], vec![0.0f32; dims]);
-    (0..n)
-        .map(|_| {
-            candidate_vector(
-                ex,
-                window,
-                rng.random_range(0..ex.candidates() as u32),
-                &mut a,
-            );
-            candidate_vector(
-                ex,
-                window,
-                rng.random_range(0..ex.candidates() as u32),
-                &mut b,
-            );
-            let mix = rng.random::<f32>() * 0.4;
-            a.iter()
-                .zip(&b)
-                .map(|(x, y)| x * (1.0 - mix) + y * mix + 0.1 * (rng.random::<f32>() - 0.5))
-                .collect()
-        })
-        .collect()
+/// The benchmark's synthesis-like queries, seeded.
+fn queries(ex: &WorkingExemplar, window: Window, n: usize) -> Vec<Vec<f32>> {
+    super::search_bench::queries(ex, window, n, 41)
 }
 
 #[test]
@@ -114,7 +89,7 @@ fn checking_every_candidate_is_the_exact_scan() {
     let index = SearchIndex::clustered(&ex, window, ex.candidates());
     let exact = SearchIndex::exact(&ex, window);
     let mut buf = vec![0.0f32; index.dims];
-    for q in queries(&ex, window, index.dims, 30) {
+    for q in queries(&ex, window, 30) {
         let (found, d) = index.nearest(&ex, &q, &mut buf);
         let (best, d_best) = exact.brute_force(&ex, &q);
         assert_eq!(found, best);
@@ -128,7 +103,7 @@ fn agreement(size: u32, w: u32, checks: usize) -> (f64, f64) {
     let (ex, window) = setup(size, w);
     let index = SearchIndex::clustered(&ex, window, checks);
     let mut buf = vec![0.0f32; index.dims];
-    let qs = queries(&ex, window, index.dims, 80);
+    let qs = queries(&ex, window, 80);
     let (mut same, mut close) = (0, 0);
     for q in &qs {
         let (found, d) = index.nearest(&ex, q, &mut buf);
@@ -176,7 +151,7 @@ fn the_tree_does_not_depend_on_the_thread_count() {
                 .map(|l| l.to_vec())
                 .collect();
             let mut buf = vec![0.0f32; index.dims];
-            let found: Vec<(u32, u32)> = queries(&ex, window, index.dims, 20)
+            let found: Vec<(u32, u32)> = queries(&ex, window, 20)
                 .iter()
                 .map(|q| {
                     let (i, d) = index.nearest(&ex, q, &mut buf);
