@@ -27,7 +27,7 @@
 //!
 //! **Cost.** The tree is built once per working exemplar and pass (the
 //! method caches it per level): the k-means steps of a node run on at most
-//! [`KMEANS_SAMPLE`] of its members, then every member is assigned once,
+//! `KMEANS_SAMPLE` (4096) of its members, then every member is assigned once,
 //! so building costs about (members × BRANCHING × dims) per tree level.
 
 use std::cmp::Ordering;
