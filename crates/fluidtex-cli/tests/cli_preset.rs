@@ -119,7 +119,8 @@ fn print_config_shows_the_resolved_preset() {
     assert_eq!(table["erosion"]["weights"].as_str(), Some("progressive"));
     assert_eq!(table["erosion"]["tone"].as_str(), Some("off"));
     assert_eq!(table["optimization"]["histogram"].as_str(), Some("paper"));
-    assert_eq!(table["optimization"]["search"].as_str(), Some("exact"));
+    assert_eq!(table["optimization"]["search"].as_str(), Some("clustered"));
+    assert_eq!(table["optimization"]["convergence"].as_float(), Some(0.001));
     assert_eq!(
         table["optimization"]["placement"].as_str(),
         Some("repulsion")
