@@ -1,8 +1,15 @@
-"""Bake a violent Mantaflow splash headless and export it as PLY frames:
-the real splashing liquid that fluidtex's long-run figures (README,
-*What the patches hold over a long run*) are measured on.
+"""Bake a Mantaflow liquid headless and export it as PLY frames: the real
+liquids that fluidtex's long-run figures (README, *What the patches hold
+over a long run*) and `docs/reproduction.md` are measured on.
 
-    blender -b --factory-startup --python-exit-code 1 --python tools/mantaflow_splash.py -- OUTDIR [--res 80] [--frames 60]
+    blender -b --factory-startup --python-exit-code 1 --python tools/mantaflow_splash.py -- OUTDIR [--scene splash|viscous|dam] [--res 80] [--frames 60]
+
+`--scene splash` (the default) is described below. `--scene viscous` is a
+slow viscous liquid: a ball of honey-like liquid (Mantaflow's viscosity
+solver on) dropped on the floor of a 1 x 1 x 1 box, which then creeps and
+spreads, the kind of input the 2016 and 2021 papers' viscous drops are.
+`--scene dam` is a plain dam break in a 2 x 2 x 2 box (a block of water a
+third of the box wide, released at rest against the -x wall).
 
 A dam break (a block of water pushed along +x) and a ball thrown at the far
 wall, in a closed 2 x 1 x 1.2 box at 24 fps. At the default resolution 80 it
@@ -46,6 +53,7 @@ def args():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
     p = argparse.ArgumentParser()
     p.add_argument("out")
+    p.add_argument("--scene", choices=("splash", "viscous", "dam"), default="splash")
     p.add_argument("--res", type=int, default=80)
     p.add_argument("--frames", type=int, default=60)
     p.add_argument("--mesh-scale", type=int, default=1)
@@ -85,7 +93,12 @@ def build(a, cache):
     scene.render.fps, scene.render.fps_base = 24, 1.0
     scene.frame_set(1)
 
-    domain = box("Splash domain", (-1.0, -0.5, 0.0), (1.0, 0.5, 1.2))
+    lo, hi = {
+        "splash": ((-1.0, -0.5, 0.0), (1.0, 0.5, 1.2)),
+        "viscous": ((-0.5, -0.5, 0.0), (0.5, 0.5, 1.0)),
+        "dam": ((-1.0, -1.0, 0.0), (1.0, 1.0, 2.0)),
+    }[a.scene]
+    domain = box(f"{a.scene.capitalize()} domain", lo, hi)
     mod = domain.modifiers.new("Fluid", "FLUID")
     mod.fluid_type = "DOMAIN"
     d = mod.domain_settings
@@ -101,6 +114,20 @@ def build(a, cache):
     d.cache_frame_start, d.cache_frame_end = 1, a.frames
     # all walls closed (default border collisions)
 
+    if a.scene == "viscous":
+        # Honey-like: the viscosity solver with a high value, so the ball
+        # slumps and creeps instead of splashing.
+        d.use_viscosity = True
+        d.viscosity_value = 2.0
+        bpy.ops.mesh.primitive_uv_sphere_add(radius=0.22, location=(-0.1, 0.0, 0.4))
+        blob = bpy.context.object
+        blob.name = "Blob"
+        bpy.ops.object.transform_apply(location=True, rotation=True, scale=True)
+        liquid_source(blob, (0.4, 0.1, 0.0))
+        return domain
+    if a.scene == "dam":
+        liquid_source(box("Dam", (-0.97, -0.97, 0.03), (-0.33, 0.97, 1.4)), (0.0, 0.0, 0.0))
+        return domain
     # dam: tall block of water against the -x wall
     liquid_source(box("Dam", (-0.97, -0.47, 0.03), (-0.45, 0.47, 1.0)), (1.5, 0.0, 0.0))
 
