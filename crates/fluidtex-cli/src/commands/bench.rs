@@ -48,6 +48,9 @@ pub struct BenchArgs {
     /// New patch placement
     #[arg(long, default_value = "local", value_parser = named::<Placement>())]
     pub placement: Placement,
+    /// Run the method under a preset (`paper`: as its paper publishes it, docs/departures.md)
+    #[arg(long)]
+    pub preset: Option<String>,
     /// Rayon threads (default: all cores)
     #[arg(long)]
     pub threads: Option<usize>,
@@ -110,7 +113,7 @@ impl FrameSource for Memory {
 }
 
 /// One frame's figures: frame, stage seconds, stage order, method stats.
-type BenchRow = (
+pub(crate) type BenchRow = (
     i32,
     BTreeMap<String, f64>,
     Vec<String>,
@@ -133,37 +136,10 @@ pub fn bench(a: &BenchArgs) -> Result<()> {
     if let Some(pattern) = &a.mesh {
         return bench_sequence(a, pattern);
     }
-    // Calibrate the scene resolution to the requested triangle count: the
-    // count grows with the square of the resolution for surface meshes.
-    let probe = scene_params(&a.scene, None, None, None, None)?;
-    let first = probe.first;
-    let mut s = scenes::by_name(&a.scene, Some(probe))?;
-    let t0 = s.frame(first)?.triangle_count().max(1);
-    let resolution = ((probe.resolution as f64) * (a.triangles as f64 / t0 as f64).sqrt())
-        .round()
-        .clamp(8.0, 2048.0) as u32;
-    let last = first + a.frames as i32 - 1;
-    let params = scene_params(
-        &a.scene,
-        Some(&format!("{first}-{last}")),
-        Some(resolution),
-        None,
-        None,
-    )?;
-    let mut scene = scenes::by_name(&a.scene, Some(params))?;
-    eprintln!(
-        "generating {} frames of {} at resolution {resolution} ...",
-        a.frames, a.scene
-    );
-    let mut frames = Vec::new();
-    for f in first..=last {
-        let mut mesh = scene.frame(f)?;
-        fluidtex::mesh::validate(&mut mesh)?;
-        frames.push((f, mesh));
-    }
+    let (frames, fps) = generate(&a.scene, a.triangles, a.frames)?;
     let tris = frames[0].1.triangle_count();
-    let mut config = bench_config(a);
-    config.fps = Some(params.fps as f32);
+    let mut config = bench_config(a)?;
+    config.fps = Some(fps);
     if let Some(n) = a.patches {
         let area = frames[0].1.area();
         // Dart throwing reaches about 0.7 A / r² disks.
@@ -172,6 +148,55 @@ pub fn bench(a: &BenchArgs) -> Result<()> {
     let mut source = Memory { frames };
     let title = format!("{} ({tris} triangles)", a.scene);
     time_run(a, &config, &mut source, &title, false)
+}
+
+/// `frames` frames of the generated `scene` from its first, at the
+/// resolution that gives about `triangles` triangles on the first, with
+/// the scene's frame rate.
+fn generate(scene: &str, triangles: usize, frames: u32) -> Result<(Vec<(i32, TriMesh)>, f32)> {
+    // Calibrate the scene resolution to the requested triangle count: the
+    // count grows with the square of the resolution for surface meshes.
+    let probe = scene_params(scene, None, None, None, None)?;
+    let first = probe.first;
+    let mut s = scenes::by_name(scene, Some(probe))?;
+    let t0 = s.frame(first)?.triangle_count().max(1);
+    let resolution = ((probe.resolution as f64) * (triangles as f64 / t0 as f64).sqrt())
+        .round()
+        .clamp(8.0, 2048.0) as u32;
+    let last = first + frames as i32 - 1;
+    let params = scene_params(
+        scene,
+        Some(&format!("{first}-{last}")),
+        Some(resolution),
+        None,
+        None,
+    )?;
+    let mut generator = scenes::by_name(scene, Some(params))?;
+    eprintln!("generating {frames} frames of {scene} at resolution {resolution} ...");
+    let mut out = Vec::new();
+    for f in first..=last {
+        let mut mesh = generator.frame(f)?;
+        fluidtex::mesh::validate(&mut mesh)?;
+        out.push((f, mesh));
+    }
+    Ok((out, params.fps as f32))
+}
+
+/// Times `config`'s method on `frames` frames of the generated `scene` at
+/// about `triangles` triangles (`fluidtex reproduce`'s timing rows): the
+/// first frame's triangle count and the run's figures.
+pub(crate) fn time_generated(
+    scene: &str,
+    triangles: usize,
+    frames: u32,
+    mut config: Config,
+    out: PathBuf,
+) -> Result<(usize, Timing)> {
+    let (frames, fps) = generate(scene, triangles, frames)?;
+    let tris = frames[0].1.triangle_count();
+    config.fps = Some(fps);
+    let mut source = Memory { frames };
+    Ok((tris, Timing::run(&config, out, &mut source)?))
 }
 
 /// `--exemplar-search`: the searches of the 2007 method side by side on
@@ -216,24 +241,27 @@ fn bench_exemplar_search(a: &BenchArgs) -> Result<()> {
     Ok(())
 }
 
-/// The settings every bench run shares: method, atlas, outputs.
-fn bench_config(a: &BenchArgs) -> Config {
+/// The settings every bench run shares: method, atlas, outputs, preset.
+fn bench_config(a: &BenchArgs) -> Result<Config> {
+    let base = Config::load_with_preset(None, a.preset.as_deref())?;
     let mut config = Config {
         method: Some(a.method),
         atlas: Some(a.atlas),
         exemplar: a.exemplar.clone(),
-        ..Default::default()
+        ..base
     };
     config.outputs.obj = true;
     config.outputs.glb = true;
     config.outputs.debug = a.debug;
-    config.params.erosion.placement = a.placement;
-    config
+    if a.preset.is_none() {
+        config.params.erosion.placement = a.placement;
+    }
+    Ok(config)
 }
 
 /// `--mesh`: the user's own sequence, read from disk frame by frame.
 fn bench_sequence(a: &BenchArgs, pattern: &str) -> Result<()> {
-    let config = bench_config(a);
+    let config = bench_config(a)?;
     if let Some(n) = a.patches {
         bail!("--patches {n}: only for generated scenes (give a config radius instead)");
     }
@@ -283,22 +311,38 @@ fn time_run(
 }
 
 /// What one timed run measured.
-struct Timing {
+pub(crate) struct Timing {
     /// A row per frame, in order.
-    rows: Vec<BenchRow>,
+    pub(crate) rows: Vec<BenchRow>,
     /// Seconds from the start of the second frame to the end of the run:
     /// the frames after the first, each computed and written. (Gaps between
     /// finished frames would not do: with write-behind a frame is reported
     /// finished while the next is being computed, so the first gap is
     /// short by up to a frame.)
-    after_first: Option<f64>,
+    pub(crate) after_first: Option<f64>,
     /// Wall-clock seconds of the whole run.
-    wall: f64,
+    pub(crate) wall: f64,
     /// CPU seconds (user + system) of the run, where the system says.
     cpu: Option<f64>,
 }
 
 impl Timing {
+    /// Each stage's mean seconds over the frames after the first (all
+    /// frames where there is one), by stage name.
+    pub(crate) fn stage_means(&self) -> BTreeMap<String, f64> {
+        let skip = usize::from(self.rows.len() > 1);
+        let counted = &self.rows[skip..];
+        let mut sums: BTreeMap<String, f64> = BTreeMap::new();
+        for (_, secs, _, _) in counted {
+            for (s, v) in secs {
+                *sums.entry(s.clone()).or_default() += v;
+            }
+        }
+        let n = counted.len().max(1) as f64;
+        sums.values_mut().for_each(|v| *v /= n);
+        sums
+    }
+
     /// Runs the frame job over `source` into `out`, keeping each frame's
     /// stage timings and method statistics.
     fn run(config: &Config, out: PathBuf, source: &mut dyn FrameSource) -> Result<Timing> {

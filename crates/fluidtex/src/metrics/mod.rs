@@ -117,7 +117,7 @@ pub use thresholds::{
     ColourFollowThresholds, ContrastThresholds, CoverageThresholds, DistortionThresholds,
     FidelityThresholds, FlowThresholds, GhostingThresholds, Metric, PoppingThresholds,
     SilhouetteSettings, SizeCostThresholds, SourceSwitchThresholds, StaticStopThresholds, Summary,
-    Thresholds, Verdict,
+    Thresholds, Verdict, committed_text as committed_thresholds_text,
 };
 
 pub use crate::provenance::{SOURCE_OUTSIDE, SOURCE_UNCOVERED};

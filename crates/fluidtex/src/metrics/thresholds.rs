@@ -15,6 +15,12 @@ use super::MetricsError;
 const FILE: &str = "metrics/thresholds.toml";
 const COMMITTED: &str = include_str!("thresholds.toml");
 
+/// The committed `thresholds.toml` as text: what a report that records
+/// how it was judged (`fluidtex reproduce`'s fingerprint) hashes.
+pub fn committed_text() -> &'static str {
+    COMMITTED
+}
+
 /// One range check: (key, value, whether it is allowed, the allowed range).
 type Check = (&'static str, f64, bool, &'static str);
 
