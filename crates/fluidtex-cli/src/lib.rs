@@ -15,6 +15,7 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 
 pub use commands::bench::BenchArgs;
+pub use commands::reproduce::{Plan as ReproductionPlan, fingerprint as reproduction_fingerprint};
 pub use commands::scene::SceneArgs;
 
 /// Textures that ride animated fluid surfaces.
@@ -42,6 +43,8 @@ pub enum Command {
     Bench(BenchArgs),
     /// Run methods on scenes and measure them: report.json, report.md, report.html
     Compare(Box<commands::compare::CompareArgs>),
+    /// Put each paper's headline comparison beside ours: writes docs/reproduction.md
+    Reproduce(commands::reproduce::ReproduceArgs),
     /// Show an output folder in a web browser: play, scrub, texture / patch view, stats
     View(commands::view::ViewArgs),
     /// Run a shot on a render farm's scheduler (Slurm, Open Job Description), in two phases
@@ -66,6 +69,7 @@ where
         Command::Scene(a) => commands::scene::scene(&a),
         Command::Bench(a) => commands::bench::bench(&a),
         Command::Compare(a) => commands::compare::compare(&a),
+        Command::Reproduce(a) => commands::reproduce::reproduce(&a),
         Command::View(a) => commands::view::view(&a),
         Command::Farm(a) => commands::farm::farm(&a),
         Command::UsdConvert(a) => usd::usd_convert(&a),

@@ -245,7 +245,7 @@ pub fn compare(a: &CompareArgs) -> Result<()> {
         .map(|plan| session.scene(plan))
         .collect::<Result<Vec<_>>>()?;
     let report = Report {
-        command: command_line(a, &method_names),
+        command: compare_command_line(a, &method_names),
         atlas_size: a.atlas,
         seed: a.seed,
         exemplar: exemplar_text(a, &base),
@@ -508,7 +508,8 @@ fn write_reports(out: &Path, report: &Report, thresholds: &Thresholds) -> Result
     )
 }
 
-fn command_line(a: &CompareArgs, methods: &[String]) -> String {
+/// The command line that `a` stands for, as `report.json` records it.
+pub(crate) fn compare_command_line(a: &CompareArgs, methods: &[String]) -> String {
     let input = match &a.mesh {
         Some(m) => format!("--mesh '{m}' --fps {}", a.fps),
         None => format!("--scenes {}", a.scenes),

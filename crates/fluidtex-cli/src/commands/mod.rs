@@ -6,6 +6,7 @@ pub mod demo;
 pub mod farm;
 pub mod info;
 pub mod preview_video;
+pub mod reproduce;
 pub mod run;
 pub mod scene;
 pub mod view;
