@@ -9,7 +9,14 @@
 //!   parameter that does not exist: a new parameter fails here until it is
 //!   entered;
 //! - a departure's default, as it states it, is the parameter's default,
-//!   and its flag is the parameter's flag.
+//!   and its flag is the parameter's flag;
+//! - every behaviour row (a departure without a parameter) names, in
+//!   `pinned_by`, a `#[test]` function that exists where its module path
+//!   says (`crates/fluidtex/src/...`, or `tests::FILE::NAME` for
+//!   `crates/fluidtex/tests/FILE.rs`). That the test checks the row's
+//!   number is for review; that it exists and runs is checked here. The
+//!   switches themselves are run both ways by
+//!   `fluidtex::departures::switch_tests`.
 //!
 //! The keys are read from serde, not listed by hand: the field names each
 //! `Deserialize` struct asks for (so also those it leaves out when
@@ -42,7 +49,7 @@ fn section_fields(section: &str) -> &'static [&'static str] {
         "lapped_rigid" => field_names::<LappedRigidParams>(),
         other => panic!(
             "MethodParams has a section `{other}` this test does not know: add it to \
-             section_fields, and its parameters to crates/fluidtex/src/departures.rs"
+             section_fields, and its parameters to the ledger in crates/fluidtex/src/departures/"
         ),
     }
 }
@@ -89,7 +96,7 @@ fn disagreements(
         match count.get(k.as_str()) {
             None => problems.push(format!(
                 "parameter {k} is not in the ledger: add it to DEPARTURES or AS_PUBLISHED in \
-                 crates/fluidtex/src/departures.rs, then run {BLESS}"
+                 crates/fluidtex/src/departures/ (the file of its paper), then run {BLESS}"
             )),
             Some(&n) if n > 1 => problems.push(format!(
                 "parameter {k} is in the ledger {n} times, not once"
@@ -132,7 +139,7 @@ fn docs_departures_md_is_generated_from_the_ledger() {
             + 1;
         panic!(
             "{} is not what fluidtex::departures::render() writes (first difference on line \
-             {line}). Edit crates/fluidtex/src/departures.rs, not the file, then run\n  {BLESS}",
+             {line}). Edit crates/fluidtex/src/departures.rs and departures/, not the file, then run\n  {BLESS}",
             file.display()
         );
     }
@@ -285,4 +292,130 @@ fn each_departure_states_its_parameters_default_and_flag() {
         }
     }
     assert!(problems.is_empty(), "{problems:#?}");
+}
+
+/// The crate's root directory (`crates/fluidtex`).
+fn crate_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Whether `text` defines a function `name` marked `#[test]` (other
+/// attributes may stand between the two).
+fn has_test_fn(text: &str, name: &str) -> bool {
+    let lines: Vec<&str> = text.lines().map(str::trim).collect();
+    let signature = format!("fn {name}(");
+    lines.iter().enumerate().any(|(i, line)| {
+        if !line.starts_with(&signature) {
+            return false;
+        }
+        let above = lines[..i].iter().rev();
+        for attr in above.take_while(|l| l.starts_with("#[") || l.starts_with("///")) {
+            if *attr == "#[test]" {
+                return true;
+            }
+        }
+        false
+    })
+}
+
+/// The files a module path can live in, innermost first: for
+/// `a::b::c`, `src/a/b/c.rs`, `src/a/b/c/mod.rs`, `src/a/b.rs` (an
+/// inline `mod c`), `src/a/b/mod.rs`, ... For `tests::f`, `tests/f.rs`.
+fn module_files(root: &std::path::Path, module: &[&str]) -> Vec<PathBuf> {
+    if let ["tests", file] = module {
+        return vec![root.join("tests").join(format!("{file}.rs"))];
+    }
+    let mut out = Vec::new();
+    for n in (1..=module.len()).rev() {
+        let dir: PathBuf = module[..n - 1].iter().collect();
+        let leaf = module[n - 1];
+        out.push(root.join("src").join(&dir).join(format!("{leaf}.rs")));
+        out.push(root.join("src").join(&dir).join(leaf).join("mod.rs"));
+    }
+    out
+}
+
+/// What is wrong with a row's `pinned_by` (`None`: nothing), looking for
+/// the test under `root`.
+fn pin_problem(
+    root: &std::path::Path,
+    what: &str,
+    key: Option<&str>,
+    pinned_by: &str,
+) -> Option<String> {
+    if pinned_by.is_empty() {
+        return key.is_none().then(|| {
+            format!("{what}: a behaviour row (no parameter) must name the test that pins it")
+        });
+    }
+    let parts: Vec<&str> = pinned_by.split("::").collect();
+    let Some((name, module)) = parts.split_last().filter(|(_, m)| !m.is_empty()) else {
+        return Some(format!(
+            "{what}: pinned_by {pinned_by:?} is not module::path::test_name"
+        ));
+    };
+    let found = module_files(root, module)
+        .iter()
+        .any(|f| std::fs::read_to_string(f).is_ok_and(|text| has_test_fn(&text, name)));
+    (!found).then(|| {
+        format!(
+            "{what}: pinned_by {pinned_by:?}: no #[test] fn {name} where the module path points"
+        )
+    })
+}
+
+#[test]
+fn every_behaviour_row_names_a_test_that_exists() {
+    let root = crate_dir();
+    let problems: Vec<String> = DEPARTURES
+        .iter()
+        .filter_map(|d| pin_problem(&root, d.what, d.key, d.pinned_by))
+        .collect();
+    assert!(problems.is_empty(), "{problems:#?}");
+    // Both sides were really read: behaviour rows exist, and name tests.
+    let pinned = DEPARTURES.iter().filter(|d| d.key.is_none()).count();
+    assert!(pinned >= 19, "{pinned} behaviour rows");
+}
+
+/// Known-bad controls: a row naming a missing test, a function that is
+/// not a test, a test in another module, or nothing at all is reported;
+/// a real test in an inline test module and one in an integration test
+/// pass.
+#[test]
+fn a_missing_or_misplaced_pinning_test_is_caught() {
+    let root = crate_dir();
+    let problem = |key: Option<&str>, pin: &str| pin_problem(&root, "fake row", key, pin);
+    let missing = problem(
+        None,
+        "methods::optimization::behaviour_tests::no_such_test_anywhere",
+    );
+    assert!(missing.is_some_and(|p| p.contains("no #[test] fn no_such_test_anywhere")));
+    // A helper, not a test.
+    assert!(problem(None, "methods::optimization::behaviour_tests::flat_level").is_some());
+    // A real test, named under the wrong module.
+    assert!(
+        problem(
+            None,
+            "methods::erosion::behaviour_tests::a_frame_without_motion_skips_synthesis"
+        )
+        .is_some()
+    );
+    assert!(problem(None, "").is_some_and(|p| p.contains("must name the test")));
+    assert!(problem(None, "just_a_name").is_some());
+    // A parameter row may leave it empty.
+    assert_eq!(problem(Some("erosion.weights"), ""), None);
+    assert_eq!(
+        problem(
+            None,
+            "methods::lapped_rigid::trackers::tests::rebuild_keeps_t_at_half_r_perpendicular_to_n"
+        ),
+        None
+    );
+    assert_eq!(
+        problem(
+            None,
+            "tests::departures_ledger::a_missing_or_misplaced_pinning_test_is_caught"
+        ),
+        None
+    );
 }

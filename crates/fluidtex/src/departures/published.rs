@@ -27,7 +27,10 @@ pub const AS_PUBLISHED: &[(&str, &str)] = &[
     ),
     (
         "erosion.exemplar_scale",
-        "The paper gives no value: 2.6 r, the (2 + β) r with β = 0.6 of the authors' code.",
+        "The paper gives no value; 2.6 r is our choice: a patch is a disc 2 r across, which \
+         any S above 2 r holds at any rotation, and 2.6 r leaves 0.3 r on each side (the \
+         footprint reaches uv radius r/S ≈ 0.385 of the square's 0.5), so the patch's rim \
+         never reads the exemplar across its edge.",
     ),
     (
         "erosion.delta_max",
@@ -99,8 +102,10 @@ pub const AS_PUBLISHED: &[(&str, &str)] = &[
     // optimization (2007)
     (
         "optimization.points",
-        "Within the paper's 100k–500k (Sec. VII): 200000 on the first frame, then the spacing \
-         is kept so the count follows the area (Sec. IV-A).",
+        "Within the paper's 100k–500k (Sec. VII): 200000 asked for on the first frame, then the \
+         spacing is kept so the count follows the area (Sec. IV-A). Never more than about one \
+         point per atlas texel (see the behaviour row *Points per atlas texel*), so a small \
+         atlas gets fewer: under 65,536 at `--atlas 256`.",
     ),
     (
         "optimization.exemplar_texels",
@@ -117,7 +122,9 @@ pub const AS_PUBLISHED: &[(&str, &str)] = &[
     ),
     (
         "optimization.levels_after_first",
-        "The paper's: one level on later frames (Sec. VII, footnote 5).",
+        "The paper's for synthesis: one level synthesised on later frames (Sec. VII, footnote \
+         5). Not for the points: every frame still builds all `levels` levels (see the \
+         behaviour row *The hierarchy on frames after the first*).",
     ),
     (
         "optimization.sizes",

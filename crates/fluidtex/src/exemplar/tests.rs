@@ -546,6 +546,51 @@ fn colour_feature_map_is_reduced_to_luminance() {
     assert!(e.feature.map.data.iter().all(|&v| v == 0.2126));
 }
 
+/// Ledger (2021): "A feature map nobody gave". Without one, a feature map
+/// is derived from the colour (`FeatureMethod::Auto`); a given one is read
+/// as given.
+#[test]
+fn without_a_feature_map_one_is_derived_and_a_given_one_is_used_as_given() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let d = dir.path();
+    let colour = save(
+        DynamicImage::ImageLuma8(ImageBuffer::from_fn(16, 16, |x, y| {
+            Luma([if (x / 4 + y / 4) % 2 == 0 { 40u8 } else { 220 }])
+        })),
+        d,
+        "c.png",
+    );
+    let given = save(
+        DynamicImage::ImageLuma8(ImageBuffer::from_pixel(16, 16, Luma([51u8]))),
+        d,
+        "f.png",
+    );
+    let derived = Exemplar::load(&colour, &[], None, FeatureMethod::Auto).expect("loads");
+    assert!(matches!(derived.feature.origin, FeatureOrigin::Derived(_)));
+    let colour_texture = Exemplar::load(&colour, &[], Some(&given), FeatureMethod::Auto)
+        .expect("loads")
+        .colour;
+    let want = feature::derive(
+        &colour_texture,
+        FeatureMethod::Auto,
+        &DistanceParams::default(),
+    )
+    .expect("derives")
+    .map;
+    assert_eq!(derived.feature.map.data, want.map.data);
+    let read = Exemplar::load(&colour, &[], Some(&given), FeatureMethod::Auto).expect("loads");
+    assert_eq!(read.feature.origin, FeatureOrigin::Given(given.clone()));
+    assert!(
+        read.feature
+            .map
+            .data
+            .iter()
+            .all(|&v| (v - 0.2).abs() < 1e-6)
+    );
+    // Control: the derived map is not the given one.
+    assert_ne!(derived.feature.map.data, read.feature.map.data);
+}
+
 // ------------------------------------------------------------------ errors
 
 #[test]

@@ -255,11 +255,11 @@ impl FillContext<'_> {
         let mut best: Option<(T, [f32; 3], f32)> = None;
         for (j, frame) in listed {
             let (bary, plane) = frame.locate(x);
-            if plane.abs() > self.tolerance.max_plane_distance {
+            if !self.tolerance.holds(bary, plane) {
                 continue;
             }
             let m = bary[0].min(bary[1]).min(bary[2]);
-            if m >= self.tolerance.min_bary && best.as_ref().is_none_or(|b| m > b.2) {
+            if best.as_ref().is_none_or(|b| m > b.2) {
                 best = Some((j, bary, m));
             }
         }

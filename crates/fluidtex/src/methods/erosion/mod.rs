@@ -31,6 +31,8 @@ pub mod transition;
 pub mod update;
 
 #[cfg(test)]
+mod behaviour_tests;
+#[cfg(test)]
 mod tests;
 
 use std::sync::Arc;

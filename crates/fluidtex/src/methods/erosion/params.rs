@@ -23,7 +23,8 @@ crate::methods::params::params! {
         /// `exemplar_scale` × r.
         pub exemplar_size: Option<f32> = None
             => "exemplar-size" : "World size covered by the exemplar [2.6 r]; also sets optimization's (its width, [exemplar_texels point spacings])",
-        /// Default S as a multiple of r [2.6]: the authors' code used (2 + β) r, β = 0.6.
+        /// Default S as a multiple of r [2.6]: our choice (the paper gives none), a
+        /// margin of 0.3 r around the patch's disc of radius r.
         pub exemplar_scale: f32 = 2.6,
         /// δ_max of Eq. 1 \[3]: triangles at or beyond this distortion have Q_T = 0.
         pub delta_max: f32 = 3.0

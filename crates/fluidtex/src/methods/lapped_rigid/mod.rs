@@ -37,6 +37,8 @@ pub mod receivers;
 pub mod trackers;
 
 #[cfg(test)]
+mod behaviour_tests;
+#[cfg(test)]
 mod tests;
 
 use std::sync::Arc;

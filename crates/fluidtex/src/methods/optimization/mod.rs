@@ -52,6 +52,8 @@ pub mod tangent;
 pub mod transport;
 
 #[cfg(test)]
+mod behaviour_tests;
+#[cfg(test)]
 mod tests;
 
 use std::sync::Arc;
@@ -251,9 +253,7 @@ impl Optimization {
                 .sizes
                 .iter()
                 .map(|&w| {
-                    // A window never wider than the working exemplar.
-                    let limit = (ex.width.min(ex.height) - 1) | 1;
-                    let width = w.min(limit).max(3);
+                    let width = window_width(w, ex.width, ex.height);
                     let grid = match params.search {
                         Search::Pca => params.search_grid.min(width),
                         Search::Exact | Search::Clustered => width,
@@ -664,6 +664,40 @@ impl Optimization {
     }
 }
 
+/// The width of a `w`-wide pass over a `width` × `height` working
+/// exemplar: never wider than the exemplar, and odd (so a 33² pass over
+/// the 32-texel coarsest level of the default hierarchy is 31²); windows
+/// centred near the exemplar's edge read across it, since the exemplar
+/// repeats ([`WorkingExemplar::texel`]).
+fn window_width(w: u32, width: u32, height: u32) -> u32 {
+    let limit = (width.min(height).max(1) - 1) | 1;
+    w.min(limit).max(3)
+}
+
+/// The hierarchy of a frame: (levels built, levels synthesised). Every
+/// frame builds `levels` (with `placement = "repulsion"`, scattering and
+/// re-tiling each), since the orientation field is smoothed and
+/// transported over the whole hierarchy; only the synthesis of a carried
+/// frame keeps to `levels_after_first` (the paper's footnote 5).
+fn level_counts(params: &OptimizationParams, carried: bool) -> (usize, usize) {
+    let synthesised = if carried {
+        params.levels_after_first
+    } else {
+        params.levels
+    } as usize;
+    (synthesised.max(params.levels as usize), synthesised)
+}
+
+/// Where the orientation field is transported, for point spacing `h` and
+/// `levels` built levels: (the level, the length ε of the advected vector).
+/// Only the coarsest level is carried (its field is then copied up and
+/// re-smoothed, [`orientation::smooth_hierarchy`]), and ε is a quarter of
+/// that level's spacing: with three levels, 4 h apart, ε = h.
+fn orientation_carry(h: f32, levels: usize) -> (usize, f32) {
+    let top = levels.saturating_sub(1);
+    (top, 0.25 * h * (1u32 << top) as f32)
+}
+
 /// Whether nothing moved since the previous frame: the same mesh, and a
 /// velocity of exactly zero on both frames (so transport is the identity).
 fn is_still(ctx: &FrameContext<'_>, velocity: &[Vec3]) -> bool {
@@ -836,20 +870,15 @@ impl Method for Optimization {
         let lattice = self.points(mesh, h);
         let m = lattice.m;
         let carried = prev_lattice.is_some();
-        let synth_levels = if carried {
-            self.params.levels_after_first
-        } else {
-            self.params.levels
-        } as usize;
-        let all_levels = synth_levels.max(self.params.levels as usize);
+        let (all_levels, synth_levels) = level_counts(&self.params, carried);
         let levels: Vec<Level> = (0..all_levels).map(|l| lattice.level(1 << l)).collect();
         clock.lap("points");
 
         // 2. Transport.
-        let coarsest = &levels[all_levels - 1];
-        let texel_coarse = h * (1u32 << (all_levels - 1)) as f32;
+        let (carried_level, epsilon) = orientation_carry(h, all_levels);
+        let coarsest = &levels[carried_level];
         let carried_texture = match &prev_lattice {
-            Some(l) => self.transport(ctx, velocity, &lattice, l, coarsest, 0.25 * texel_coarse)?,
+            Some(l) => self.transport(ctx, velocity, &lattice, l, coarsest, epsilon)?,
             None => None,
         };
         let missing = carried_texture.as_ref().map_or(0, |t| t.missing);

@@ -29,6 +29,11 @@ use glam::{Vec2, Vec3};
 
 use super::lattice::Level;
 
+/// Smallest dot product of a point's normal with the centre's for the
+/// point to join a vertex neighbourhood: below it the point is taken for
+/// the other side of a thin sheet (the paper gives no threshold).
+pub const FACING_DOT: f32 = 0.2;
+
 /// Per-thread scratch (marks indexed by level vertex / triangle).
 pub struct Scratch {
     stamp: Vec<u32>,
@@ -183,7 +188,7 @@ fn flatten_rings(
             let v = scratch.next[idx];
             let vi = v as usize;
             let p_v = level.positions[vi];
-            if level.normals[vi].dot(n_c) < 0.2 {
+            if level.normals[vi].dot(n_c) < FACING_DOT {
                 continue;
             }
             let mut sum = Vec2::ZERO;

@@ -30,9 +30,11 @@ crate::methods::params::params! {
         /// Levels of the hierarchy on the first frame \[3] (Sec. V-B).
         pub levels: u32 = 3
             => "levels" : "optimization: hierarchy levels on the first frame [3]",
-        /// Levels on later frames \[1] (the paper's footnote 5).
+        /// Levels synthesised on later frames \[1] (the paper's footnote 5, for
+        /// the synthesis only: every frame still builds all `levels`, over
+        /// which the orientation is transported and smoothed).
         pub levels_after_first: u32 = 1
-            => "levels-after-first" : "optimization: hierarchy levels on later frames [1]",
+            => "levels-after-first" : "optimization: hierarchy levels synthesised on later frames; all --levels are still built [1]",
         /// Neighbourhood widths of the passes at each level, in order
         /// \[33, 17, 9] (Sec. V-B). Odd, ≥ 3.
         pub sizes: Vec<u32> = vec![33, 17, 9]

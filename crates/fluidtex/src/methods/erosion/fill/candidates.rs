@@ -35,6 +35,14 @@ impl LocateTolerance {
             max_plane_distance: 0.125 * radius,
         }
     }
+
+    /// Whether a point with barycentrics `bary` in a patch triangle and
+    /// `plane` off its plane lies in it: within the tolerance, so a patch
+    /// triangle also covers a thin band past its edges.
+    #[inline]
+    pub fn holds(&self, bary: [f32; 3], plane: f32) -> bool {
+        plane.abs() <= self.max_plane_distance && bary[0].min(bary[1]).min(bary[2]) >= self.min_bary
+    }
 }
 
 /// Precomputed projection onto one patch triangle's plane: barycentrics
