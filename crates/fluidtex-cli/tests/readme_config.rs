@@ -358,6 +358,7 @@ fn documented_elsewhere(flag: &str) -> bool {
             "relaxation",
             "upsample-diffusion",
             "point-placement",
+            "transport",
             "preview-video",
             "prim",
         ]

@@ -222,19 +222,28 @@ pub(super) const ROWS: &[Departure] = &[
         method: "optimization",
         paper: "2007 Sec. VI-A, Eq. 3",
         what: "Transporting the colour.",
-        ours: "Each new point back-tracked by RK4 through the mesh's vertex velocities, then the \
-               previous values read at the closest point of the previous surface.",
-        paper_setting: "The coordinate field advected on the simulation grid by a first-order \
-                        upwind scheme. No switch yet: it needs a narrow-band grid around the \
-                        surface, planned with the velocity-grid reader; `--preset paper` keeps \
-                        the back-tracking.",
-        key: None,
-        flag: None,
+        ours: "`transport = trace`: each new point back-tracked by RK4 through the mesh's vertex \
+               velocities, then the previous values read at the closest point of the previous \
+               surface.",
+        paper_setting: "The coordinate field advected by a first-order upwind scheme on a grid, \
+                        then the previous values read at the closest point to the advected \
+                        coordinates (`transport = grid`): fluidtex builds the grid itself, a \
+                        narrow band at the finest point spacing around the new surface, up to \
+                        12 cells each side, with the velocity of each frame's closest surface \
+                        point blended in time (the paper used its simulation's grid, see the \
+                        velocity row). Not in `--preset paper` yet: its cost at the papers' \
+                        point counts is not measured, and the preset keeps the back-tracking \
+                        until it is.",
+        key: Some("optimization.transport"),
+        flag: Some("--transport grid"),
         preset: "",
-        effect: "Not measured.",
-        measure: "None yet: needs the switch. The back-tracking by `cargo test -p fluidtex \
-                  --lib colour_transport_moves_the_texture_by_the_translation`",
-        pinned_by: "methods::optimization::tests::colour_transport_moves_the_texture_by_the_translation",
+        effect: "Not measured on the scenes yet. Exact on a translation (a unit test); a \
+                 characteristic longer than the band (12 point spacings a frame) keeps the band \
+                 edge's coordinates, which the synthesis then pastes over.",
+        measure: "`fluidtex compare --scenes vortex --frames 0-11 --methods optimization --out \
+                  cmp`, without and with `--config P`, P: `optimization.transport = \"grid\"`; \
+                  `cargo test -p fluidtex --lib grid_colour_transport`",
+        pinned_by: "",
     },
     Departure {
         method: "optimization",
@@ -247,17 +256,22 @@ pub(super) const ROWS: &[Departure] = &[
                the carried field interpolated up and re-smoothed \
                (`orientation_iterations` steps a level), as on a first frame.",
         paper_setting: "Eq. 4 (vector advection) solved by upwind differencing on the grid, \
-                        after extending the field off the surface, at every point. No switch \
-                        yet: it needs a narrow-band grid around the surface, planned with the \
-                        velocity-grid reader; `--preset paper` keeps ours.",
+                        after extending the field off the surface, at every point. \
+                        `transport = grid` (the colour row's switch) solves it on the narrow \
+                        band at the finest point spacing, the field extended as the closest \
+                        previous surface point's, the advection and stretching terms \
+                        alternated each step; the result is then read at the coarsest level's \
+                        points and re-smoothed up the hierarchy, as with ours.",
         key: None,
-        flag: None,
+        flag: Some("--transport grid"),
         preset: "",
-        effect: "Not measured. Orientation detail finer than 4 h is not carried from frame to \
-                 frame; the smoothing would remove most of it anyway.",
-        measure: "None yet: needs the switch. The level and the vector by `cargo test -p \
-                  fluidtex --lib the_orientation_is_carried_on_the_coarsest_level_only`, the \
-                  rotation by `orientation_transport_rotates_with_a_rigid_rotation`",
+        effect: "Not measured on the scenes yet. Orientation detail finer than 4 h is not \
+                 carried from frame to frame by ours; the grid carries it at h but the \
+                 pipeline then reads it at the coarsest level.",
+        measure: "The level and the vector by `cargo test -p fluidtex --lib \
+                  the_orientation_is_carried_on_the_coarsest_level_only`, the rotation by \
+                  `orientation_transport_rotates_with_a_rigid_rotation` and \
+                  `grid_orientation_turns_with_a_rigid_rotation`",
         pinned_by: "methods::optimization::behaviour_tests::the_orientation_is_carried_on_the_coarsest_level_only",
     },
     Departure {

@@ -11,7 +11,9 @@
 //!    repulsion and re-tiled, the paper's placement.
 //! 2. [`transport`]: the previous frame's colours (all channels) and
 //!    orientations carried to the new points through the flow (Sec. VI,
-//!    Eqs. 3–4).
+//!    Eqs. 3–4): back-tracked through the mesh velocities, or with
+//!    `transport = "grid"` advected on a narrow-band grid as the paper
+//!    does ([`grid`]).
 //! 3. [`orientation`]: the orientation field smoothed coarse to fine
 //!    (Sec. IV-B), from the transported field or, on a fresh surface, from
 //!    a reference field; by projection, or through [`polar`] maps.
@@ -35,6 +37,9 @@
 pub mod cluster;
 #[cfg(test)]
 mod cluster_tests;
+pub mod grid;
+#[cfg(test)]
+mod grid_tests;
 pub mod histogram;
 pub mod lattice;
 pub mod level;
@@ -64,7 +69,7 @@ use serde::{Deserialize, Serialize};
 
 use self::lattice::{Lattice, Level};
 use self::neighbourhood::Window;
-pub use self::params::{Histogram, OptimizationParams, Placement, Search};
+pub use self::params::{Histogram, OptimizationParams, Placement, Search, Transport};
 use self::search::{SearchIndex, WorkingExemplar};
 use super::{ChannelSpec, FrameContext, FrameResult, Method, MethodError, StageClock};
 use crate::exemplar::Exemplar;
@@ -498,6 +503,25 @@ impl Optimization {
             channels: self.exemplar.total_channels(),
             orientation: &orientation,
         };
+        if self.params.transport == Transport::Grid && h > 0.0 {
+            let (colours, missing, coarse_orientation, grid) = grid::transport(
+                &lattice.positions,
+                &coarsest.positions,
+                &coarsest.normals,
+                &old,
+                &cur,
+                ctx.dt,
+                h,
+                hint,
+                &previous,
+            );
+            return Ok(Some(Transported {
+                colours,
+                coarse_orientation,
+                missing,
+                grid: Some(grid),
+            }));
+        }
         let (colours, missing) = transport::colours(&lattice.positions, &back, &previous);
         let coarse_orientation = transport::orientations(
             &coarsest.positions,
@@ -511,6 +535,7 @@ impl Optimization {
             colours,
             coarse_orientation,
             missing,
+            grid: None,
         }))
     }
 
@@ -719,6 +744,8 @@ struct Transported {
     coarse_orientation: Vec<Vec3>,
     /// Points whose back-tracked position found no previous surface.
     missing: usize,
+    /// The grid transport's figures (`transport = "grid"`).
+    grid: Option<grid::GridStats>,
 }
 
 /// Splits the clock's last stage (synthesis) into building the
@@ -882,6 +909,7 @@ impl Method for Optimization {
             None => None,
         };
         let missing = carried_texture.as_ref().map_or(0, |t| t.missing);
+        let grid_stats = carried_texture.as_ref().and_then(|t| t.grid);
         let (transported, coarse_orientation) = match carried_texture {
             Some(t) => (Some(t.colours), Some(t.coarse_orientation)),
             None => (None, None),
@@ -925,6 +953,9 @@ impl Method for Optimization {
         let stats = &mut result.stats;
         stats.insert("transported".into(), carried.into());
         stats.insert("transport_missing".into(), missing.into());
+        if let Some(g) = grid_stats {
+            stats.insert("transport_grid".into(), g.json());
+        }
         stats.insert("levels".into(), serde_json::Value::Array(level_stats));
 
         self.state.m = m;

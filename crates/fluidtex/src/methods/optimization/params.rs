@@ -138,6 +138,16 @@ crate::methods::params::params! {
         #[serde(skip_serializing_if = "crate::methods::is_default")]
         pub placement: Placement = Placement::Lattice
             => "point-placement" : "optimization: points on a subdivision lattice of the fluid triangles (lattice) or random points spread by repulsion and re-tiled (repulsion, the paper's) [lattice]",
+        /// How the texture is carried to the next frame \[trace]: `trace`
+        /// back-tracks each point by RK4 through the mesh velocities and
+        /// carries the orientation as a short vector; `grid` is the paper's
+        /// (Sec. VI, Eqs. 3 and 4): the coordinate field and the extended
+        /// orientation advected by first-order upwind steps on a narrow
+        /// band of grid nodes at the point spacing
+        /// ([`grid`](super::grid)). Left out of the settings at `trace`.
+        #[serde(skip_serializing_if = "crate::methods::is_default")]
+        pub transport: Transport = Transport::Trace
+            => "transport" : "optimization: texture transport by back-tracking through the mesh velocities (trace) or the paper's upwind advection on a narrow-band grid (grid) [trace]",
         /// RK4 steps per frame for transport \[1].
         pub substeps: u32 = 1
             => "substeps" : "optimization: RK4 substeps per frame of transport [1]",
@@ -272,6 +282,25 @@ crate::named!(Search {
 fn is_default_checks(v: &u32) -> bool {
     *v == 64
 }
+
+/// How the texture is carried between frames
+/// ([`OptimizationParams::transport`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Transport {
+    /// Each point back-tracked by RK4 through the mesh velocities
+    /// ([`transport`](super::transport)).
+    #[default]
+    Trace,
+    /// Upwind advection of the coordinates and the orientation on a
+    /// narrow-band grid (the paper's, [`grid`](super::grid)).
+    Grid,
+}
+
+crate::named!(Transport {
+    Trace => "trace",
+    Grid => "grid",
+});
 
 /// Where the points go ([`OptimizationParams::placement`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]

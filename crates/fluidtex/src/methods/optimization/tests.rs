@@ -24,7 +24,7 @@ use crate::surface::SurfaceIndex;
 const TESTED_REFINE_STEPS: u32 = 2;
 
 /// A flat square \[-half, half]² in z = 0, n × n quads, velocity `f`.
-fn plane(n: usize, half: f32, f: impl Fn(Vec3) -> Vec3) -> TriMesh {
+pub(super) fn plane(n: usize, half: f32, f: impl Fn(Vec3) -> Vec3) -> TriMesh {
     let mut positions = Vec::new();
     for j in 0..=n {
         for i in 0..=n {
