@@ -113,7 +113,7 @@ impl Default for Plan {
                 Input {
                     key: "splash",
                     what: "a violent splash: a dam break and a thrown ball in a closed 2 × 1 × 1.2 \
-                           box (Mantaflow, resolution 80), 26k–40k triangles on these frames",
+                           box (Mantaflow, resolution 80), 20k–61k triangles on these frames",
                     bake: "OUT --frames 48",
                     frames: "10-21",
                 },
@@ -121,7 +121,7 @@ impl Default for Plan {
                     key: "viscous",
                     what: "a slow viscous liquid: a honey-like ball dropped on the floor of a \
                            1 × 1 × 1 box, slumping and creeping (Mantaflow with viscosity, \
-                           resolution 64)",
+                           resolution 64), about 12k triangles, moving at 1–11 cm/s",
                     bake: "OUT --scene viscous --res 64 --frames 48",
                     frames: "12-23",
                 },
@@ -144,7 +144,7 @@ impl Default for Plan {
 
 impl Plan {
     /// The `compare` arguments for `input` read from `mesh`, into `out`.
-    fn compare_args(&self, input: &Input, mesh: &str, out: PathBuf) -> CompareArgs {
+    pub(crate) fn compare_args(&self, input: &Input, mesh: &str, out: PathBuf) -> CompareArgs {
         CompareArgs {
             scenes: DEFAULT_SCENES.to_string(),
             methods: None,
@@ -179,8 +179,11 @@ impl Plan {
 }
 
 /// Every method's `--method` name, in the registry's order.
-fn all_methods() -> Vec<String> {
-    MethodKind::ALL.iter().map(|m| m.name().to_string()).collect()
+pub(crate) fn all_methods() -> Vec<String> {
+    MethodKind::ALL
+        .iter()
+        .map(|m| m.name().to_string())
+        .collect()
 }
 
 /// The SHA-256 (hex) of everything `plan` would use: the version, its
@@ -244,6 +247,14 @@ pub fn reproduce(a: &ReproduceArgs) -> Result<()> {
     let start = Instant::now();
     std::fs::create_dir_all(&a.work)
         .with_context(|| format!("cannot create {}", a.work.display()))?;
+    // A step is reused only under the same fingerprint: a changed default
+    // or preset leaves the commands as they were but not their results.
+    let print = fingerprint(&plan);
+    let stamp = a.work.join("fingerprint.txt");
+    let same = std::fs::read_to_string(&stamp).is_ok_and(|t| t.trim() == print);
+    if !same {
+        write(&stamp, format!("{print}\n").as_bytes())?;
+    }
     let mut compared = Vec::new();
     for input in &plan.inputs {
         let mesh = if input.key == "splash" {
@@ -257,15 +268,19 @@ pub fn reproduce(a: &ReproduceArgs) -> Result<()> {
         let args = plan.compare_args(input, mesh, out.clone());
         let command = compare_command_line(&args, &all_methods());
         let report_path = out.join("report.json");
-        if reusable(&report_path, &command) {
-            eprintln!("reproduce: {}: reusing {}", input.key, report_path.display());
+        if same && reusable(&report_path, &command) {
+            eprintln!(
+                "reproduce: {}: reusing {}",
+                input.key,
+                report_path.display()
+            );
         } else {
             compare(&args).with_context(|| format!("comparing on {}", input.key))?;
         }
         let report = read_json(&report_path)?;
         compared.push((*input, files, report, out));
     }
-    let timings = run_timings(&plan, &a.work)?;
+    let timings = run_timings(&plan, &a.work, same)?;
     let text = report::render(&plan, &fingerprint(&plan), &compared, &timings, &a.out)?;
     write(&a.out, text.as_bytes())?;
     eprintln!(
@@ -280,7 +295,11 @@ pub fn reproduce(a: &ReproduceArgs) -> Result<()> {
 fn reusable(report: &Path, command: &str) -> bool {
     read_json(report)
         .ok()
-        .and_then(|v| v.get("command").and_then(|c| c.as_str()).map(|c| c == command))
+        .and_then(|v| {
+            v.get("command")
+                .and_then(|c| c.as_str())
+                .map(|c| c == command)
+        })
         .unwrap_or(false)
 }
 
@@ -290,8 +309,7 @@ fn write(path: &Path, bytes: &[u8]) -> Result<()> {
 }
 
 fn read_json(path: &Path) -> Result<serde_json::Value> {
-    let text =
-        std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let text = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
     serde_json::from_slice(&text).with_context(|| format!("{}: not valid JSON", path.display()))
 }
 
@@ -313,11 +331,13 @@ fn input_files(pattern: &str, range: FrameRange) -> Result<Vec<(String, String)>
     Ok(out)
 }
 
-/// Runs (or reuses, from `work/timings.json`) every timing of `plan`.
-fn run_timings(plan: &Plan, work: &Path) -> Result<BTreeMap<String, TimingResult>> {
+/// Runs (or, with `reuse`, takes from `work/timings.json`) every timing
+/// of `plan`.
+fn run_timings(plan: &Plan, work: &Path, reuse: bool) -> Result<BTreeMap<String, TimingResult>> {
     let path = work.join("timings.json");
     let mut kept: BTreeMap<String, TimingResult> = read_json(&path)
         .ok()
+        .filter(|_| reuse)
         .and_then(|v| serde_json::from_value(v).ok())
         .unwrap_or_default();
     for t in &plan.timings {
