@@ -78,6 +78,16 @@ fn variant_rows(
     rows
 }
 
+/// One row per input and variant with a "median (worst)" cell for each
+/// (method, metric key, decimals) of `spec`.
+fn metric_rows(compared: &[Compared], spec: &[(&str, &str, usize)]) -> Vec<Vec<String>> {
+    variant_rows(compared, |r, name| {
+        spec.iter()
+            .map(|&(m, key, digits)| cell(metric(r, &name(m), key), digits))
+            .collect()
+    })
+}
+
 /// The medians of `key` for `a` and `b` on every input and variant, as
 /// (input and variant, a's, b's), where both were measured.
 fn pairs(compared: &[Compared], a: &str, b: &str, key: &str) -> Vec<(String, f64, f64)> {
@@ -263,14 +273,15 @@ fn section_2021(s: &mut String, compared: &[Compared], timings: &BTreeMap<String
          14, a picture): erosion shows one patch per texel, so no ghosting; the 2019 blend \
          ghosts and washes the exemplar out.\n\n",
     );
-    let rows = variant_rows(compared, |r, name| {
-        vec![
-            cell(metric(r, &name("erosion"), "ghosting"), 3),
-            cell(metric(r, &name("blend-deformable"), "ghosting"), 3),
-            cell(metric(r, &name("erosion"), "contrast"), 3),
-            cell(metric(r, &name("blend-deformable"), "contrast"), 3),
-        ]
-    });
+    let rows = metric_rows(
+        compared,
+        &[
+            ("erosion", "ghosting", 3),
+            ("blend-deformable", "ghosting", 3),
+            ("erosion", "contrast", 3),
+            ("blend-deformable", "contrast", 3),
+        ],
+    );
     table(
         s,
         &[
@@ -310,15 +321,17 @@ fn against_2016(s: &mut String, compared: &[Compared]) {
          picture): rigid 2016 patches do not follow the flow; erosion's deform with it, \
          stretched at most to δ_max = 3.\n\n",
     );
-    let rows = variant_rows(compared, |r, name| {
-        let mut row = Vec::new();
-        for m in ["erosion", "lapped-rigid"] {
-            row.push(cell(metric(r, &name(m), "distortion"), 2));
-            row.push(cell(metric(r, &name(m), "flow_epe"), 2));
-            row.push(cell(metric(r, &name(m), "popping"), 3));
-        }
-        row
-    });
+    let rows = metric_rows(
+        compared,
+        &[
+            ("erosion", "distortion", 2),
+            ("erosion", "flow_epe", 2),
+            ("erosion", "popping", 3),
+            ("lapped-rigid", "distortion", 2),
+            ("lapped-rigid", "flow_epe", 2),
+            ("lapped-rigid", "popping", 3),
+        ],
+    );
     table(
         s,
         &[
@@ -355,14 +368,15 @@ fn figure_16(s: &mut String, compared: &[Compared]) {
          the texture's image motion and the true motion, and the share of pixels within the \
          aligned tolerance; `advect`, which carries every texel exactly, is the reference.\n\n",
     );
-    let rows = variant_rows(compared, |r, name| {
-        vec![
-            cell(metric(r, &name("erosion"), "flow_epe"), 2),
-            cell(metric(r, &name("erosion"), "flow_aligned"), 3),
-            cell(metric(r, &name("advect"), "flow_epe"), 2),
-            cell(metric(r, &name("advect"), "flow_aligned"), 3),
-        ]
-    });
+    let rows = metric_rows(
+        compared,
+        &[
+            ("erosion", "flow_epe", 2),
+            ("erosion", "flow_aligned", 3),
+            ("advect", "flow_epe", 2),
+            ("advect", "flow_aligned", 3),
+        ],
+    );
     table(
         s,
         &[
@@ -389,7 +403,16 @@ fn figure_16(s: &mut String, compared: &[Compared]) {
 
 /// The paper's Table 1 rows: (timing id, scene, polys, patches, advection,
 /// creation, update, total).
-type Table1Row = (&'static str, &'static str, &'static str, &'static str, f64, f64, f64, f64);
+type Table1Row = (
+    &'static str,
+    &'static str,
+    &'static str,
+    &'static str,
+    f64,
+    f64,
+    f64,
+    f64,
+);
 
 const TABLE_1_2021: &[Table1Row] = &[
     (
