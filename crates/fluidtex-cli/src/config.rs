@@ -1087,6 +1087,7 @@ mod tests {
                 "polar",
                 "kept",
                 "repulsion",
+                "grid",
                 "3,3,3",
             ]
             .iter()
