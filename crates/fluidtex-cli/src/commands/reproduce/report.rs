@@ -78,14 +78,19 @@ fn variant_rows(
     rows
 }
 
-/// One row per input and variant with a "median (worst)" cell for each
-/// (method, metric key, decimals) of `spec`.
-fn metric_rows(compared: &[Compared], spec: &[(&str, &str, usize)]) -> Vec<Vec<String>> {
-    variant_rows(compared, |r, name| {
+/// A table with one row per input and variant and, for each column of
+/// `spec` (method, metric key, decimals, header), that metric's "median
+/// (worst)" cell.
+fn comparison_table(s: &mut String, compared: &[Compared], spec: &[(&str, &str, usize, &str)]) {
+    let rows = variant_rows(compared, |r, name| {
         spec.iter()
-            .map(|&(m, key, digits)| cell(metric(r, &name(m), key), digits))
+            .map(|&(m, key, digits, _)| cell(metric(r, &name(m), key), digits))
             .collect()
-    })
+    });
+    let header: Vec<&str> = std::iter::once("input")
+        .chain(spec.iter().map(|c| c.3))
+        .collect();
+    table(s, &header, &rows);
 }
 
 /// The medians of `key` for `a` and `b` on every input and variant, as
@@ -273,25 +278,15 @@ fn section_2021(s: &mut String, compared: &[Compared], timings: &BTreeMap<String
          14, a picture): erosion shows one patch per texel, so no ghosting; the 2019 blend \
          ghosts and washes the exemplar out.\n\n",
     );
-    let rows = metric_rows(
+    comparison_table(
+        s,
         compared,
         &[
-            ("erosion", "ghosting", 3),
-            ("blend-deformable", "ghosting", 3),
-            ("erosion", "contrast", 3),
-            ("blend-deformable", "contrast", 3),
+            ("erosion", "ghosting", 3, "erosion ghost fraction"),
+            ("blend-deformable", "ghosting", 3, "blend ghost fraction"),
+            ("erosion", "contrast", 3, "erosion contrast"),
+            ("blend-deformable", "contrast", 3, "blend contrast"),
         ],
-    );
-    table(
-        s,
-        &[
-            "input",
-            "erosion ghost fraction",
-            "blend ghost fraction",
-            "erosion contrast",
-            "blend contrast",
-        ],
-        &rows,
     );
     lower_everywhere(
         s,
@@ -321,29 +316,17 @@ fn against_2016(s: &mut String, compared: &[Compared]) {
          picture): rigid 2016 patches do not follow the flow; erosion's deform with it, \
          stretched at most to δ_max = 3.\n\n",
     );
-    let rows = metric_rows(
+    comparison_table(
+        s,
         compared,
         &[
-            ("erosion", "distortion", 2),
-            ("erosion", "flow_epe", 2),
-            ("erosion", "popping", 3),
-            ("lapped-rigid", "distortion", 2),
-            ("lapped-rigid", "flow_epe", 2),
-            ("lapped-rigid", "popping", 3),
+            ("erosion", "distortion", 2, "erosion distortion p95"),
+            ("erosion", "flow_epe", 2, "erosion flow EPE (px)"),
+            ("erosion", "popping", 3, "erosion popping"),
+            ("lapped-rigid", "distortion", 2, "2016 distortion p95"),
+            ("lapped-rigid", "flow_epe", 2, "2016 flow EPE (px)"),
+            ("lapped-rigid", "popping", 3, "2016 popping"),
         ],
-    );
-    table(
-        s,
-        &[
-            "input",
-            "erosion distortion p95",
-            "erosion flow EPE (px)",
-            "erosion popping",
-            "2016 distortion p95",
-            "2016 flow EPE (px)",
-            "2016 popping",
-        ],
-        &rows,
     );
     lower_everywhere(
         s,
@@ -368,25 +351,15 @@ fn figure_16(s: &mut String, compared: &[Compared]) {
          the texture's image motion and the true motion, and the share of pixels within the \
          aligned tolerance; `advect`, which carries every texel exactly, is the reference.\n\n",
     );
-    let rows = metric_rows(
+    comparison_table(
+        s,
         compared,
         &[
-            ("erosion", "flow_epe", 2),
-            ("erosion", "flow_aligned", 3),
-            ("advect", "flow_epe", 2),
-            ("advect", "flow_aligned", 3),
+            ("erosion", "flow_epe", 2, "erosion EPE (px)"),
+            ("erosion", "flow_aligned", 3, "erosion aligned share"),
+            ("advect", "flow_epe", 2, "advect EPE (px)"),
+            ("advect", "flow_aligned", 3, "advect aligned share"),
         ],
-    );
-    table(
-        s,
-        &[
-            "input",
-            "erosion EPE (px)",
-            "erosion aligned share",
-            "advect EPE (px)",
-            "advect aligned share",
-        ],
-        &rows,
     );
     let gaps: Vec<String> = pairs(compared, "erosion", "advect", "flow_epe")
         .iter()
